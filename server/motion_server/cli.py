@@ -1,0 +1,81 @@
+"""``motion-server``: run the server, check a site map."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import sys
+
+from . import __version__, config
+from .runtime import ClockMode, Runtime
+
+log = logging.getLogger("motion_server")
+
+
+def _load(path: str | None) -> config.SiteMap:
+    try:
+        return config.load(path)
+    except config.SiteMapError as exc:
+        raise SystemExit(f"motion-server: site map error:\n{exc}") from None
+
+
+async def _serve(rt: Runtime) -> None:
+    rt.install_signal_handlers()
+    await rt.run()
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    site = _load(args.map)
+    rt = Runtime(site)
+    if args.clock:
+        rt.set_mode(ClockMode[args.clock.upper()])
+    if args.scale:
+        rt.scale = args.scale
+    log.info("site map %s", site.source)
+    asyncio.run(_serve(rt))
+    log.info("stopped")
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    site = _load(args.map)
+    system = site.build()
+    print(
+        f"{site.source}: ok: {len(system.ctl.axes)} axes, {len(system.ctl.groups)} groups, "
+        f"{len(system.instances)} instruction instances"
+    )
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="motion-server", description=__doc__)
+    p.add_argument("--version", action="version", version=f"motion-server {__version__}")
+    p.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
+    sub = p.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run the server (the demo map when no MAP is given)")
+    run.add_argument("map", nargs="?", help="site map (TOML)")
+    run.add_argument(
+        "--clock",
+        choices=["realtime", "scaled", "manual"],
+        help="override the site map's clock mode",
+    )
+    run.add_argument("--scale", type=float, help="simulated seconds per real second (scaled)")
+    run.set_defaults(func=cmd_run)
+    chk = sub.add_parser("check", help="validate a site map and exit")
+    chk.add_argument("map", nargs="?", help="site map (TOML)")
+    chk.set_defaults(func=cmd_check)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
+    result: int = args.func(args)
+    return result
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,302 @@
+"""Site maps: TOML files naming the axes, groups and instruction instances of a site.
+
+Validated with pydantic; every error names the file, the line and the field. The demo
+map embedded in the package (``data/demo.toml``) is what ``motion-server run`` uses when
+given none.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from enum import Enum
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from .instructions import MotionSystem, catalog
+from .kernel import (
+    AxisConfig,
+    AxisType,
+    ConfigError,
+    Controller,
+    FeedbackSignal,
+    GroupConfig,
+    ProgrammedStopMode,
+)
+from .kernel.config import MAX_PERIOD, MIN_PERIOD
+
+DEMO_MAP = "demo.toml"
+NAME_RE = r"^[A-Za-z][A-Za-z0-9_]*$"
+
+
+class SiteMapError(ValueError):
+    """A site map that cannot be used; the message names file, line and field."""
+
+
+def _enum_by_name(enum: type[Enum]) -> Any:
+    def parse(value: Any) -> Any:
+        if isinstance(value, str):
+            try:
+                return enum[value.upper()]
+            except KeyError:
+                names = ", ".join(m.name.lower() for m in enum)
+                raise ValueError(f"unknown value {value!r}; expected one of: {names}") from None
+        return value
+
+    return parse
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SiteSection(_Model):
+    name: str = Field(default="site", pattern=NAME_RE)
+    namespace_uri: str = ""
+
+
+class ControllerSection(_Model):
+    clock: Literal["realtime", "scaled", "manual"] = "realtime"
+    scale: Annotated[float, Field(ge=0.1, le=100.0)] = 1.0
+    remote_clock: bool = True
+    status_log_interval: Annotated[float, Field(ge=0.0)] = 10.0
+    max_catch_up: Annotated[int, Field(ge=1, le=1000)] = 50
+
+
+class AxisSection(_Model):
+    name: str = Field(pattern=NAME_RE)
+    number: Annotated[int, Field(ge=1, le=65535)] | None = None
+    type: AxisType = AxisType.SERVO
+    units: str = "mm"
+    conversion_constant: Annotated[float, Field(gt=0.0)] = 1000.0
+    rollover: Annotated[float, Field(ge=0.0)] = 0.0
+    max_velocity: Annotated[float, Field(gt=0.0)] = 1000.0
+    max_acceleration: Annotated[float, Field(gt=0.0)] = 10000.0
+    max_deceleration: Annotated[float, Field(gt=0.0)] = 10000.0
+    max_jerk: Annotated[float, Field(ge=0.0)] = 0.0
+    programmed_stop_mode: ProgrammedStopMode = ProgrammedStopMode.FAST_STOP
+    coast_deceleration: Annotated[float, Field(ge=0.0)] = 1000.0
+    drive_bandwidth: Annotated[float, Field(gt=0.0, le=10000.0)] = 40.0
+    encoder_resolution: Annotated[float, Field(ge=0.0)] = 0.0
+    following_error_limit: Annotated[float, Field(ge=0.0)] = 0.0
+    feedback_signal: FeedbackSignal = FeedbackSignal.INPUT
+    signal_velocity: float = 0.0
+    signal_amplitude: float = 0.0
+    signal_frequency: Annotated[float, Field(ge=0.0)] = 0.0
+
+    _parse_type = field_validator("type", mode="before")(_enum_by_name(AxisType))
+    _parse_stop = field_validator("programmed_stop_mode", mode="before")(
+        _enum_by_name(ProgrammedStopMode)
+    )
+    _parse_signal = field_validator("feedback_signal", mode="before")(_enum_by_name(FeedbackSignal))
+
+
+class GroupSection(_Model):
+    name: str = Field(pattern=NAME_RE)
+    number: Annotated[int, Field(ge=1, le=255)] | None = None
+    coarse_update_period_ms: Annotated[float, Field(ge=MIN_PERIOD * 1000, le=MAX_PERIOD * 1000)] = (
+        2.0
+    )
+    axes: list[str] = Field(default_factory=list)
+
+
+class InstanceSection(_Model):
+    name: str = Field(pattern=NAME_RE)
+    type: str
+    operands: dict[str, float | int | bool] = Field(default_factory=dict)
+    #: explicit Modbus base register of the instance block (overrides the kind's default)
+    modbus_base: Annotated[int, Field(ge=0, le=65535)] | None = None
+
+    @field_validator("type")
+    @classmethod
+    def _known_type(cls, value: str) -> str:
+        types = catalog()
+        if value not in types:
+            raise ValueError(f"unknown instruction type {value!r}; known: {', '.join(types)}")
+        return value
+
+    @model_validator(mode="after")
+    def _known_operands(self) -> InstanceSection:
+        cls = catalog()[self.type]
+        names = {op.name for op in cls.OPERANDS}
+        for key in self.operands:
+            if key not in names:
+                raise ValueError(
+                    f"{self.type} has no operand {key!r}; operands: {', '.join(sorted(names))}"
+                )
+        return self
+
+
+class InstructionsSection(_Model):
+    every_type: bool = False
+    instances: list[InstanceSection] = Field(default_factory=list)
+
+
+class ModbusSection(_Model):
+    enabled: bool = True
+    host: str = "127.0.0.1"
+    port: Annotated[int, Field(ge=0, le=65535)] = 5020
+    unit_id: Annotated[int, Field(ge=0, le=255)] = 1
+    word_order: Literal["big", "little"] = "big"
+
+
+class SiteMap(_Model):
+    site: SiteSection = SiteSection()
+    controller: ControllerSection = ControllerSection()
+    axes: list[AxisSection]
+    groups: list[GroupSection]
+    instructions: InstructionsSection = InstructionsSection()
+    modbus: ModbusSection = ModbusSection()
+    #: where the map came from (for messages); not a TOML field
+    source: str = Field("<memory>", exclude=True)
+
+    # -- derived --------------------------------------------------------------------------
+    def axis_configs(self) -> list[AxisConfig]:
+        out = []
+        for i, a in enumerate(self.axes):
+            data = a.model_dump()
+            data["number"] = a.number or i + 1
+            out.append(AxisConfig(**data))
+        return out
+
+    def group_configs(self) -> list[GroupConfig]:
+        numbers = {a.name: a.number for a in self.axis_configs()}
+        return [
+            GroupConfig(
+                number=g.number or i + 1,
+                name=g.name,
+                axes=tuple(numbers[name] for name in g.axes),
+                coarse_update_period=g.coarse_update_period_ms / 1000.0,
+            )
+            for i, g in enumerate(self.groups)
+        ]
+
+    def instances(self) -> list[InstanceSection]:
+        """Declared instances, then ``<TYPE>_1`` for every type when ``every_type``."""
+        out = list(self.instructions.instances)
+        if self.instructions.every_type:
+            names = {i.name for i in out}
+            for type_name in catalog():
+                name = f"{type_name}_1"
+                if name not in names:
+                    out.append(InstanceSection(name=name, type=type_name))
+        return out
+
+    def build(self) -> MotionSystem:
+        """The controller and its instruction instances."""
+        try:
+            ctl = Controller(self.axis_configs(), self.group_configs())
+        except ConfigError as exc:
+            raise SiteMapError(f"{self.source}: {exc}") from exc
+        system = MotionSystem(ctl)
+        for inst in self.instances():
+            system.add(inst.type, inst.name, inst.operands)
+        return system
+
+    def problems(self) -> list[tuple[tuple[int | str, ...], str]]:
+        """Cross-field checks: (location, message) pairs, empty when the map is sound."""
+        out: list[tuple[tuple[int | str, ...], str]] = []
+        out += _duplicates([a.name for a in self.axes], ("axes",), "name")
+        out += _duplicates([a.number for a in self.axes], ("axes",), "number")
+        out += _duplicates([g.name for g in self.groups], ("groups",), "name")
+        out += _duplicates(
+            [i.name for i in self.instructions.instances], ("instructions", "instances"), "name"
+        )
+        known = {a.name for a in self.axes}
+        for gi, g in enumerate(self.groups):
+            for name in g.axes:
+                if name not in known:
+                    out.append((("groups", gi, "axes"), f"group {g.name}: unknown axis {name!r}"))
+        return out
+
+
+def _duplicates(
+    values: list[Any], where: tuple[str, ...], field: str
+) -> list[tuple[tuple[int | str, ...], str]]:
+    seen: set[Any] = set()
+    out: list[tuple[tuple[int | str, ...], str]] = []
+    for i, v in enumerate(values):
+        if v is None:
+            continue
+        if v in seen:
+            out.append(((*where, i, field), f"duplicate {field} {v!r}"))
+        seen.add(v)
+    return out
+
+
+# -- loading -------------------------------------------------------------------------------
+
+
+def _locate(text: str, loc: tuple[int | str, ...]) -> int:
+    """Best line number (1-based) for a pydantic error location in TOML text: the line of
+    the field's assignment, else of its table header, else of the enclosing table."""
+    lines = text.splitlines()
+    line, start, end = 1, 0, len(lines)
+    i = 0
+    while i < len(loc):
+        key = loc[i]
+        idx: int | None = None
+        if i + 1 < len(loc):
+            following = loc[i + 1]
+            if isinstance(following, int):
+                idx = following
+        i += 1 if idx is None else 2
+        if not isinstance(key, str):
+            continue
+        header = re.compile(rf"^\s*\[\[?\s*(?:[\w.]+\.)?{re.escape(key)}\s*\]\]?\s*(?:#.*)?$")
+        hits = [n for n in range(start, end) if header.match(lines[n])]
+        if hits:
+            n = hits[idx] if idx is not None and idx < len(hits) else hits[0]
+            line, start = n + 1, n + 1
+            # the table runs to the next header that is not one of its own sub-tables
+            end = next(
+                (
+                    m
+                    for m in range(start, len(lines))
+                    if lines[m].lstrip().startswith("[") and f"{key}." not in lines[m]
+                ),
+                len(lines),
+            )
+            continue
+        assign = re.compile(rf"^\s*{re.escape(key)}\s*=")
+        n2 = next((m for m in range(start, end) if assign.match(lines[m])), None)
+        if n2 is None:
+            break
+        line = n2 + 1
+    return line
+
+
+def parse(text: str, source: str = "<memory>") -> SiteMap:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SiteMapError(f"{source}: invalid TOML: {exc}") from exc
+    try:
+        site = SiteMap.model_validate({**data, "source": source})
+    except ValidationError as exc:
+        found = [(tuple(e["loc"]), e["msg"].removeprefix("Value error, ")) for e in exc.errors()]
+    else:
+        found = site.problems()
+    if found:
+        lines = []
+        for loc, msg in found:
+            field = ".".join(str(p) for p in loc) or "(top level)"
+            lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
+        raise SiteMapError("\n".join(lines))
+    return site
+
+
+def load(path: str | Path | None = None) -> SiteMap:
+    """Load a site map file, or the embedded demo map when ``path`` is None."""
+    if path is None:
+        text = resources.files("motion_server").joinpath("data", DEMO_MAP).read_text("utf-8")
+        return parse(text, f"<embedded {DEMO_MAP}>")
+    p = Path(path)
+    try:
+        text = p.read_text("utf-8")
+    except OSError as exc:
+        raise SiteMapError(f"{p}: cannot read site map: {exc.strerror}") from exc
+    return parse(text, str(p))

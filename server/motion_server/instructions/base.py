@@ -1,0 +1,319 @@
+"""The instruction framework: operands latched on the trigger's edge, dialect status rules.
+
+Each cycle the system calls :meth:`Instruction.scan` on every instance (edge detection,
+operand snapshot, execution), steps the kernel, then calls :meth:`Instruction.update`
+(status from the processes the instance started). Subclasses implement ``execute`` (act on
+``self.op``, the latched operands) and ``poll`` (follow their processes).
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum, StrEnum
+from typing import Any, ClassVar
+
+from ..kernel import Axis, Controller, ErrorCode, MotionError
+from ..kernel.group import MotionGroup
+from .schema import Kind, Operand, StatusField, TagType, coerce
+from .status import LOGIX_STATUS, PLCOPEN_STATUS, LogixBit
+
+
+class Dialect(StrEnum):
+    LOGIX = "logix"
+    PLCOPEN = "plcopen"
+
+
+class TransitionError(RuntimeError):
+    """An event that the state table does not allow in the current state."""
+
+
+class Instruction:
+    TYPE: ClassVar[str] = ""
+    DIALECT: ClassVar[Dialect]
+    DESCRIPTION: ClassVar[str] = ""
+    OPERANDS: ClassVar[tuple[Operand, ...]] = ()
+    #: outputs beyond the dialect's common status fields
+    OUTPUTS: ClassVar[tuple[StatusField, ...]] = ()
+    TRIGGER: ClassVar[str] = "Execute"
+    COMMON_STATUS: ClassVar[tuple[StatusField, ...]] = ()
+
+    def __init__(self, name: str, ctl: Controller, defaults: dict[str, Any] | None = None) -> None:
+        self.name = name
+        self.ctl = ctl
+        self.inputs: dict[str, Any] = {op.name: coerce(op.type, op.default) for op in self.OPERANDS}
+        self.inputs[self.TRIGGER] = False
+        for key, value in (defaults or {}).items():
+            op = self.operand(key)
+            self.inputs[key] = coerce(op.type, value)
+        self.outputs: dict[str, Any] = {
+            f.name: coerce(f.type, f.default) for f in self.status_fields()
+        }
+        self.op: dict[str, Any] = dict(self.inputs)
+        self._last_trigger = False
+
+    # -- schema ---------------------------------------------------------------------------
+    @classmethod
+    def status_fields(cls) -> tuple[StatusField, ...]:
+        return cls.COMMON_STATUS + cls.OUTPUTS
+
+    @classmethod
+    def trigger_operand(cls) -> Operand:
+        return Operand(cls.TRIGGER, TagType.BOOL, False, description="trigger (rising edge)")
+
+    @classmethod
+    def input_operands(cls) -> tuple[Operand, ...]:
+        return (cls.trigger_operand(), *cls.OPERANDS)
+
+    @classmethod
+    def operand(cls, name: str) -> Operand:
+        for op in cls.input_operands():
+            if op.name == name:
+                return op
+        raise KeyError(f"{cls.TYPE} has no operand {name!r}")
+
+    # -- operand access -------------------------------------------------------------------
+    def latch(self) -> None:
+        self.op = dict(self.inputs)
+
+    def validate(self) -> None:
+        """Judge the latched operands: out of range -> ERR 13 naming the operand."""
+        for i, op in enumerate(self.OPERANDS):
+            value = self.op[op.name]
+            if op.kind == Kind.AXIS:
+                try:
+                    self.ctl.axis(int(value))
+                except MotionError:
+                    raise OperandError(ErrorCode.AXIS_NOT_CONFIGURED, i, op) from None
+            elif op.kind == Kind.GROUP:
+                try:
+                    self.ctl.group(int(value))
+                except MotionError:
+                    raise OperandError(ErrorCode.GROUP_NOT_CONFIGURED, i, op) from None
+            elif not op.check(value):
+                raise OperandError(ErrorCode.PARAMETER_OUT_OF_RANGE, i, op)
+
+    def axis(self, name: str = "Axis") -> Axis:
+        return self.ctl.axis(int(self.op[name]))
+
+    def group(self, name: str = "Group") -> MotionGroup:
+        return self.ctl.group(int(self.op[name]))
+
+    def operand_index(self, name: str) -> int:
+        for i, op in enumerate(self.OPERANDS):
+            if op.name == name:
+                return i
+        raise KeyError(name)
+
+    def out_of_range(self, name: str, message: str = "") -> OperandError:
+        """Build the ERR 13 error for operand ``name`` (raise it from ``execute``)."""
+        i = self.operand_index(name)
+        return OperandError(ErrorCode.PARAMETER_OUT_OF_RANGE, i, self.OPERANDS[i], message)
+
+    # -- cycle ----------------------------------------------------------------------------
+    def scan(self) -> None:
+        raise NotImplementedError
+
+    def update(self) -> None:
+        raise NotImplementedError
+
+    def execute(self) -> None:
+        raise NotImplementedError
+
+    def poll(self) -> None:
+        """Follow the processes this instance started (after the kernel step)."""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+class OperandError(MotionError):
+    """An operand judged at execution: carries its index for EXERR."""
+
+    def __init__(self, code: ErrorCode, index: int, operand: Operand, message: str = "") -> None:
+        self.index = index
+        self.operand = operand
+        super().__init__(code, message or f"operand {operand.name} out of range")
+
+
+# -- Logix ---------------------------------------------------------------------------------
+
+
+class RungEvent(IntEnum):
+    RISING = 0
+    HIGH = 1
+    LOW = 2
+
+
+#: (previous rung, rung) -> event; a transitional instruction executes on RISING only
+RUNG_EVENTS: dict[tuple[bool, bool], RungEvent] = {
+    (False, True): RungEvent.RISING,
+    (True, True): RungEvent.HIGH,
+    (True, False): RungEvent.LOW,
+    (False, False): RungEvent.LOW,
+}
+
+
+class LogixInstruction(Instruction):
+    """Transitional Logix instruction: ``Execute`` is the rung-condition-in.
+
+    Rising edge: EN set, DN/ER/PC cleared, operands latched and judged, then executed.
+    Rung false: EN cleared once DN or ER is set (the seeds' execution table).
+    """
+
+    DIALECT = Dialect.LOGIX
+    COMMON_STATUS = LOGIX_STATUS
+    #: position of the Motion Control operand in the instruction's ST signature; EXERR
+    #: counts it, so operands after it are numbered one higher
+    MOTION_CONTROL_INDEX: ClassVar[int] = 1
+
+    def bit(self, name: str) -> bool:
+        return bool(self.outputs[name])
+
+    def set_bits(self, **bits: bool) -> None:
+        for name, value in bits.items():
+            self.outputs[name] = bool(value)
+        flags = 0
+        for b in LogixBit:
+            if self.outputs[b.name]:
+                flags |= 1 << int(b)
+        self.outputs["FLAGS"] = flags
+
+    def fail(self, code: int, exerr: int = 0) -> None:
+        self.outputs["ERR"] = int(code)
+        self.outputs["EXERR"] = int(exerr)
+        self.set_bits(ER=True, DN=False, IP=False, PC=False, AC=False)
+
+    def scan(self) -> None:
+        rung = bool(self.inputs[self.TRIGGER])
+        event = RUNG_EVENTS[(self._last_trigger, rung)]
+        self._last_trigger = rung
+        if event == RungEvent.RISING:
+            self.set_bits(EN=True, DN=False, ER=False, PC=False)
+            self.outputs["ERR"] = 0
+            self.outputs["EXERR"] = 0
+            self.latch()
+            try:
+                self.validate()
+                self.execute()
+            except OperandError as exc:
+                idx = exc.index + (1 if exc.index >= self.MOTION_CONTROL_INDEX else 0)
+                self.fail(exc.code, idx if exc.code == ErrorCode.PARAMETER_OUT_OF_RANGE else 0)
+            except MotionError as exc:
+                self.fail(exc.code)
+        elif event == RungEvent.LOW and (self.bit("DN") or self.bit("ER")):
+            self.set_bits(EN=False)
+
+    def update(self) -> None:
+        if self.bit("IP") or self.bit("AC"):
+            self.poll()
+
+
+# -- PLCopen -------------------------------------------------------------------------------
+
+
+class BlockState(IntEnum):
+    IDLE = 0
+    BUSY = 1
+    DONE = 2
+    ABORTED = 3
+    ERROR = 4
+
+
+class BlockEvent(IntEnum):
+    START = 0
+    COMPLETE = 1
+    ABORT = 2
+    FAIL = 3
+    RELEASE = 4
+
+
+_TERMINAL = (BlockState.DONE, BlockState.ABORTED, BlockState.ERROR)
+
+#: the PLCopen block state table: (state, event) -> next state
+BLOCK_TRANSITIONS: dict[tuple[BlockState, BlockEvent], BlockState] = {
+    (BlockState.IDLE, BlockEvent.START): BlockState.BUSY,
+    (BlockState.IDLE, BlockEvent.FAIL): BlockState.ERROR,
+    (BlockState.BUSY, BlockEvent.START): BlockState.BUSY,
+    (BlockState.BUSY, BlockEvent.COMPLETE): BlockState.DONE,
+    (BlockState.BUSY, BlockEvent.ABORT): BlockState.ABORTED,
+    (BlockState.BUSY, BlockEvent.FAIL): BlockState.ERROR,
+    **{(s, BlockEvent.START): BlockState.BUSY for s in _TERMINAL},
+    **{(s, BlockEvent.FAIL): BlockState.ERROR for s in _TERMINAL},
+    **{(s, BlockEvent.RELEASE): BlockState.IDLE for s in _TERMINAL},
+}
+
+
+class PLCopenBlock(Instruction):
+    """PLCopen function block: inputs latched on the rising edge of ``Execute``.
+
+    Done, Error and CommandAborted are mutually exclusive; each is held until Execute
+    falls, and shown for at least one cycle even when Execute dropped earlier.
+    """
+
+    DIALECT = Dialect.PLCOPEN
+    COMMON_STATUS = PLCOPEN_STATUS
+
+    def __init__(self, name: str, ctl: Controller, defaults: dict[str, Any] | None = None) -> None:
+        super().__init__(name, ctl, defaults)
+        self.state = BlockState.IDLE
+        self.active = False
+        self._shown = False
+
+    def fire(self, event: BlockEvent) -> None:
+        nxt = BLOCK_TRANSITIONS.get((self.state, event))
+        if nxt is None:
+            raise TransitionError(
+                f"{self.TYPE} {self.name}: no transition for {event.name} in "
+                f"state {self.state.name}"
+            )
+        self.state = nxt
+        self._shown = False
+        if nxt != BlockState.BUSY:
+            self.active = False
+
+    def fail(self, code: int) -> None:
+        self.fire(BlockEvent.FAIL)
+        self.outputs["ErrorID"] = int(code)
+
+    def scan(self) -> None:
+        ex = bool(self.inputs[self.TRIGGER])
+        rising = ex and not self._last_trigger
+        self._last_trigger = ex
+        if rising:
+            self.outputs["ErrorID"] = 0
+            self.on_restart()
+            self.latch()
+            try:
+                self.validate()
+                self.execute()
+            except MotionError as exc:
+                self.fail(exc.code)
+        elif not ex and self.state in _TERMINAL and self._shown:
+            self.fire(BlockEvent.RELEASE)
+            self.outputs["ErrorID"] = 0
+            self.on_release()
+        self._publish()
+
+    def update(self) -> None:
+        if self.state == BlockState.BUSY:
+            self.poll()
+        if self.state in _TERMINAL:
+            self._shown = True  # published at the end of this cycle: visible at least once
+        self._publish()
+
+    def on_restart(self) -> None:
+        """A new rising edge arrived (before the operands are latched)."""
+
+    def on_release(self) -> None:
+        """Terminal outputs were cleared after Execute fell."""
+
+    def _publish(self) -> None:
+        s = self.state
+        self.outputs["Busy"] = s == BlockState.BUSY
+        self.outputs["Active"] = s == BlockState.BUSY and self.active
+        self.outputs["Done"] = s == BlockState.DONE
+        self.outputs["CommandAborted"] = s == BlockState.ABORTED
+        self.outputs["Error"] = s == BlockState.ERROR
+        self.publish_extra()
+
+    def publish_extra(self) -> None:
+        """Set block-specific outputs (InVelocity, InGear ...) from the state."""

@@ -1,0 +1,97 @@
+"""Speed, acceleration and jerk operands as Logix and PLCopen express them.
+
+Logix gives each rate with a units selector (units per second, % of the axis maximum,
+...). These helpers turn the latched operands into kernel :class:`Limits`, raising the
+ERR 13 of the operand at fault.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import TYPE_CHECKING
+
+from ..kernel import Axis, Limits
+
+if TYPE_CHECKING:
+    from .base import Instruction
+
+
+class SpeedUnits(IntEnum):
+    UNITS_PER_SEC = 0
+    PERCENT_OF_MAXIMUM = 1
+
+
+class AccelUnits(IntEnum):
+    UNITS_PER_SEC2 = 0
+    PERCENT_OF_MAXIMUM = 1
+
+
+class JerkUnits(IntEnum):
+    UNITS_PER_SEC3 = 0
+    PERCENT_OF_MAXIMUM = 1
+    PERCENT_OF_TIME = 2
+
+
+class ProfileType(IntEnum):
+    TRAPEZOIDAL = 0
+    S_CURVE = 1
+
+
+class MergeMode(IntEnum):
+    DISABLED = 0
+    ENABLED = 1
+
+
+class MergeSpeed(IntEnum):
+    PROGRAMMED = 0
+    CURRENT = 1
+
+
+def speed(inst: Instruction, ax: Axis, value: str = "Speed", units: str = "SpeedUnits") -> float:
+    v = float(inst.op[value])
+    if int(inst.op[units]) == SpeedUnits.PERCENT_OF_MAXIMUM:
+        v = v / 100.0 * ax.config.max_velocity
+    return v
+
+
+def rate(inst: Instruction, ax: Axis, value: str, units: str, maximum: float) -> float:
+    a = float(inst.op[value])
+    if int(inst.op[units]) == AccelUnits.PERCENT_OF_MAXIMUM:
+        a = a / 100.0 * maximum
+    if a <= 0.0:
+        raise inst.out_of_range(value, f"{value} must be > 0")
+    return a
+
+
+def jerk(
+    inst: Instruction, ax: Axis, value: str, speed_: float, accel: float, units: str = "JerkUnits"
+) -> float:
+    """Jerk in units/s^3; 0 means trapezoidal. % of time: the share of the ramp spent
+    changing acceleration (100 % = a triangular acceleration, jerk = a^2 / v)."""
+    j = float(inst.op[value])
+    sel = int(inst.op[units])
+    if sel == JerkUnits.PERCENT_OF_MAXIMUM:
+        if ax.config.max_jerk <= 0.0:
+            raise inst.out_of_range(value, "the axis has no maximum jerk configured")
+        j = j / 100.0 * ax.config.max_jerk
+    elif sel == JerkUnits.PERCENT_OF_TIME:
+        if j <= 0.0 or j > 100.0:
+            raise inst.out_of_range(value, "% of time must be in (0, 100]")
+        j = accel * accel / (max(speed_, 1e-12) * j / 100.0)
+    if j <= 0.0:
+        raise inst.out_of_range(value, f"{value} must be > 0 for an S-curve profile")
+    return j
+
+
+def logix_limits(inst: Instruction, ax: Axis, speed_: float) -> Limits:
+    """Limits of a Logix MAJ/MAM from Speed/Accel/Decel/Profile/Jerk operands."""
+    cfg = ax.config
+    acc = rate(inst, ax, "AccelRate", "AccelUnits", cfg.max_acceleration)
+    dec = rate(inst, ax, "DecelRate", "DecelUnits", cfg.max_deceleration)
+    j = 0.0
+    if int(inst.op["Profile"]) == ProfileType.S_CURVE:
+        ja = jerk(inst, ax, "AccelJerk", speed_, acc)
+        jd = jerk(inst, ax, "DecelJerk", speed_, dec)
+        # one jerk limit per ruckig profile: the smaller respects both operands
+        j = min(ja, jd)
+    return Limits(speed_, acc, dec, j)

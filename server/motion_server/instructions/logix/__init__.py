@@ -1,0 +1,1 @@
+"""Logix motion instructions, one module per type."""

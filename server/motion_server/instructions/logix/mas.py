@@ -1,0 +1,92 @@
+"""MAS, Motion Axis Stop: stop one kind of motion process, or all of them.
+
+DN when the stop is initiated, IP until the axis has come to rest, then PC. The
+deceleration is the axis maximum unless ChangeDecel selects DecelRate; the ramp is
+trapezoidal unless ChangeDecelJerk selects DecelJerk.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+from ...kernel import AxisType, ErrorCode, MotionError, ProcessKind
+from ..dynamics import AccelUnits, JerkUnits, rate
+from ..dynamics import jerk as jerk_of
+from ..logix_common import ProcessInstruction
+from ..operands import AXIS
+from ..registry import register
+from ..schema import Operand, Quantity, TagType
+
+
+class StopType(IntEnum):
+    ALL = 0
+    JOG = 1
+    MOVE = 2
+    GEAR = 3
+    HOME = 4
+    TUNE = 5
+    TEST = 6
+    POSITION_CAM = 7
+    TIME_CAM = 8
+    MASTER_OFFSET_MOVE = 9
+    DIRECT_CONTROL = 10
+
+
+class YesNo(IntEnum):
+    NO = 0
+    YES = 1
+
+
+STOP_KINDS: dict[StopType, tuple[ProcessKind, ...] | None] = {
+    StopType.ALL: None,
+    StopType.JOG: (ProcessKind.JOG,),
+    StopType.MOVE: (ProcessKind.MOVE,),
+    StopType.GEAR: (ProcessKind.GEAR,),
+}
+
+
+@register
+class MAS(ProcessInstruction):
+    TYPE = "MAS"
+    DESCRIPTION = "Motion Axis Stop"
+    OPERANDS = (
+        AXIS,
+        Operand("StopType", TagType.DINT, 0, enum=StopType),
+        Operand("ChangeDecel", TagType.DINT, 0, enum=YesNo),
+        Operand(
+            "DecelRate",
+            TagType.REAL,
+            100.0,
+            minimum=0.0,
+            exclusive_min=True,
+            quantity=Quantity.ACCELERATION,
+        ),
+        Operand("DecelUnits", TagType.DINT, 0, enum=AccelUnits),
+        Operand("ChangeDecelJerk", TagType.DINT, 0, enum=YesNo),
+        Operand("DecelJerk", TagType.REAL, 100.0, minimum=0.0, quantity=Quantity.JERK),
+        Operand("JerkUnits", TagType.DINT, 0, enum=JerkUnits),
+    )
+
+    def execute(self) -> None:
+        ax = self.axis()
+        if ax.type == AxisType.FEEDBACK_ONLY:
+            raise MotionError(ErrorCode.WRONG_AXIS_TYPE, f"{ax.name} is feedback only")
+        stop_type = StopType(int(self.op["StopType"]))
+        kinds = STOP_KINDS.get(stop_type, ())
+        if kinds is None:
+            moving = ax.active()
+        else:
+            moving = [p for k in kinds for p in ax.active(k)]
+        if not ax.servo_on or not moving:
+            # nothing of that kind is moving (or no process of that kind exists here):
+            # the stop is complete at once
+            self.set_bits(DN=True, PC=True)
+            return
+        cfg = ax.config
+        decel = cfg.max_deceleration
+        if int(self.op["ChangeDecel"]) == YesNo.YES:
+            decel = rate(self, ax, "DecelRate", "DecelUnits", cfg.max_deceleration)
+        j = 0.0
+        if int(self.op["ChangeDecelJerk"]) == YesNo.YES:
+            j = jerk_of(self, ax, "DecelJerk", abs(ax.command_velocity), decel)
+        self.started(self.ctl.stop(ax, kinds, decel, j, owner=self))

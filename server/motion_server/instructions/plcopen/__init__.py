@@ -1,0 +1,1 @@
+"""PLCopen motion function blocks, one module per type."""

@@ -1,0 +1,94 @@
+"""Shared shapes of PLCopen motion blocks: buffer modes and following one process."""
+
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import ClassVar
+
+from ..kernel import Axis, ErrorCode, MotionError, Pending, ProcessState
+from ..kernel.controller import ProcessFactory
+from ..kernel.processes import Process
+from .base import BlockEvent, PLCopenBlock
+from .schema import Operand, TagType
+
+
+class BufferMode(IntEnum):
+    ABORTING = 0
+    BUFFERED = 1
+
+
+class MCDirection(IntEnum):
+    POSITIVE = 1
+    SHORTEST_WAY = 2
+    NEGATIVE = 3
+    CURRENT = 4
+
+
+class MCSource(IntEnum):
+    """PLCopen MC_Source: the reverse numbering of Logix MasterReference."""
+
+    SET_VALUE = 0
+    ACTUAL_VALUE = 1
+
+
+BUFFER_MODE = Operand(
+    "BufferMode", TagType.DINT, 0, enum=BufferMode, description="0 aborting, 1 buffered"
+)
+
+
+class MotionBlock(PLCopenBlock):
+    """A block that commands one motion process on ``Axis``.
+
+    Aborting mode ends every process on the axis and inherits its velocity; buffered mode
+    waits until the active motion is done (or at speed / in sync). Busy until done,
+    aborted or failed; Active while its process runs.
+    """
+
+    #: True when the block is done as soon as its process has "reached" (InVelocity is
+    #: not Done: MC_MoveVelocity stays Busy)
+    DONE_ON_FINISH: ClassVar[bool] = True
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self.process: Process | None = None
+        self.pending: Pending | None = None
+
+    def check_axis(self, ax: Axis) -> None:
+        self.ctl.require_motion(ax)
+        if ax.stopping:
+            raise MotionError(
+                ErrorCode.NOT_ALLOWED_WHILE_STOPPING,
+                f"{ax.name} is stopping: motion commands are refused",
+            )
+
+    def begin(self, ax: Axis, make: ProcessFactory) -> None:
+        mode = int(self.op.get("BufferMode", BufferMode.ABORTING))
+        self.process = None
+        self.pending = None
+        if mode == BufferMode.BUFFERED:
+            self.pending = self.ctl.buffer(ax, make, owner=self)
+            self.process = self.pending.process
+        else:
+            self.process = self.ctl.start(ax, make, replace=None)
+        self.fire(BlockEvent.START)
+        self.active = self.process is not None
+
+    def poll(self) -> None:
+        if self.process is None and self.pending is not None:
+            if self.pending.cancelled:
+                self.pending = None
+                self.fire(BlockEvent.ABORT)
+                return
+            self.process = self.pending.process
+            if self.process is None:
+                return
+        p = self.process
+        if p is None:
+            return
+        self.active = p.active
+        if p.state == ProcessState.DONE and self.DONE_ON_FINISH:
+            self.fire(BlockEvent.COMPLETE)
+        elif p.state == ProcessState.ABORTED:
+            self.fire(BlockEvent.ABORT)
+        elif p.state == ProcessState.ERROR:
+            self.fail(p.error_code)

@@ -1,0 +1,502 @@
+"""The controller: axes, groups and one deterministic ``step()``.
+
+Sans-I/O: commands go in through methods, state comes out as plain values; simulated time
+advances exactly one base period per step. Each group steps every ``every`` ticks with its
+own coarse update period. Within a group step:
+
+1. feedback-only axes sample their input or signal (the feedback of the cycle);
+2. every axis with motion processes composes its command, masters before slaves;
+3. drives follow the command (vectorised): a critically damped second-order loop for servo
+   axes, actual = command for virtual axes, coasting at the coast deceleration for axes
+   whose drive is off; actual positions are quantised to encoder counts;
+4. following error is checked, and after-stop actions (disable, shutdown) are applied.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Iterable, Sequence
+
+import numpy as np
+
+from .axis import Axis
+from .config import MAX_PERIOD, MIN_PERIOD, AxisConfig, GroupConfig
+from .enums import (
+    AbortReason,
+    AfterStop,
+    AxisFault,
+    AxisState,
+    AxisType,
+    FeedbackSignal,
+    ProcessKind,
+    ProgrammedStopMode,
+)
+from .errors import ErrorCode, MotionError
+from .group import GroupStop, MotionGroup
+from .processes import Process, StopRamp
+
+ProcessFactory = Callable[[float, float], Process]
+
+
+class ConfigError(ValueError):
+    """The kernel configuration is inconsistent (raised at construction only)."""
+
+
+class Pending:
+    """A buffered command: started by the kernel once the axis's active motion is done."""
+
+    def __init__(self, make: ProcessFactory, owner: object = None) -> None:
+        self.make = make
+        self.owner = owner
+        self.process: Process | None = None
+        self.cancelled = False
+
+
+class Controller:
+    def __init__(self, axes: Sequence[AxisConfig], groups: Sequence[GroupConfig]) -> None:
+        if not groups:
+            raise ConfigError("at least one motion group is required")
+        self._check_unique([a.number for a in axes], "axis number")
+        self._check_unique([a.name for a in axes], "axis name")
+        self._check_unique([g.number for g in groups], "group number")
+        n = len(axes)
+        self.cmd_pos = np.zeros(n)
+        self.cmd_vel = np.zeros(n)
+        self.cmd_acc = np.zeros(n)
+        self.act_x = np.zeros(n)  # continuous drive position (unquantised)
+        self.act_pos = np.zeros(n)  # quantised feedback
+        self.act_vel = np.zeros(n)
+        self.drive_on = np.zeros(n, dtype=bool)
+        self.omega = np.array([2.0 * math.pi * max(a.drive_bandwidth, 1e-3) for a in axes])
+        self.cpu = np.array([a.counts_per_unit for a in axes])
+        self.coast = np.array([max(a.coast_deceleration, 0.0) for a in axes])
+        self.fe_limit = np.array([a.following_error_limit for a in axes])
+        self.axes: list[Axis] = [Axis(self, cfg, i) for i, cfg in enumerate(axes)]
+        self._by_number = {a.number: a for a in self.axes}
+        self._by_name = {a.name: a for a in self.axes}
+
+        periods = [g.coarse_update_period for g in groups]
+        for g in groups:
+            if not MIN_PERIOD - 1e-12 <= g.coarse_update_period <= MAX_PERIOD + 1e-12:
+                raise ConfigError(
+                    f"group {g.name}: coarse_update_period {g.coarse_update_period} s is outside "
+                    f"[{MIN_PERIOD}, {MAX_PERIOD}]"
+                )
+        self.period = min(periods)
+        self.groups: list[MotionGroup] = []
+        seen: dict[int, str] = {}
+        for g in groups:
+            every = round(g.coarse_update_period / self.period)
+            if abs(every * self.period - g.coarse_update_period) > 1e-9:
+                raise ConfigError(
+                    f"group {g.name}: period {g.coarse_update_period} s is not a multiple of "
+                    f"the fastest group period {self.period} s"
+                )
+            members = []
+            for num in g.axes:
+                if num not in self._by_number:
+                    raise ConfigError(f"group {g.name}: axis {num} is not configured")
+                if num in seen:
+                    raise ConfigError(f"axis {num} is in groups {seen[num]} and {g.name}")
+                seen[num] = g.name
+                ax = self._by_number[num]
+                ax.group = g.number
+                members.append(ax)
+            self.groups.append(MotionGroup(g, members, every))
+        orphans = [a.name for a in self.axes if a.number not in seen]
+        if orphans:
+            raise ConfigError(f"axes not in any motion group: {', '.join(orphans)}")
+        self._groups_by_number = {g.number: g for g in self.groups}
+        self.tick = 0
+        self._order_dirty = True
+
+    @staticmethod
+    def _check_unique(values: Iterable[object], what: str) -> None:
+        seen: set[object] = set()
+        for v in values:
+            if v in seen:
+                raise ConfigError(f"duplicate {what}: {v}")
+            seen.add(v)
+
+    # -- look-up ----------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        return self.tick * self.period
+
+    def axis(self, ref: int | str) -> Axis:
+        ax = self._by_number.get(ref) if isinstance(ref, int) else self._by_name.get(ref)
+        if ax is None:
+            raise MotionError(ErrorCode.AXIS_NOT_CONFIGURED, f"axis {ref} is not configured")
+        return ax
+
+    def group(self, ref: int | str) -> MotionGroup:
+        if isinstance(ref, int):
+            grp = self._groups_by_number.get(ref)
+        else:
+            grp = next((g for g in self.groups if g.name == ref), None)
+        if grp is None:
+            raise MotionError(ErrorCode.GROUP_NOT_CONFIGURED, f"group {ref} is not configured")
+        return grp
+
+    def dt(self, axis: Axis) -> float:
+        return self._groups_by_number[axis.group].period
+
+    # -- stepping ---------------------------------------------------------------------------
+    def step(self) -> None:
+        """Advance one base period."""
+        self.tick += 1
+        if self._order_dirty:
+            self._sort_groups()
+        for g in self.groups:
+            if self.tick % g.every == 0:
+                self._step_group(g)
+
+    def run(self, cycles: int) -> None:
+        for _ in range(cycles):
+            self.step()
+
+    def _step_group(self, g: MotionGroup) -> None:
+        dt = g.period
+        g.cycles += 1
+        for ax in g.feedback_axes:
+            self._sample_feedback(ax, g, dt)
+        for ax in g.order:
+            if ax.processes or ax.buffered is not None:
+                self._compose(ax, dt)
+        self._drives(g.servo_idx, dt, servo=True)
+        self._drives(g.virtual_idx, dt, servo=False)
+        self._check_following_error(g.servo_idx)
+        for ax in g.axes:
+            if ax.after_stop != AfterStop.NOTHING and not any(p.active for p in ax.processes):
+                action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
+                if action == AfterStop.DISABLE:
+                    self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
+                else:
+                    self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
+        for s in g.stops:
+            s.update()
+        g.stops = [s for s in g.stops if not s.complete]
+
+    def _compose(self, ax: Axis, dt: float) -> None:
+        keep: list[Process] = []
+        for p in ax.processes:
+            if p.active:
+                try:
+                    p.step(self, dt)
+                except MotionError as exc:
+                    p.state = p.state.ERROR
+                    p.error_code = int(exc.code)
+            if p.active:
+                keep.append(p)
+            else:
+                ax.base += p.position
+        ax.processes = keep
+        i = ax.index
+        self.cmd_pos[i] = ax.base + sum(p.position for p in keep)
+        self.cmd_vel[i] = sum(p.velocity for p in keep)
+        self.cmd_acc[i] = sum(p.acceleration for p in keep)
+        pend = ax.buffered
+        if pend is not None and all(p.reached for p in keep):
+            ax.buffered = None
+            if not pend.cancelled:
+                pend.process = self.start(
+                    ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
+                )
+
+    def _sample_feedback(self, ax: Axis, g: MotionGroup, dt: float) -> None:
+        cfg = ax.config
+        i = ax.index
+        old = float(self.act_x[i])
+        if cfg.feedback_signal == FeedbackSignal.CONSTANT_VELOCITY:
+            new = cfg.signal_velocity * g.time
+        elif cfg.feedback_signal == FeedbackSignal.SINE:
+            new = cfg.signal_amplitude * math.sin(2.0 * math.pi * cfg.signal_frequency * g.time)
+        else:
+            new = ax.feedback_input
+            if cfg.rotary:
+                # the input is a wrapped reading: unwind it against the last sample
+                delta = math.remainder(new - ax.wrap(old), cfg.rollover)
+                new = old + delta
+        q = round(new * self.cpu[i]) / self.cpu[i]
+        self.act_vel[i] = (q - self.act_pos[i]) / dt
+        self.act_x[i] = new
+        self.act_pos[i] = q
+        self.cmd_pos[i] = q
+        self.cmd_vel[i] = self.act_vel[i]
+
+    def _drives(self, idx: np.ndarray, dt: float, servo: bool) -> None:
+        if idx.size == 0:
+            return
+        on = self.drive_on[idx]
+        on_idx = idx[on]
+        off_idx = idx[~on]
+        if on_idx.size:
+            if servo:
+                c = self.cmd_pos[on_idx]
+                w = self.omega[on_idx]
+                e0 = self.act_x[on_idx] - c
+                v0 = self.act_vel[on_idx]
+                decay = np.exp(-w * dt)
+                c2 = v0 + w * e0
+                self.act_x[on_idx] = c + (e0 + c2 * dt) * decay
+                self.act_vel[on_idx] = (v0 - w * c2 * dt) * decay
+                cpu = self.cpu[on_idx]
+                self.act_pos[on_idx] = np.round(self.act_x[on_idx] * cpu) / cpu
+            else:
+                self.act_x[on_idx] = self.cmd_pos[on_idx]
+                self.act_pos[on_idx] = self.cmd_pos[on_idx]
+                self.act_vel[on_idx] = self.cmd_vel[on_idx]
+        if off_idx.size:
+            v0 = self.act_vel[off_idx]
+            speed = np.maximum(np.abs(v0) - self.coast[off_idx] * dt, 0.0)
+            v1 = np.sign(v0) * speed
+            self.act_x[off_idx] += 0.5 * (v0 + v1) * dt
+            self.act_vel[off_idx] = v1
+            if servo:
+                cpu = self.cpu[off_idx]
+                self.act_pos[off_idx] = np.round(self.act_x[off_idx] * cpu) / cpu
+            else:
+                self.act_pos[off_idx] = self.act_x[off_idx]
+            # with the drive off the command tracks the actual position
+            self.cmd_pos[off_idx] = self.act_pos[off_idx]
+            self.cmd_vel[off_idx] = v1
+            self.cmd_acc[off_idx] = 0.0
+
+    def _check_following_error(self, idx: np.ndarray) -> None:
+        if idx.size == 0:
+            return
+        lim = self.fe_limit[idx]
+        err = np.abs(self.cmd_pos[idx] - self.act_pos[idx])
+        bad = idx[self.drive_on[idx] & (lim > 0.0) & (err > lim)]
+        for i in bad:
+            self.fault(self.axes[int(i)], AxisFault.POSITION_ERROR)
+
+    def _sort_groups(self) -> None:
+        """Order each group's axes so that masters compose before their slaves."""
+        for g in self.groups:
+            order: list[Axis] = []
+            for ax in g.axes:
+                self._visit(ax, g.number, order, ())
+            g.order = order
+        self._order_dirty = False
+
+    def _visit(self, ax: Axis, group: int, order: list[Axis], path: tuple[int, ...]) -> None:
+        if ax in order or ax.number in path:
+            return
+        for p in ax.processes:
+            for m in p.masters:
+                master = self._by_number.get(m)
+                if master is not None and master.group == group:
+                    self._visit(master, group, order, (*path, ax.number))
+        order.append(ax)
+
+    def coupling_changed(self) -> None:
+        """Call after adding or removing a process that has masters."""
+        self._order_dirty = True
+
+    def would_cycle(self, slave: int, masters: Collection[int]) -> bool:
+        """True if making ``slave`` follow ``masters`` closes a loop of master/slave links."""
+        frontier = list(masters)
+        seen: set[int] = set()
+        while frontier:
+            m = frontier.pop()
+            if m == slave:
+                return True
+            if m in seen:
+                continue
+            seen.add(m)
+            ax = self._by_number.get(m)
+            if ax is not None:
+                for p in ax.processes:
+                    if p.active:
+                        frontier.extend(p.masters)
+        return False
+
+    # -- power ------------------------------------------------------------------------------
+    def _power(self, ax: Axis, state: AxisState, reason: AbortReason) -> None:
+        if state != AxisState.SERVO_CONTROL:
+            self.abort(ax, reason)
+            ax.after_stop = AfterStop.NOTHING
+        ax.state = state
+        on = state == AxisState.SERVO_CONTROL and ax.type != AxisType.FEEDBACK_ONLY
+        i = ax.index
+        if on and not self.drive_on[i]:
+            # the command starts where the axis is, at rest
+            ax.base = float(self.act_pos[i])
+            self.cmd_pos[i] = ax.base
+            self.cmd_vel[i] = 0.0
+            self.cmd_acc[i] = 0.0
+        self.drive_on[i] = on
+
+    def servo_on(self, ax: Axis) -> None:
+        """MSO / MC_Power on."""
+        if ax.type == AxisType.FEEDBACK_ONLY:
+            raise MotionError(ErrorCode.WRONG_AXIS_TYPE, f"{ax.name} is feedback only")
+        if ax.state == AxisState.AXIS_SHUTDOWN:
+            raise MotionError(ErrorCode.SHUTDOWN_STATE, f"{ax.name} is shut down")
+        if ax.state == AxisState.AXIS_FAULTED:
+            raise MotionError(ErrorCode.AXIS_FAULTED, f"{ax.name} is faulted")
+        if ax.state != AxisState.SERVO_CONTROL:
+            self._power(ax, AxisState.SERVO_CONTROL, AbortReason.NONE)
+
+    def servo_off(self, ax: Axis) -> None:
+        """MSF / MC_Power off / hard disable: drive off at once, the axis coasts."""
+        if ax.state == AxisState.SERVO_CONTROL:
+            self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
+
+    def fault(self, ax: Axis, bits: int) -> None:
+        ax.fault |= int(bits)
+        if ax.state != AxisState.AXIS_SHUTDOWN:
+            self._power(ax, AxisState.AXIS_FAULTED, AbortReason.FAULTED)
+
+    def fault_reset(self, ax: Axis) -> None:
+        """MAFR / MC_Reset: clear faults; a faulted axis returns to Axis Ready."""
+        ax.fault = 0
+        if ax.state == AxisState.AXIS_FAULTED:
+            self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
+
+    def shutdown(self, ax: Axis) -> None:
+        """MASD: Axis Shutdown at once; the drive is off and the axis coasts."""
+        self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
+
+    def shutdown_reset(self, ax: Axis) -> None:
+        """MASR: from Axis Shutdown (or faulted) to Axis Ready, faults cleared."""
+        ax.fault = 0
+        if ax.state in (AxisState.AXIS_SHUTDOWN, AxisState.AXIS_FAULTED):
+            self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
+
+    # -- motion -----------------------------------------------------------------------------
+    def require_motion(self, ax: Axis) -> None:
+        """Preconditions of every motion command, as a controller checks them."""
+        if ax.type == AxisType.FEEDBACK_ONLY:
+            raise MotionError(ErrorCode.WRONG_AXIS_TYPE, f"{ax.name} is feedback only")
+        if ax.state == AxisState.AXIS_SHUTDOWN:
+            raise MotionError(ErrorCode.SHUTDOWN_STATE, f"{ax.name} is shut down")
+        if ax.state == AxisState.AXIS_FAULTED:
+            raise MotionError(ErrorCode.AXIS_FAULTED, f"{ax.name} is faulted")
+        if ax.state != AxisState.SERVO_CONTROL:
+            raise MotionError(ErrorCode.SERVO_OFF_STATE, f"{ax.name} is not in Servo Control")
+
+    def _retire(
+        self, ax: Axis, kinds: Collection[ProcessKind] | None, reason: AbortReason
+    ) -> tuple[float, float]:
+        """Abort matching processes, fold them into ``base``; return their velocity and
+        acceleration so that a successor can inherit them."""
+        v = a = 0.0
+        keep: list[Process] = []
+        for p in ax.processes:
+            if p.active and (kinds is None or p.kind in kinds):
+                p.abort(reason)
+                v += p.velocity
+                a += p.acceleration
+            if p.active:
+                keep.append(p)
+            else:
+                ax.base += p.position
+        if len(keep) != len(ax.processes):
+            ax.processes = keep
+            self.coupling_changed()
+        return v, a
+
+    def start(
+        self,
+        ax: Axis,
+        make: ProcessFactory,
+        replace: Collection[ProcessKind] | None = (),
+        reason: AbortReason = AbortReason.SUPERSEDED,
+    ) -> Process:
+        """Start a process. ``replace`` names the kinds it supersedes (``None``: all of
+        them, the PLCopen aborting mode and Logix merge); the new process is built by
+        ``make(v, a)`` from the velocity and acceleration of what it replaces."""
+        v, a = self._retire(ax, replace, reason)
+        if replace is None and ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        p = make(v, a)
+        ax.processes.append(p)
+        if p.masters:
+            self.coupling_changed()
+        return p
+
+    def buffer(self, ax: Axis, make: ProcessFactory, owner: object = None) -> Pending:
+        """Queue ``make`` to start when the axis's active motion is done (PLCopen buffered)."""
+        if ax.buffered is not None:
+            raise MotionError(ErrorCode.BUFFER_FULL, f"{ax.name} already has a buffered command")
+        pend = Pending(make, owner)
+        if not any(p.active for p in ax.processes):
+            pend.process = self.start(ax, make, replace=None)
+        else:
+            ax.buffered = pend
+        return pend
+
+    def abort(self, ax: Axis, reason: AbortReason) -> None:
+        """End every process on the axis at once (no ramp): disable, shutdown, fault."""
+        self._retire(ax, None, reason)
+        if ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        ax.stop_latch = None
+
+    def stop(
+        self,
+        ax: Axis,
+        kinds: Collection[ProcessKind] | None,
+        deceleration: float,
+        jerk: float = 0.0,
+        owner: object = None,
+    ) -> StopRamp:
+        """Replace the matching processes by one ramp from their velocity to rest."""
+        dt = self.dt(ax)
+
+        def make(v: float, a: float) -> Process:
+            return StopRamp(dt, deceleration, jerk, v, a, owner=owner)
+
+        if deceleration <= 0.0 or not math.isfinite(deceleration):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "deceleration must be > 0")
+        if kinds is None and ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        ramp = self.start(ax, make, replace=kinds, reason=AbortReason.STOPPED)
+        assert isinstance(ramp, StopRamp)
+        return ramp
+
+    def group_stop(
+        self, ref: int | str, forced: ProgrammedStopMode | None = None, owner: object = None
+    ) -> GroupStop:
+        """Stop every axis of a group by its programmed stop mode, or by ``forced``.
+
+        Fast modes decelerate at the axis maximum deceleration, always trapezoidal; hard
+        modes turn the drive off at once and the axis coasts.
+        """
+        g = self.group(ref)
+        for ax in g.axes:
+            if ax.type == AxisType.FEEDBACK_ONLY:
+                continue
+            mode = ax.programmed_stop_mode if forced is None else forced
+            if mode in (ProgrammedStopMode.HARD_DISABLE, ProgrammedStopMode.HARD_SHUTDOWN):
+                if mode == ProgrammedStopMode.HARD_SHUTDOWN:
+                    self.shutdown(ax)
+                else:
+                    self.servo_off(ax)
+                continue
+            after = {
+                ProgrammedStopMode.FAST_STOP: AfterStop.NOTHING,
+                ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
+                ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
+            }[mode]
+            if ax.state == AxisState.SERVO_CONTROL:
+                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner)
+                ax.after_stop = after
+            elif after == AfterStop.SHUTDOWN:
+                self.shutdown(ax)
+        handle = GroupStop(g, owner)
+        handle.update()
+        if not handle.complete:
+            g.stops.append(handle)
+        return handle
+
+    def set_feedback_input(self, ax: Axis, position: float) -> None:
+        """Hand-wheel reading of a feedback-only axis (taken at the next cycle)."""
+        if not math.isfinite(position):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "feedback input must be finite")
+        ax.feedback_input = float(position)

@@ -1,0 +1,111 @@
+"""States and enumerations of the kernel, with the numbers clients see in registers."""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class AxisType(IntEnum):
+    SERVO = 0
+    VIRTUAL = 1
+    FEEDBACK_ONLY = 2
+
+
+class AxisState(IntEnum):
+    """Logix AxisState (the power state)."""
+
+    AXIS_READY = 0
+    SERVO_CONTROL = 2
+    AXIS_FAULTED = 3
+    AXIS_SHUTDOWN = 4
+
+
+class PLCopenState(IntEnum):
+    UNDEFINED = 0
+    DISABLED = 1
+    STANDSTILL = 2
+    ERRORSTOP = 3
+    STOPPING = 4
+    HOMING = 5
+    DISCRETE_MOTION = 6
+    CONTINUOUS_MOTION = 7
+    SYNCHRONIZED_MOTION = 8
+
+
+class MotionStatusBit(IntEnum):
+    """Bit numbers of the Logix MotionStatus word."""
+
+    ACCEL = 0
+    DECEL = 1
+    MOVE = 2
+    JOG = 3
+    GEARING = 4
+    HOMING = 5
+    STOPPING = 6
+    HOMED = 7
+    POSITION_CAM = 8
+    TIME_CAM = 9
+    POSITION_CAM_PENDING = 10
+    TIME_CAM_PENDING = 11
+    GEARING_LOCK = 12
+    POSITION_CAM_LOCK = 13
+
+
+class ProgrammedStopMode(IntEnum):
+    """Per-axis programmed stop action (the order is ours, see DESIGN.md)."""
+
+    FAST_STOP = 0
+    FAST_DISABLE = 1
+    HARD_DISABLE = 2
+    FAST_SHUTDOWN = 3
+    HARD_SHUTDOWN = 4
+
+
+class ProcessKind(IntEnum):
+    """Kinds of superimposed motion process; MAS stop types refer to these."""
+
+    JOG = 1
+    MOVE = 2
+    GEAR = 3
+    STOP = 4
+
+
+class ProcessState(IntEnum):
+    ACTIVE = 0
+    DONE = 1
+    ABORTED = 2
+    ERROR = 3
+
+
+class AbortReason(IntEnum):
+    NONE = 0
+    SUPERSEDED = 1
+    STOPPED = 2
+    SHUTDOWN = 3
+    FAULTED = 4
+    DISABLED = 5
+    MERGED = 6
+
+
+class FeedbackSignal(IntEnum):
+    """Source of a feedback-only axis's actual position."""
+
+    INPUT = 0
+    CONSTANT_VELOCITY = 1
+    SINE = 2
+
+
+class AxisFault(IntEnum):
+    """Bits of the AxisFault word."""
+
+    NONE = 0
+    POSITION_ERROR = 1 << 0
+    PROFILE = 1 << 1
+
+
+class AfterStop(IntEnum):
+    """What happens to the power state once a stop ramp has brought the axis to rest."""
+
+    NOTHING = 0
+    DISABLE = 1
+    SHUTDOWN = 2

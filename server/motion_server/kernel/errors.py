@@ -1,0 +1,73 @@
+"""The error table shared by both instruction dialects (the Logix ``.ERR`` numbering).
+
+PLCopen blocks report the same numbers in ``ErrorID``. Codes from 1000 up are ours and are
+documented here, in one table.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class ErrorCode(IntEnum):
+    NONE = 0
+    SERVO_ON_STATE = 4
+    SERVO_OFF_STATE = 5
+    SHUTDOWN_STATE = 7
+    WRONG_AXIS_TYPE = 8
+    MASTER_AXIS_CONFLICT = 10
+    AXIS_NOT_CONFIGURED = 11
+    PARAMETER_OUT_OF_RANGE = 13
+    AXIS_FAULTED = 20
+    GROUP_FAULTED = 21
+    AXIS_IN_MOTION = 22
+    NOT_ALLOWED_WHILE_STOPPING = 78
+    MDSC_IDLE_MASTER_AND_SLAVE_MOVING = 97
+    MDSC_INVALID_SLAVE_SPEED_REDUCTION = 103
+    MDSC_INVALID_MODE_OR_MASTER_CHANGE = 105
+    # ours (1000+)
+    GROUP_NOT_CONFIGURED = 1000
+    PROFILE_FAILED = 1001
+    COMBINED_SLAVE_GEAR_OUT = 1002
+    NOT_GEARED = 1003
+    BUFFER_FULL = 1004
+
+
+ERROR_TEXT: dict[ErrorCode, str] = {
+    ErrorCode.NONE: "no error",
+    ErrorCode.SERVO_ON_STATE: "servo on state: the axis must be disabled for this instruction",
+    ErrorCode.SERVO_OFF_STATE: "servo off state: the axis is not in Servo Control",
+    ErrorCode.SHUTDOWN_STATE: "shutdown state: the axis is shut down (reset it with MASR/MGSR)",
+    ErrorCode.WRONG_AXIS_TYPE: "illegal axis type for this instruction",
+    ErrorCode.MASTER_AXIS_CONFLICT: "master axis conflict (the axes would be cross-coupled)",
+    ErrorCode.AXIS_NOT_CONFIGURED: "axis not configured",
+    ErrorCode.PARAMETER_OUT_OF_RANGE: "parameter out of range (EXERR names the operand)",
+    ErrorCode.AXIS_FAULTED: "axis faulted (reset with MAFR/MC_Reset)",
+    ErrorCode.GROUP_FAULTED: "group faulted",
+    ErrorCode.AXIS_IN_MOTION: "axis in motion",
+    ErrorCode.NOT_ALLOWED_WHILE_STOPPING: "not allowed while the axis or group is stopping",
+    ErrorCode.MDSC_IDLE_MASTER_AND_SLAVE_MOVING: "MDSC: new master idle while the slave moves",
+    ErrorCode.MDSC_INVALID_SLAVE_SPEED_REDUCTION: "MDSC: slave speed would drop below 5 %",
+    ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE: "MDSC: invalid mode or master change",
+    ErrorCode.GROUP_NOT_CONFIGURED: "group not configured",
+    ErrorCode.PROFILE_FAILED: "the motion profile could not be computed for these limits",
+    ErrorCode.COMBINED_SLAVE_GEAR_OUT: "MC_GearOut is not allowed on a combined (two-master) slave",
+    ErrorCode.NOT_GEARED: "the slave axis is not geared",
+    ErrorCode.BUFFER_FULL: "a buffered command is already waiting on this axis",
+}
+
+
+def error_text(code: int) -> str:
+    """Human-readable meaning of an error code (unknown codes are named as such)."""
+    try:
+        return ERROR_TEXT[ErrorCode(code)]
+    except ValueError:
+        return f"unknown error {code}"
+
+
+class MotionError(Exception):
+    """A command the kernel refuses. ``code`` is the shared error number."""
+
+    def __init__(self, code: ErrorCode, message: str = "") -> None:
+        self.code = code
+        super().__init__(message or ERROR_TEXT.get(code, str(code)))

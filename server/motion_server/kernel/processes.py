@@ -1,0 +1,200 @@
+"""Superimposed motion processes.
+
+An axis's command position is its ``base`` plus the displacement of every active process
+(Logix superposition: a gear, a jog, a move and a stop can run together and their
+velocities add). A process that ends folds its displacement into ``base``. Instructions
+keep a reference to the process they started and poll its ``state``; the kernel never
+calls back into instructions.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from .enums import AbortReason, ProcessKind, ProcessState
+from .profiles import Limits, Profile
+
+if TYPE_CHECKING:
+    from .controller import Controller
+
+
+class Process:
+    """Base: a displacement with velocity and acceleration, advanced once per cycle."""
+
+    kind: ProcessKind = ProcessKind.MOVE
+    #: axis numbers this process reads (gearing); the controller steps masters first
+    masters: tuple[int, ...] = ()
+
+    def __init__(self, owner: Any = None) -> None:
+        self.owner = owner
+        self.state = ProcessState.ACTIVE
+        self.abort_reason = AbortReason.NONE
+        self.error_code = 0
+        self.position = 0.0
+        self.velocity = 0.0
+        self.acceleration = 0.0
+        #: True for processes created by a stop (MAS, MC_Stop, MGS); StoppingStatus
+        self.stopping = False
+
+    @property
+    def active(self) -> bool:
+        return self.state == ProcessState.ACTIVE
+
+    def step(self, ctl: Controller, dt: float) -> None:
+        raise NotImplementedError
+
+    @property
+    def reached(self) -> bool:
+        """True once a buffered successor may start (done, at speed or in sync)."""
+        return self.state == ProcessState.DONE
+
+    def abort(self, reason: AbortReason) -> None:
+        if self.state == ProcessState.ACTIVE:
+            self.state = ProcessState.ABORTED
+            self.abort_reason = reason
+
+    def finish(self) -> None:
+        if self.state == ProcessState.ACTIVE:
+            self.state = ProcessState.DONE
+
+
+class ProfiledProcess(Process):
+    """A process driven by one ruckig :class:`Profile`."""
+
+    def __init__(
+        self,
+        dt: float,
+        limits: Limits,
+        velocity: float = 0.0,
+        acceleration: float = 0.0,
+        owner: Any = None,
+    ) -> None:
+        super().__init__(owner)
+        self.limits = limits.validated()
+        self.profile = Profile(dt, velocity, acceleration)
+        self.velocity = velocity
+        self.acceleration = acceleration
+
+    def step(self, ctl: Controller, dt: float) -> None:
+        self.profile.step()
+        self.position = self.profile.position
+        self.velocity = self.profile.velocity
+        self.acceleration = self.profile.acceleration
+        self._after_step()
+
+    def _after_step(self) -> None:
+        if self.profile.finished:
+            self.finish()
+
+    def change_limits(self, limits: Limits) -> None:
+        """Motion Change Dynamics: re-plan toward the same target with new limits."""
+        self.limits = limits.validated()
+        self._retarget()
+
+    def _retarget(self) -> None:
+        raise NotImplementedError
+
+
+class JogProcess(ProfiledProcess):
+    """Run at a signed velocity until stopped or superseded (MAJ, MC_MoveVelocity)."""
+
+    kind = ProcessKind.JOG
+
+    def __init__(
+        self,
+        dt: float,
+        velocity_target: float,
+        limits: Limits,
+        velocity: float = 0.0,
+        acceleration: float = 0.0,
+        owner: Any = None,
+    ) -> None:
+        super().__init__(dt, limits, velocity, acceleration, owner)
+        self.target_velocity = velocity_target
+        self.at_speed = False
+        self._retarget()
+
+    def _retarget(self) -> None:
+        self.profile.to_velocity(self.target_velocity, self.limits)
+        self.at_speed = False
+
+    def _after_step(self) -> None:
+        # A jog never finishes by itself; "at speed" is InVelocity for PLCopen.
+        if self.profile.finished:
+            self.at_speed = True
+
+    def change_speed(self, speed: float) -> None:
+        """Keep the direction, change the magnitude (MCD)."""
+        sign = -1.0 if self.target_velocity < 0 else 1.0
+        self.target_velocity = sign * abs(speed)
+        self.limits = Limits(
+            abs(speed) or self.limits.velocity,
+            self.limits.acceleration,
+            self.limits.deceleration,
+            self.limits.jerk,
+        )
+        self._retarget()
+
+    @property
+    def reached(self) -> bool:
+        return self.at_speed or super().reached
+
+
+class MoveProcess(ProfiledProcess):
+    """Travel a displacement and come to rest exactly there (MAM, MC_Move*)."""
+
+    kind = ProcessKind.MOVE
+
+    def __init__(
+        self,
+        dt: float,
+        displacement: float,
+        limits: Limits,
+        velocity: float = 0.0,
+        acceleration: float = 0.0,
+        owner: Any = None,
+    ) -> None:
+        super().__init__(dt, limits, velocity, acceleration, owner)
+        self.displacement = displacement
+        self._retarget()
+
+    def _retarget(self) -> None:
+        self.profile.to_position(self.displacement, self.limits)
+
+    def change_speed(self, speed: float) -> None:
+        self.limits = Limits(
+            abs(speed), self.limits.acceleration, self.limits.deceleration, self.limits.jerk
+        )
+        self._retarget()
+
+
+class StopRamp(ProfiledProcess):
+    """Decelerate an inherited velocity to zero (MAS, MC_Stop, MC_Halt, MGS, gear stop)."""
+
+    kind = ProcessKind.STOP
+
+    def __init__(
+        self,
+        dt: float,
+        deceleration: float,
+        jerk: float,
+        velocity: float,
+        acceleration: float = 0.0,
+        owner: Any = None,
+        stopping: bool = True,
+    ) -> None:
+        big = max(abs(velocity), 1e-9) * 2.0
+        limits = Limits(big, deceleration, deceleration, jerk)
+        super().__init__(dt, limits, velocity, acceleration if jerk else 0.0, owner)
+        self.stopping = stopping
+        self._retarget()
+        if velocity == 0.0 and acceleration == 0.0:
+            self.finish()
+
+    def _retarget(self) -> None:
+        self.profile.to_velocity(0.0, self.limits)
+
+    def _after_step(self) -> None:
+        if self.profile.finished:
+            self.velocity = 0.0
+            self.finish()

@@ -1,0 +1,147 @@
+"""One-axis jerk-limited profiles through ruckig, one online update per cycle.
+
+A :class:`Profile` plans in displacement from its own origin, so a process can add its
+position to the others (superposition). Inputs are validated here before ruckig sees
+them: ruckig raises on bad input, and a controller must answer ER instead. Jerk 0 (or
+infinite) means a trapezoidal velocity profile. ``intermediate_positions`` is never set.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import ruckig
+
+from .errors import ErrorCode, MotionError
+
+INF = math.inf
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Dynamics of one profile; jerk 0 or inf means trapezoidal."""
+
+    velocity: float
+    acceleration: float
+    deceleration: float
+    jerk: float = 0.0
+
+    def validated(self) -> Limits:
+        for name in ("velocity", "acceleration", "deceleration"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or value <= 0.0:
+                raise MotionError(
+                    ErrorCode.PARAMETER_OUT_OF_RANGE, f"{name} must be > 0 and finite, got {value}"
+                )
+        if math.isnan(self.jerk) or self.jerk < 0.0:
+            raise MotionError(
+                ErrorCode.PARAMETER_OUT_OF_RANGE, f"jerk must be >= 0, got {self.jerk}"
+            )
+        return self
+
+    @property
+    def ruckig_jerk(self) -> float:
+        return INF if self.jerk == 0.0 or math.isinf(self.jerk) else self.jerk
+
+
+class Profile:
+    """A ruckig trajectory advanced by exactly one cycle per :meth:`step`.
+
+    ``position`` is the displacement from the origin where the profile was created.
+    """
+
+    def __init__(self, dt: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
+        self._dt = dt
+        self._otg = ruckig.Ruckig(1, dt)
+        self._inp = ruckig.InputParameter(1)
+        self._out = ruckig.OutputParameter(1)
+        self._inp.current_position = [0.0]
+        self._inp.current_velocity = [float(velocity)]
+        self._inp.current_acceleration = [float(acceleration)]
+        self.position = 0.0
+        self.velocity = float(velocity)
+        self.acceleration = float(acceleration)
+        self.finished = False
+        self._target_position: float | None = None
+        self._target_velocity = 0.0
+
+    # -- targets --------------------------------------------------------------------------
+    def to_position(self, displacement: float, limits: Limits) -> None:
+        """Plan to rest at ``displacement`` from the origin."""
+        if not math.isfinite(displacement):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target position must be finite")
+        limits = limits.validated()
+        inp = self._inp
+        inp.control_interface = ruckig.ControlInterface.Position
+        inp.target_position = [float(displacement)]
+        inp.target_velocity = [0.0]
+        inp.target_acceleration = [0.0]
+        self._target_position = float(displacement)
+        self._apply_limits(limits, direction=displacement - self.position)
+
+    def to_velocity(self, velocity: float, limits: Limits) -> None:
+        """Ramp to a constant ``velocity`` (signed) and hold it."""
+        if not math.isfinite(velocity):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
+        limits = limits.validated()
+        inp = self._inp
+        inp.control_interface = ruckig.ControlInterface.Velocity
+        inp.target_velocity = [float(velocity)]
+        inp.target_acceleration = [0.0]
+        self._target_position = None
+        self._target_velocity = float(velocity)
+        direction = velocity if velocity != 0.0 else self.velocity
+        self._apply_limits(limits, direction=direction)
+
+    def _apply_limits(self, limits: Limits, direction: float) -> None:
+        inp = self._inp
+        inp.max_velocity = [limits.velocity]
+        # ruckig bounds acceleration, not "deceleration": map them on the direction of travel.
+        if direction >= 0.0:
+            inp.max_acceleration = [limits.acceleration]
+            inp.min_acceleration = [-limits.deceleration]
+        else:
+            inp.max_acceleration = [limits.deceleration]
+            inp.min_acceleration = [-limits.acceleration]
+        inp.max_jerk = [limits.ruckig_jerk]
+        self.finished = False
+
+    # -- stepping -------------------------------------------------------------------------
+    def step(self) -> None:
+        if self.finished:
+            # holding a target velocity: integrate it exactly, no ruckig call needed
+            self.acceleration = 0.0
+            self.position += self.velocity * self._dt
+            return
+        try:
+            result = self._otg.update(self._inp, self._out)
+        except RuntimeError as exc:  # pragma: no cover - inputs are validated beforehand
+            raise MotionError(ErrorCode.PROFILE_FAILED, str(exc)) from exc
+        if result not in (ruckig.Result.Working, ruckig.Result.Finished):
+            raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")
+        out = self._out
+        self.position = out.new_position[0]
+        self.velocity = out.new_velocity[0]
+        self.acceleration = out.new_acceleration[0]
+        out.pass_to_input(self._inp)
+        if result == ruckig.Result.Finished:
+            self.finished = True
+            self.acceleration = 0.0
+            if self._target_position is not None:
+                # Land exactly: the last sample is the target, at rest.
+                self.position = self._target_position
+                self.velocity = 0.0
+                self._inp.current_position = [self.position]
+                self._inp.current_velocity = [0.0]
+            else:
+                self.velocity = self._target_velocity
+            self._inp.current_acceleration = [0.0]
+
+    @property
+    def target_position(self) -> float | None:
+        return self._target_position
+
+    @property
+    def target_velocity(self) -> float:
+        return self._target_velocity
