@@ -27,6 +27,7 @@ from . import __version__
 from .config import SiteMap
 from .instructions import MotionSystem
 from .kernel import GroupStop
+from .kernel.group import OperatingMode
 
 log = logging.getLogger("motion_server.runtime")
 
@@ -169,7 +170,8 @@ class Runtime:
         self._stopped.set()
 
     async def _programmed_stop(self) -> None:
-        stops: list[GroupStop] = [self.ctl.group_stop(g.number) for g in self.ctl.groups]
+        # leaving run mode: the programmed stop of every group, no more instruction scans
+        stops: list[GroupStop] = self.ctl.set_mode(OperatingMode.PROGRAM)
         limit = int(SHUTDOWN_STOP_LIMIT / self.period)
         n = 0
         while not all(s.complete for s in stops) and n < limit:

@@ -9,7 +9,11 @@ own coarse update period. Within a group step:
 3. drives follow the command (vectorised): a critically damped second-order loop for servo
    axes, actual = command for virtual axes, coasting at the coast deceleration for axes
    whose drive is off; actual positions are quantised to encoder counts;
-4. following error is checked, and after-stop actions (disable, shutdown) are applied.
+4. following error is checked, and after-stop actions (disable, shutdown) are applied
+   once the axis has come to rest.
+
+Master-driven speed control (MDAC links, master-driven processes) lives in
+:mod:`.master_driven`; ``Controller.mdsc`` holds the links.
 """
 
 from __future__ import annotations
@@ -32,10 +36,19 @@ from .enums import (
     ProgrammedStopMode,
 )
 from .errors import ErrorCode, MotionError
-from .group import GroupStop, MotionGroup
+from .group import GroupStop, MotionGroup, OperatingMode
+from .master_driven import MasterDrivenControl
 from .processes import Process, StopRamp
 
 ProcessFactory = Callable[[float, float], Process]
+
+
+#: what follows the ramp of a fast programmed stop mode
+AFTER_FAST_STOP: dict[ProgrammedStopMode, AfterStop] = {
+    ProgrammedStopMode.FAST_STOP: AfterStop.NOTHING,
+    ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
+    ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
+}
 
 
 class ConfigError(ValueError):
@@ -109,6 +122,9 @@ class Controller:
         self._groups_by_number = {g.number: g for g in self.groups}
         self.tick = 0
         self._order_dirty = True
+        self.mode = OperatingMode.RUN
+        #: MDAC master assignments (master-driven speed control)
+        self.mdsc = MasterDrivenControl(self)
 
     @staticmethod
     def _check_unique(values: Iterable[object], what: str) -> None:
@@ -150,6 +166,7 @@ class Controller:
         for g in self.groups:
             if self.tick % g.every == 0:
                 self._step_group(g)
+        self.mdsc.update()
 
     def run(self, cycles: int) -> None:
         for _ in range(cycles):
@@ -167,7 +184,11 @@ class Controller:
         self._drives(g.virtual_idx, dt, servo=False)
         self._check_following_error(g.servo_idx)
         for ax in g.axes:
-            if ax.after_stop != AfterStop.NOTHING and not any(p.active for p in ax.processes):
+            if (
+                ax.after_stop != AfterStop.NOTHING
+                and not any(p.active for p in ax.processes)
+                and self._at_standstill(ax, dt)
+            ):
                 action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
                 if action == AfterStop.DISABLE:
                     self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
@@ -176,6 +197,15 @@ class Controller:
         for s in g.stops:
             s.update()
         g.stops = [s for s in g.stops if not s.complete]
+
+    def _at_standstill(self, ax: Axis, dt: float) -> bool:
+        """The drive has settled: it moves less than one count per coarse update (a
+        disable or shutdown after a fast stop waits for this, so the axis does not coast
+        on the servo lag)."""
+        i = ax.index
+        if not self.drive_on[i] or ax.type != AxisType.SERVO:
+            return True
+        return bool(abs(self.act_vel[i]) * dt * self.cpu[i] < 1.0)
 
     def _compose(self, ax: Axis, dt: float) -> None:
         keep: list[Process] = []
@@ -356,14 +386,75 @@ class Controller:
             self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
 
     def shutdown(self, ax: Axis) -> None:
-        """MASD: Axis Shutdown at once; the drive is off and the axis coasts."""
+        """MASD: Axis Shutdown at once; the drive is off and the axis coasts.
+
+        The axis's MDAC links break (as slave and as master), and every process on another
+        axis that follows it (master-driven motion, gearing) is released: see
+        :meth:`release_followers`.
+        """
+        self.mdsc.break_axis(ax, AbortReason.SHUTDOWN)
         self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
+        self.release_followers(ax, AbortReason.SHUTDOWN)
 
     def shutdown_reset(self, ax: Axis) -> None:
         """MASR: from Axis Shutdown (or faulted) to Axis Ready, faults cleared."""
         ax.fault = 0
         if ax.state in (AxisState.AXIS_SHUTDOWN, AxisState.AXIS_FAULTED):
             self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
+
+    def group_shutdown(self, ref: int | str) -> MotionGroup:
+        """MGSD: every axis of the group (feedback-only ones too) to Axis Shutdown."""
+        g = self.group(ref)
+        for ax in g.axes:
+            self.shutdown(ax)
+        return g
+
+    def group_shutdown_reset(self, ref: int | str) -> MotionGroup:
+        """MGSR: every axis of the group from Axis Shutdown (or faulted) to Axis Ready."""
+        g = self.group(ref)
+        for ax in g.axes:
+            self.shutdown_reset(ax)
+        return g
+
+    def release_followers(self, master: Axis, reason: AbortReason) -> None:
+        """Release every process on another axis that reads ``master`` (its ``masters``).
+
+        A shut-down master no longer drives anything: the following processes are aborted
+        with ``reason`` and, as a controller does when a slave loses its master, the
+        follower decelerates from its current velocity to rest at its maximum
+        deceleration (trapezoidal, time-driven, StoppingStatus set), keeping its power
+        state; its other processes go on. A follower whose drive is off simply coasts.
+        """
+        for ax in self.axes:
+            if ax is master:
+                continue
+            hit = [p for p in ax.processes if p.active and master.number in p.masters]
+            if not hit:
+                continue
+            v = sum(p.velocity for p in hit)
+            for p in hit:
+                p.abort(reason)
+                ax.base += p.position
+            ax.processes = [p for p in ax.processes if p.active]
+            self.coupling_changed()
+            if self.drive_on[ax.index] and v != 0.0:
+                ax.processes.append(StopRamp(self.dt(ax), ax.config.max_deceleration, 0.0, v))
+
+    # -- operating mode ---------------------------------------------------------------------
+    def set_mode(self, mode: OperatingMode) -> list[GroupStop]:
+        """Change the operating mode. Leaving RUN breaks every MDAC link and runs the
+        programmed stop of every group; the returned handles tell when they are done."""
+        if mode == self.mode:
+            return []
+        self.mode = mode
+        self.mdsc.break_all(AbortReason.STOPPED)
+        if mode == OperatingMode.RUN:
+            return []
+        return [self.group_stop(g.number) for g in self.groups]
+
+    @property
+    def run_mode(self) -> bool:
+        return self.mode == OperatingMode.RUN
 
     # -- motion -----------------------------------------------------------------------------
     def require_motion(self, ax: Axis) -> None:
@@ -456,6 +547,9 @@ class Controller:
         if kinds is None and ax.buffered is not None:
             ax.buffered.cancelled = True
             ax.buffered = None
+        if kinds is None:
+            # a stop of all motion breaks the axis's MDAC links as slave (MAS All)
+            self.mdsc.break_slave(ax, AbortReason.STOPPED)
         ramp = self.start(ax, make, replace=kinds, reason=AbortReason.STOPPED)
         assert isinstance(ramp, StopRamp)
         return ramp
@@ -463,37 +557,46 @@ class Controller:
     def group_stop(
         self, ref: int | str, forced: ProgrammedStopMode | None = None, owner: object = None
     ) -> GroupStop:
-        """Stop every axis of a group by its programmed stop mode, or by ``forced``.
+        """Stop every axis of a group by its programmed stop mode, or by ``forced`` (MGS).
 
-        Fast modes decelerate at the axis maximum deceleration, always trapezoidal; hard
-        modes turn the drive off at once and the axis coasts.
+        - Fast Stop: decelerate at the axis maximum deceleration, stay in Servo Control.
+        - Fast Disable / Fast Shutdown: the same ramp, then (once the drive has settled)
+          Axis Ready / Axis Shutdown with the drive off.
+        - Hard Disable / Hard Shutdown: drive off at once, the axis coasts at its coast
+          deceleration (Axis Ready / Axis Shutdown).
+
+        Ramps are always trapezoidal (no jerk limit) and time-driven, whatever the profile
+        and speed units of the motion they replace. Every MDAC link with an axis of the
+        group as slave or master breaks and pending reassignments are cleared; the MDAC's
+        AC stays set until the slave has stopped.
         """
         g = self.group(ref)
+        handle = GroupStop(g, owner)
+        for ax in g.axes:
+            self.mdsc.break_axis(ax, AbortReason.STOPPED, hold_active=True)
         for ax in g.axes:
             if ax.type == AxisType.FEEDBACK_ONLY:
                 continue
             mode = ax.programmed_stop_mode if forced is None else forced
-            if mode in (ProgrammedStopMode.HARD_DISABLE, ProgrammedStopMode.HARD_SHUTDOWN):
-                if mode == ProgrammedStopMode.HARD_SHUTDOWN:
-                    self.shutdown(ax)
-                else:
-                    self.servo_off(ax)
-                continue
-            after = {
-                ProgrammedStopMode.FAST_STOP: AfterStop.NOTHING,
-                ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
-                ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
-            }[mode]
-            if ax.state == AxisState.SERVO_CONTROL:
-                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner)
-                ax.after_stop = after
-            elif after == AfterStop.SHUTDOWN:
+            if mode == ProgrammedStopMode.HARD_SHUTDOWN:
                 self.shutdown(ax)
-        handle = GroupStop(g, owner)
-        handle.update()
-        if not handle.complete:
-            g.stops.append(handle)
+            elif mode == ProgrammedStopMode.HARD_DISABLE:
+                self.servo_off(ax)
+            elif ax.state == AxisState.SERVO_CONTROL:
+                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner)
+                ax.after_stop = AFTER_FAST_STOP[mode]
+            elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
+                self.shutdown(ax)
+            # StoppingStatus until the axis is at rest (coasting axes have no ramp)
+            ax.stop_latch = handle
+        g.stops.append(handle)
         return handle
+
+    def group_stopping(self, ax: Axis) -> bool:
+        """True while a group stop (MGS, leaving run mode) is bringing ``ax``'s group to
+        rest."""
+        g = self._groups_by_number[ax.group]
+        return any(not s.complete for s in g.stops)
 
     def set_feedback_input(self, ax: Axis, position: float) -> None:
         """Hand-wheel reading of a feedback-only axis (taken at the next cycle)."""
