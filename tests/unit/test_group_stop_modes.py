@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from motion_server.instructions import Instruction, MotionSystem
+from motion_server.instructions import Instruction, LogixInstruction, MotionSystem
 from motion_server.kernel import (
     AxisConfig,
     AxisState,
@@ -99,17 +99,27 @@ class Trace:
         return next(k + 1 for k, (_, _, pc) in enumerate(self.bits) if pc)
 
 
-def run_mgs(system: MotionSystem, cycles: int, stop_mode: int = 0) -> tuple[Instruction, Trace]:
-    mgs = system.add("MGS", "MGS_1", {"Group": 1, "StopMode": stop_mode})
+def logix(inst: Instruction) -> LogixInstruction:
+    assert isinstance(inst, LogixInstruction)
+    return inst
+
+
+def run_mgs(
+    system: MotionSystem, cycles: int, stop_mode: int = 0
+) -> tuple[LogixInstruction, Trace]:
+    mgs = logix(system.add("MGS", "MGS_1", {"Group": 1, "StopMode": stop_mode}))
     mgs.inputs["Execute"] = True
     trace = Trace()
     axes = system.ctl.axes
     for ax in axes:
-        for series in (trace.cmd_pos, trace.cmd_vel, trace.act_vel, trace.state, trace.status):
-            series[ax.number] = []  # type: ignore[assignment]
+        trace.cmd_pos[ax.number] = []
+        trace.cmd_vel[ax.number] = []
+        trace.act_vel[ax.number] = []
+        trace.state[ax.number] = []
+        trace.status[ax.number] = []
     for _ in range(cycles):
         system.cycle()
-        trace.bits.append((mgs.bit("DN"), mgs.bit("IP"), mgs.bit("PC")))  # type: ignore[attr-defined]
+        trace.bits.append((mgs.bit("DN"), mgs.bit("IP"), mgs.bit("PC")))
         for ax in axes:
             trace.cmd_pos[ax.number].append(ax.command_position_unwound)
             trace.cmd_vel[ax.number].append(ax.command_velocity)
@@ -163,7 +173,7 @@ def test_fast_stop_decelerates_at_max_deceleration_and_keeps_servo_control() -> 
     # StoppingStatus while the ramp runs, cleared at rest
     assert all(s & STOPPING for s in trace.status[1][: STOP_CYCLES - 1])
     assert not trace.status[1][STOP_CYCLES - 1] & STOPPING
-    assert not system["MAJ_1"].bit("IP")  # type: ignore[attr-defined]
+    assert not logix(system["MAJ_1"]).bit("IP")
 
 
 def test_fast_disable_ramps_then_disables_the_drive_once_at_rest() -> None:
