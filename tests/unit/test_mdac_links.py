@@ -151,7 +151,7 @@ def test_stops_that_break_the_link(stop: Callable[[Rig], None]) -> None:
     stop(rig)
     assert not rig.mdac.bit("IP")
     assert rig.ctl.mdsc.links(3) == []
-    assert not rig.maj.bit("IP") or stop is mgs_master
+    assert not rig.maj.bit("IP")
     # master units now need a new MDAC
     rig.system.cycle(200)
     if rig.slave.state == AxisState.SERVO_CONTROL and rig.ctl.run_mode:
@@ -224,3 +224,34 @@ def test_a_shut_down_master_releases_its_master_driven_slave() -> None:
     assert rig.slave.state == AxisState.SERVO_CONTROL and move.bit("IP")
     assert not rig.maj.bit("IP") and not rig.mdac.bit("IP")
     assert not rig.slave.stopping
+
+
+def test_mgs_on_the_master_group_switches_the_slave_to_a_time_driven_stop() -> None:
+    """The master stops in 5 cycles (1e4 mm/s^2); the slave, in another group, does not
+    follow it down master-driven but ramps 50 mm/s off at 2 mm/s per cycle: 25 cycles."""
+    rig = Rig()
+    rig.add("MGS", "MGS_m", Group=1)
+    assert not rig.mdac.bit("IP") and rig.mdac.bit("AC")
+    assert rig.process.state == ProcessState.ABORTED
+    vel = [rig.slave.command_velocity]
+    for _ in range(30):
+        rig.system.cycle()
+        vel.append(rig.slave.command_velocity)
+    expected = np.maximum(50.0 - SLAVE_DECEL * DT * np.arange(1, 32), 0.0)
+    np.testing.assert_allclose(vel, expected, atol=1e-9)
+    assert rig.master.command_velocity == 0.0
+    assert not rig.mdac.bit("AC")  # reset once the slave has stopped
+    assert rig.slave.state == AxisState.SERVO_CONTROL
+
+
+def test_a_faulted_master_breaks_the_link_and_the_slave_stops_time_driven() -> None:
+    rig = Rig()
+    rig.ctl.fault(rig.master, AxisFault.POSITION_ERROR)
+    rig.system.cycle()  # the fault is seen at the end of this cycle's update
+    assert not rig.mdac.bit("IP") and not rig.mdac.bit("AC")
+    assert rig.process.abort_reason == AbortReason.FAULTED
+    vel = [rig.slave.command_velocity]
+    for _ in range(10):
+        rig.system.cycle()
+        vel.append(rig.slave.command_velocity)
+    np.testing.assert_allclose(np.diff(vel), -SLAVE_DECEL * DT, atol=1e-9)

@@ -11,9 +11,7 @@ own coarse update period. Within a group step:
    whose drive is off; actual positions are quantised to encoder counts;
 4. following error is checked, and after-stop actions (disable, shutdown) are applied
    once the axis has come to rest.
-
-Master-driven speed control (MDAC links, master-driven processes) lives in
-:mod:`.master_driven`; ``Controller.mdsc`` holds the links.
+``Controller.mdsc`` holds the MDAC links (:mod:`.mdac_links`, :mod:`.master_driven`).
 """
 
 from __future__ import annotations
@@ -36,19 +34,11 @@ from .enums import (
     ProgrammedStopMode,
 )
 from .errors import ErrorCode, MotionError
-from .group import GroupStop, MotionGroup, OperatingMode
-from .master_driven import MasterDrivenControl
+from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode
+from .mdac_links import MasterDrivenControl
 from .processes import Process, StopRamp
 
 ProcessFactory = Callable[[float, float], Process]
-
-
-#: what follows the ramp of a fast programmed stop mode
-AFTER_FAST_STOP: dict[ProgrammedStopMode, AfterStop] = {
-    ProgrammedStopMode.FAST_STOP: AfterStop.NOTHING,
-    ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
-    ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
-}
 
 
 class ConfigError(ValueError):
@@ -417,28 +407,30 @@ class Controller:
         return g
 
     def release_followers(self, master: Axis, reason: AbortReason) -> None:
-        """Release every process on another axis that reads ``master`` (its ``masters``).
-
-        A shut-down master no longer drives anything: the following processes are aborted
-        with ``reason`` and, as a controller does when a slave loses its master, the
-        follower decelerates from its current velocity to rest at its maximum
-        deceleration (trapezoidal, time-driven, StoppingStatus set), keeping its power
-        state; its other processes go on. A follower whose drive is off simply coasts.
-        """
+        """Release every process on another axis that reads ``master`` (its ``masters``):
+        a shut-down master no longer drives anything (see :meth:`release`)."""
         for ax in self.axes:
-            if ax is master:
-                continue
-            hit = [p for p in ax.processes if p.active and master.number in p.masters]
-            if not hit:
-                continue
-            v = sum(p.velocity for p in hit)
-            for p in hit:
-                p.abort(reason)
-                ax.base += p.position
-            ax.processes = [p for p in ax.processes if p.active]
-            self.coupling_changed()
-            if self.drive_on[ax.index] and v != 0.0:
-                ax.processes.append(StopRamp(self.dt(ax), ax.config.max_deceleration, 0.0, v))
+            if ax is not master:
+                hit = [p for p in ax.processes if p.active and master.number in p.masters]
+                self.release(ax, hit, reason)
+
+    def release(self, ax: Axis, processes: Collection[Process], reason: AbortReason) -> None:
+        """Switch ``processes`` of ``ax`` to a time-driven stop, as a controller does when a
+        slave loses its master: they are aborted with ``reason`` and the axis decelerates
+        their velocity to rest at its maximum deceleration (trapezoidal, StoppingStatus
+        set), keeping its power state; its other processes go on. An axis whose drive is
+        off simply coasts."""
+        hit = [p for p in processes if p.active and p in ax.processes]
+        if not hit:
+            return
+        v = sum(p.velocity for p in hit)
+        for p in hit:
+            p.abort(reason)
+            ax.base += p.position
+        ax.processes = [p for p in ax.processes if p.active]
+        self.coupling_changed()
+        if self.drive_on[ax.index] and v != 0.0:
+            ax.processes.append(StopRamp(self.dt(ax), ax.config.max_deceleration, 0.0, v))
 
     # -- operating mode ---------------------------------------------------------------------
     def set_mode(self, mode: OperatingMode) -> list[GroupStop]:

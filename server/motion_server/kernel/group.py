@@ -9,10 +9,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .config import GroupConfig
-from .enums import AfterStop, AxisState, AxisType
+from .enums import AfterStop, AxisState, AxisType, ProgrammedStopMode
 
 if TYPE_CHECKING:
     from .axis import Axis
+
+
+#: what follows the ramp of a fast programmed stop mode (the hard modes have no ramp)
+AFTER_FAST_STOP: dict[ProgrammedStopMode, AfterStop] = {
+    ProgrammedStopMode.FAST_STOP: AfterStop.NOTHING,
+    ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
+    ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
+}
 
 
 class OperatingMode(IntEnum):

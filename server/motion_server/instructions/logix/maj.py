@@ -12,7 +12,8 @@ from __future__ import annotations
 from enum import IntEnum
 
 from ...kernel import Axis, JogProcess, Limits, ProcessKind
-from ...kernel.master_driven import MasterDrivenJog, MasterLink
+from ...kernel.master_driven import MasterDrivenJog
+from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
 from ..dynamics import DriveMode
 from ..operands import AXIS, logix_dynamics

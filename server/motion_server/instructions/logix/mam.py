@@ -13,7 +13,8 @@ import math
 from enum import IntEnum
 
 from ...kernel import Axis, MoveProcess, ProcessKind
-from ...kernel.master_driven import MasterDrivenMove, MasterLink
+from ...kernel.master_driven import MasterDrivenMove
+from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
 from ..operands import AXIS, logix_dynamics
 from ..registry import register

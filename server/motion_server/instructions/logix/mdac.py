@@ -20,7 +20,8 @@ after an MGS, AC is reset once the slave has stopped.
 
 from __future__ import annotations
 
-from ...kernel.master_driven import MasterLink, MasterReference, MotionType
+from ...kernel.master_driven import MasterReference, MotionType
+from ...kernel.mdac_links import MasterLink
 from ..base import LogixInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register

@@ -14,7 +14,8 @@ from collections.abc import Callable, Collection
 from typing import ClassVar
 
 from ...kernel import Axis, ErrorCode, Limits, MotionError, ProcessKind
-from ...kernel.master_driven import MasterDrivenProcess, MasterFactory
+from ...kernel.master_driven import MasterDrivenProcess
+from ...kernel.mdac_links import MasterFactory
 from ...kernel.processes import Process
 from .. import dynamics
 from ..dynamics import DriveMode, MergeMode, MergeSpeed
