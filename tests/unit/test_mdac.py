@@ -369,3 +369,23 @@ def test_mdac_refuses_feedback_only_slaves_and_cross_coupling() -> None:
     hand = logix(system.add("MDAC", "MDAC_3", {"SlaveAxis": 1, "MasterAxis": 3}))
     trigger(system, hand)
     assert hand.bit("IP") and not hand.bit("ER")
+
+
+def test_a_new_master_reference_is_refused_while_the_slave_moves() -> None:
+    system = setup()
+    m1, j1 = following_a(system)
+    actual = logix(
+        system.add("MDAC", "MDAC_act", {"SlaveAxis": 3, "MasterAxis": 1, "MasterReference": 0})
+    )
+    trigger(system, actual)
+    assert actual.outputs["ERR"] == ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE
+    assert m1.bit("IP") and m1.bit("AC") and j1.bit("IP")
+    # at rest the reference may change: the new MDAC takes over the assignment at once
+    mas = system.add("MAS", "MAS_j", {"Axis": 3, "StopType": 1, "ChangeDecel": 1, "DecelRate": 1e4})
+    trigger(system, mas)
+    system.cycle(20)
+    assert system.ctl.axis(3).command_velocity == 0.0 and m1.bit("IP")
+    actual.inputs["Execute"] = False
+    system.cycle()
+    trigger(system, actual)
+    assert actual.bit("IP") and not actual.bit("ER") and not m1.bit("IP")
