@@ -271,6 +271,9 @@ def _locate(text: str, loc: tuple[int | str, ...]) -> int:
         assign = re.compile(rf"^\s*{re.escape(key)}\s*=")
         n2 = next((m for m in range(start, end) if assign.match(lines[m])), None)
         if n2 is None:
+            # a dotted header names this key with the next one ([[instructions.instances]])
+            if i < len(loc) and isinstance(loc[i], str):
+                continue
             break
         line = n2 + 1
     return line

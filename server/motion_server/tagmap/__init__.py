@@ -39,6 +39,7 @@ exports (``motion-server map --format json|csv|md``) and the JSON Schema of the
 ``motion-server-map/1`` contract in :mod:`.export`.
 """
 
+from ..instructions.schema import TagType
 from .codec import decode, encode
 from .export import FORMATS, export, json_schema, to_dict
 from .fields import ClockMode
@@ -83,6 +84,7 @@ __all__ = [
     "TagImage",
     "TagMap",
     "TagMapError",
+    "TagType",
     "UnknownTagError",
     "WordOrder",
     "build_tagmap",

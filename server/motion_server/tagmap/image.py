@@ -1,7 +1,9 @@
 """The tag image: live values of a :class:`TagMap`, bound to a running :class:`MotionSystem`.
 
 Reads come from the system as the last completed cycle left it (front-ends only call in
-between cycles: asyncio is single-threaded). Writes to instruction operands land in the
+between cycles: asyncio is single-threaded). Register reads encode a whole block once per
+cycle and serve the following reads of that cycle from the copy; every write through the
+image invalidates the copies. Writes to instruction operands land in the
 instance's ``inputs``; the instance latches them on its own trigger edge at the next
 cycle. Clock and hand-wheel writes act at once. Errors are protocol-neutral; each
 front-end maps them to its own codes (Modbus: :class:`AddressError` and
@@ -166,6 +168,12 @@ class TagImage:
             self._bind(tag)
         self._slots = self._build_slots()
         self._starts = [s.address for s in self._slots]
+        #: bumped by every write: part of the key of the block copies
+        self.generation = 0
+        self._copies: dict[int, tuple[tuple[int, int], list[int]]] = {}
+        self._block_slots = {
+            b.base: [s for s in self._slots if b.base <= s.address < b.end] for b in tagmap.blocks
+        }
 
     # -- by tag -----------------------------------------------------------------------------
     def tag(self, tag: Tag | str) -> Tag:
@@ -189,8 +197,12 @@ class TagImage:
                 raise ReadOnlyError(f"{tag.name} is read-only")
             staged.append((tag, self._judge(tag, value)))
         staged.sort(key=lambda tv: tv[0].type == TagType.BOOL)
-        for tag, value in staged:
-            self._set[tag.name](value)
+        self.generation += 1
+        try:
+            for tag, value in staged:
+                self._set[tag.name](value)
+        finally:
+            self.generation += 1  # a Clock.Step write may have run cycles
 
     async def settle(self) -> None:
         """Wait until the cycles a Clock.Step write asked for have run."""
@@ -217,26 +229,35 @@ class TagImage:
         """``count`` registers from ``address`` (unused registers of a block read 0)."""
         if check:
             self.check(address, count, write=False)
-        out = [0] * count
+        out: list[int] = []
         end = address + count
-        slots = self._slots
-        i = max(bisect.bisect_right(self._starts, address) - 1, 0)
-        n = len(slots)
-        while i < n:
-            s = slots[i]
-            if s.address >= end:
-                break
-            if s.address + s.count > address:
-                words = s.read()
-                lo = s.address - address
-                if lo >= 0 and lo + s.count <= count:
-                    out[lo : lo + s.count] = words
-                else:
-                    for k, w in enumerate(words):
-                        if 0 <= lo + k < count:
-                            out[lo + k] = w
-            i += 1
+        a = address
+        while a < end:
+            block = self.map.block_at(a)
+            if block is None:  # only without check: outside the map reads 0
+                out.append(0)
+                a += 1
+                continue
+            words = self.block_registers(block.base)
+            stop = min(end, block.end)
+            out += words[a - block.base : stop - block.base]
+            a = stop
         return out
+
+    def block_registers(self, base: int) -> list[int]:
+        """All registers of the block at ``base``, encoded once per cycle."""
+        key = (self.system.ctl.tick, self.generation)
+        copy = self._copies.get(base)
+        if copy is not None and copy[0] == key:
+            return copy[1]
+        block = self.map.block_at(base)
+        assert block is not None
+        words = [0] * block.size
+        for s in self._block_slots[base]:
+            lo = s.address - base
+            words[lo : lo + s.count] = s.read()
+        self._copies[base] = (key, words)
+        return words
 
     def write_registers(self, address: int, values: Sequence[int], check: bool = True) -> None:
         """Write registers. A write that covers part of a 32/64-bit value changes those
