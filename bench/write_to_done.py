@@ -3,13 +3,15 @@
 A client writes the rising edge of MSO_1.Execute (FC6), then polls MSO_1's status
 register (FC3) until DN is set; the latency runs from just before the write to the read
 that shows DN (with EN, which the same scan sets). Execute is then dropped and the client
-waits for EN to clear before the next sample. Target: p99 <= one coarse period + 2 ms.
+waits for EN to clear before the next sample, which starts at a random phase of the period.
+Target: p99 <= one coarse period + 2 ms.
 Usage: ``python bench/write_to_done.py [--samples N]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import random
 import sys
 import time
 from pathlib import Path
@@ -24,6 +26,12 @@ from motion_server.tagmap import TagType, build_tagmap, encode
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--samples", type=int, default=500)
+    p.add_argument(
+        "--poll-gap",
+        type=float,
+        default=0.0,
+        help="ms between polls (0: back to back; the client then takes a core of its own)",
+    )
     args = p.parse_args()
     tagmap = build_tagmap(config.load())
     period = tagmap.tag("Clock.Period")
@@ -41,6 +49,7 @@ def main() -> int:
         for k, word in enumerate(encode(TagType.DINT, 2)):
             c.write(axis.address + k, word)
         done = (1 << (dn.bit or 0)) | (1 << (en.bit or 0))
+        rng = random.Random(1)
         for _ in range(args.samples):
             t0 = time.perf_counter()
             c.write(execute.address, 1 << (execute.bit or 0))
@@ -52,9 +61,14 @@ def main() -> int:
                 if reg & done == done:
                     samples.append(time.perf_counter() - t0)
                     break
+                if args.poll_gap:
+                    time.sleep(args.poll_gap / 1000.0)
             c.write(execute.address, 0)
             while c.read(en.address, 1)[0] >> (en.bit or 0) & 1:
                 pass
+            # EN just cleared, i.e. a cycle just ran: start the next sample at a random
+            # phase of the period, as an HMI's writes are not locked to the cycle
+            time.sleep(rng.uniform(0.0, period_ms / 1000.0))
         c.close()
     finally:
         stop_server(proc)
