@@ -33,7 +33,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         k: v for k, v in (("host", args.modbus_host), ("port", args.modbus_port)) if v is not None
     }
     if changes:
-        site = site.model_copy(update={"modbus": site.modbus.model_copy(update=changes)})
+        try:
+            modbus = config.ModbusSection.model_validate(site.modbus.model_dump() | changes)
+        except ValueError as exc:
+            raise SystemExit(f"motion-server: {exc}") from None
+        site = site.model_copy(update={"modbus": modbus})
     rt = Runtime(site)
     if args.clock:
         rt.set_mode(ClockMode[args.clock.upper()])

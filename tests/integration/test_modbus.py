@@ -284,3 +284,26 @@ async def test_remote_clock_disabled_refuses_clock_writes() -> None:
         client.close()
         rt.request_stop()
         await asyncio.wait_for(task, 10.0)
+
+
+async def test_a_long_step_is_answered_once_every_cycle_ran(server: Server) -> None:
+    # 1000 cycles run in chunks that yield to the loop; the write's answer waits for all
+    await server.tags.step(1000)
+    assert await server.tags.read("Clock.Cycle") == 1000
+    assert await server.tags.read("Diagnostics.Heartbeat") == 1000
+    assert await server.tags.read("Clock.SimTime") == pytest.approx(2.0, abs=1e-12)
+
+
+async def test_unit_id_0_answers_every_unit_id() -> None:
+    rt, task, port = await start(modbus_site(unit_id=0))
+    client = AsyncModbusTcpClient("127.0.0.1", port=port, timeout=5)
+    try:
+        assert await client.connect()
+        mode = rt.tagmap.tag("Clock.Mode")
+        for unit in (0, 1, 7, 255):
+            rr = await client.read_holding_registers(mode.address, count=1, device_id=unit)
+            assert not rr.isError() and rr.registers == [1], (unit, rr)
+    finally:
+        client.close()
+        rt.request_stop()
+        await asyncio.wait_for(task, 10.0)

@@ -123,24 +123,10 @@ class ModbusFrontend:
         registers: list[int],
         set_values: list[int] | list[bool] | None,
     ) -> ExcCodes | None:
+        """pymodbus calls this after its own range and read-only checks passed."""
         self.requests += 1
-        result = await self._serve(
-            function_code, start_address, address, count, registers, set_values
-        )
-        if result is not None:
-            self.exceptions += 1
-        return result
-
-    async def _serve(
-        self,
-        function_code: int,
-        start_address: int,
-        address: int,
-        count: int,
-        registers: list[int],
-        set_values: list[int] | list[bool] | None,
-    ) -> ExcCodes | None:
         if function_code not in SERVED_FUNCTION_CODES:
+            self.exceptions += 1
             return ExcCodes.ILLEGAL_FUNCTION
         image = self.image
         try:
@@ -148,19 +134,20 @@ class ModbusFrontend:
                 offset = address - start_address
                 registers[offset : offset + count] = image.read_registers(address, count, False)
             else:
-                # pymodbus checked the range and the read-only flags already
                 image.write_registers(address, [int(v) for v in set_values], check=False)
                 await image.settle()
+            return None
         except (AddressError, ReadOnlyError) as exc:
             log.debug("FC%d %d+%d: %s", function_code, address, count, exc)
-            return ExcCodes.ILLEGAL_ADDRESS
+            code = ExcCodes.ILLEGAL_ADDRESS
         except BadValueError as exc:
             log.info("FC%d %d+%d refused: %s", function_code, address, count, exc)
-            return ExcCodes.ILLEGAL_VALUE
+            code = ExcCodes.ILLEGAL_VALUE
         except Exception:  # never let one request take the server down
             log.exception("FC%d %d+%d failed", function_code, address, count)
-            return ExcCodes.DEVICE_FAILURE
-        return None
+            code = ExcCodes.DEVICE_FAILURE
+        self.exceptions += 1
+        return code
 
     async def _unknown_unit(
         self,
