@@ -100,10 +100,10 @@ def test_status_words_and_bits_after_a_cycle(image: TagImage) -> None:
 
 
 def test_clock_step_mode_and_diagnostics(image: TagImage) -> None:
-    image.write_many([("Clock.StepCycles", 50), ("Clock.Step", True)])
+    assert image.write_many([("Clock.StepCycles", 50), ("Clock.Step", True)]) == 50
     assert image.read("Clock.Cycle") == 50
     assert image.read("Clock.SimTime") == pytest.approx(50 * 0.002, abs=1e-15)
-    image.write("Clock.Step", True)  # no edge: nothing more
+    assert image.write("Clock.Step", True) == 0  # no edge: nothing more
     assert image.read("Clock.Cycle") == 50
     image.write("Clock.Step", False)
     image.write("Clock.Step", True)

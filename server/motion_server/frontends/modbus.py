@@ -134,8 +134,8 @@ class ModbusFrontend:
                 offset = address - start_address
                 registers[offset : offset + count] = image.read_registers(address, count, False)
             else:
-                image.write_registers(address, [int(v) for v in set_values], check=False)
-                await image.settle()
+                if image.write_registers(address, [int(v) for v in set_values], check=False):
+                    await image.settle()  # a Clock.Step: answer once its cycles ran
             return None
         except (AddressError, ReadOnlyError) as exc:
             log.debug("FC%d %d+%d: %s", function_code, address, count, exc)

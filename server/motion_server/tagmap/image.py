@@ -162,6 +162,7 @@ class TagImage:
         self.host: Host = host if host is not None else StandaloneHost(system)
         self.step_cycles = 1
         self.step = False
+        self._requested = 0
         self._get: dict[str, Getter] = {}
         self._set: dict[str, Setter] = {}
         for tag in tagmap:
@@ -183,13 +184,15 @@ class TagImage:
         """The value of a tag as of the last completed cycle (or as last written)."""
         return self._get[self.tag(tag).name]()
 
-    def write(self, tag: Tag | str, value: Any) -> None:
-        """Write one tag: :class:`ReadOnlyError`, :class:`BadValueError` on refusal."""
-        self.write_many([(self.tag(tag), value)])
+    def write(self, tag: Tag | str, value: Any) -> int:
+        """Write one tag: :class:`ReadOnlyError`, :class:`BadValueError` on refusal.
+        Returns the number of cycles the write asked for (a ``Clock.Step`` edge)."""
+        return self.write_many([(self.tag(tag), value)])
 
-    def write_many(self, updates: Iterable[tuple[Tag | str, Any]]) -> None:
+    def write_many(self, updates: Iterable[tuple[Tag | str, Any]]) -> int:
         """Write several tags all or nothing: every value is judged before any is set;
-        words are set before bits, so a trigger sees the operands written with it."""
+        words are set before bits, so a trigger sees the operands written with it.
+        Returns the number of cycles requested (await :meth:`settle` for them)."""
         staged: list[tuple[Tag, Value]] = []
         for ref, value in updates:
             tag = self.tag(ref)
@@ -198,11 +201,13 @@ class TagImage:
             staged.append((tag, self._judge(tag, value)))
         staged.sort(key=lambda tv: tv[0].type == TagType.BOOL)
         self.generation += 1
+        self._requested = 0
         try:
             for tag, value in staged:
                 self._set[tag.name](value)
         finally:
             self.generation += 1  # a Clock.Step write may have run cycles
+        return self._requested
 
     async def settle(self) -> None:
         """Wait until the cycles a Clock.Step write asked for have run."""
@@ -259,10 +264,10 @@ class TagImage:
         self._copies[base] = (key, words)
         return words
 
-    def write_registers(self, address: int, values: Sequence[int], check: bool = True) -> None:
+    def write_registers(self, address: int, values: Sequence[int], check: bool = True) -> int:
         """Write registers. A write that covers part of a 32/64-bit value changes those
         words only (the value is judged when the instruction latches it); registers
-        between tags take no value."""
+        between tags take no value. Returns the number of cycles requested (Clock.Step)."""
         count = len(values)
         if check:
             self.check(address, count, write=True)
@@ -288,7 +293,7 @@ class TagImage:
                 updates.append((tag, self._decoders[tag.name](words)))
             except RegisterValueError as exc:
                 raise BadValueError(f"{tag.name}: {exc}") from None
-        self.write_many(updates)
+        return self.write_many(updates)
 
     # -- binding ----------------------------------------------------------------------------
     def _judge(self, tag: Tag, value: Any) -> Value:
@@ -409,6 +414,7 @@ class TagImage:
         rising = bool(value) and not self.step
         self.step = bool(value)
         if rising and self.host.mode == ClockMode.MANUAL and self.step_cycles > 0:
+            self._requested += self.step_cycles
             self.host.request_cycles(self.step_cycles)
 
     def _build_slots(self) -> list[_Slot]:
