@@ -3,7 +3,10 @@ server with the same registers, side by side in one run; prints the ratio (targe
 
 Each server runs in its own process; one client sends FC3 requests back to back (one in
 flight) and the two servers are measured in alternating rounds so that machine noise
-falls on both. Usage: ``python bench/modbus_throughput.py [--requests N] [--address A]``.
+falls on both. Besides the overall ratio it prints the median of the per-round ratios
+and the servers' CPU time per request (from /proc: what each request costs the server,
+the kernel's cycles included for motion-server), which a busy machine disturbs less.
+Usage: ``python bench/modbus_throughput.py [--requests N] [--clock manual]``.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from modbus_client import RawClient, percentile, start_server, stop_server
+from modbus_client import RawClient, cpu_seconds, percentile, start_server, stop_server
 
 
 def bare_server() -> None:
@@ -44,23 +47,26 @@ def bare_server() -> None:
     asyncio.run(main())
 
 
-def measure(port: int, address: int, count: int, n: int) -> list[float]:
+def measure(pid: int, port: int, address: int, count: int, n: int) -> tuple[list[float], float]:
+    """Latencies of ``n`` reads and the server's CPU seconds meanwhile."""
     client = RawClient(port)
     for _ in range(50):  # warm-up
         client.read(address, count)
     out = []
+    cpu0 = cpu_seconds(pid)
     for _ in range(n):
         t0 = time.perf_counter()
         client.read(address, count)
         out.append(time.perf_counter() - t0)
+    cpu = cpu_seconds(pid) - cpu0
     client.close()
-    return out
+    return out, cpu
 
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("--requests", type=int, default=4000, help="requests per server (total)")
-    p.add_argument("--rounds", type=int, default=4)
+    p.add_argument("--requests", type=int, default=8000, help="requests per server (total)")
+    p.add_argument("--rounds", type=int, default=10)
     p.add_argument("--address", type=int, default=1000, help="first register (default: Axis1)")
     p.add_argument(
         "--clock",
@@ -78,12 +84,21 @@ def main() -> int:
         ["-m", "motion_server.cli", "run", "--clock", args.clock, "--modbus-port", "0"]
     )
     bare, bare_port = start_server([__file__, "--bare-server"])
-    results: dict[str, list[float]] = {"motion-server": [], "bare pymodbus": []}
+    names = ("motion-server", "bare pymodbus")
+    servers = {names[0]: (ms.pid, ms_port), names[1]: (bare.pid, bare_port)}
+    results: dict[str, list[float]] = {n: [] for n in names}
+    cpu: dict[str, float] = dict.fromkeys(names, 0.0)
+    round_ratios = []
     try:
         per_round = args.requests // args.rounds
         for _ in range(args.rounds):
-            results["motion-server"] += measure(ms_port, args.address, count, per_round)
-            results["bare pymodbus"] += measure(bare_port, args.address, count, per_round)
+            rate = {}
+            for name in names:
+                samples, used = measure(*servers[name], args.address, count, per_round)
+                results[name] += samples
+                cpu[name] += used
+                rate[name] = len(samples) / sum(samples)
+            round_ratios.append(rate[names[0]] / rate[names[1]])
     finally:
         stop_server(ms)
         stop_server(bare)
@@ -97,9 +112,14 @@ def main() -> int:
         print(
             f"  {name:14s} {rates[name]:8.0f} req/s   p50 {percentile(samples, 0.5) * 1e6:6.0f} us"
             f"   p99 {percentile(samples, 0.99) * 1e6:6.0f} us"
+            f"   server CPU {cpu[name] / len(samples) * 1e6:5.0f} us/request"
         )
-    ratio = rates["motion-server"] / rates["bare pymodbus"]
+    ratio = rates[names[0]] / rates[names[1]]
+    median = sorted(round_ratios)[len(round_ratios) // 2]
+    cpu_ratio = (cpu[names[1]] / len(results[names[1]])) / (cpu[names[0]] / len(results[names[0]]))
     print(f"  ratio motion-server / bare pymodbus: {ratio:.2f} (target >= 0.85)")
+    print(f"  median of {len(round_ratios)} per-round ratios: {median:.2f}")
+    print(f"  CPU per request, bare / motion-server: {cpu_ratio:.2f}")
     return 0
 
 
