@@ -244,8 +244,9 @@ class RateRamp(CatchUp):
 
 class JerkRamp(CatchUp):
     """Jerk-limited catch-up through ruckig (velocity interface, re-planned when the
-    target moves). Caught up when ruckig reaches the target, or when the velocity gap fits
-    in one cycle and the acceleration is within one cycle's jerk of the target's."""
+    target moves). Caught up when ruckig reaches the target; while the target keeps
+    moving (an accelerating master) also when the velocity gap fits in one cycle and the
+    target's acceleration is within one cycle's jerk of the slave's."""
 
     def __init__(self, dt: float, accel: float, decel: float, jerk: float) -> None:
         super().__init__()
@@ -266,24 +267,26 @@ class JerkRamp(CatchUp):
 
     def step(self, target_v: float, target_a: float, dt: float) -> bool:
         prof = self._profile
+        moving = self._target is not None and target_v != self._target
         if target_v != self._target:
             big = 2.0 * max(abs(target_v), abs(prof.velocity)) + 1.0
             prof.to_velocity(target_v, Limits(big, self.accel, self.decel, self.jerk))
             self._target = target_v
+        a_prev = self.acceleration
         p0 = prof.position
         prof.step()
         self.position += prof.position - p0
         self.velocity = prof.velocity
         self.acceleration = prof.acceleration
-        gap = abs(target_v - self.velocity)
-        close = gap <= min(self.accel, self.decel) * dt and (
-            abs(target_a - self.acceleration) <= self.jerk * dt
-        )
-        if prof.finished or close:
+        caught = prof.finished
+        if moving and not caught:
+            caught = abs(target_v - self.velocity) <= min(self.accel, self.decel) * dt and (
+                abs(target_a - a_prev) <= self.jerk * dt
+            )
+        if caught:
             self.velocity = target_v
             self.acceleration = target_a
-            return True
-        return False
+        return caught
 
 
 def catch_up(dt: float, accel: float, decel: float, jerk: float) -> CatchUp:
