@@ -169,3 +169,44 @@ def test_real_ratio_does_not_drift_over_24_simulated_hours() -> None:
     assert error() < 1e-12
     assert process.velocity == speed * 1.2345
     assert elapsed < 60.0  # a few seconds normally; only a sanity bound
+
+
+def test_fraction_with_clutch_is_exact_from_the_lock_on() -> None:
+    """The clutch ramps the slave to the speed the fraction implies, then the counts are
+    exact from the lock: the hand wheel turns 37 counts per 2 ms cycle (18.5 units/s);
+    1:3 gives 6.1666 slave units/s, reached at 1000 units/s^2 in 4 cycles."""
+    s = wheel_system()
+    g = s.add("MAG", "MAG", {})
+    position = 0
+    for _ in range(5):  # the wheel is turning before the gear engages
+        position += 37
+        turn(s, position)
+    lock_bit = 1 << 12
+    position += 37
+    s.ctl.set_feedback_input(s.ctl.axis(1), position / COUNTS)
+    trigger(
+        s,
+        g,
+        SlaveAxis=2,
+        MasterAxis=1,
+        RatioFormat=1,
+        SlaveCounts=1,
+        MasterCounts=3,
+        MasterReference=0,
+        Clutch=0,
+        AccelRate=1000.0,
+        AccelUnits=0,
+    )
+    lock: tuple[int, float] | None = None
+    for k in range(1, 400):
+        position += 37
+        turn(s, position)
+        locked = bool(s.ctl.axis(2).motion_status & lock_bit)
+        if locked and lock is None:
+            lock = (position, s.ctl.axis(2).command_position_unwound)
+            assert 3 <= k <= 6
+        if lock is not None:
+            moved = round((s.ctl.axis(2).command_position_unwound - lock[1]) * COUNTS)
+            assert moved == (position - lock[0]) // 3
+            assert gear(s).slave_counts == (position - lock[0]) // 3
+    assert lock is not None

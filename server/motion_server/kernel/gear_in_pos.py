@@ -36,6 +36,10 @@ if TYPE_CHECKING:
     from .controller import Controller
 
 
+#: sync positions and distances beyond this magnitude are refused (ErrorID 13)
+POSITION_LIMIT = 1e12
+
+
 class SyncMode(IntEnum):
     NORMAL = 0
     IMMEDIATE = 1
@@ -98,8 +102,8 @@ def plan_sync(
     """Judge the inputs against the current positions (master actual, slave command)."""
     if numerator == 0 or denominator == 0:
         raise _inconsistent("RatioNumerator and RatioDenominator must be non-zero")
-    if not all(math.isfinite(x) for x in (master_sync, slave_sync, start_distance)):
-        raise _inconsistent("positions and distances must be finite")
+    if not all(abs(x) <= POSITION_LIMIT for x in (master_sync, slave_sync, start_distance)):
+        raise _inconsistent(f"positions and distances must be finite and within {POSITION_LIMIT:g}")
     d = 1 if denominator > 0 else -1
     ds = 1 if numerator > 0 else -1
     m0 = master.actual_position_unwound

@@ -76,6 +76,11 @@ def remember_direction(slave: Axis, direction: int) -> None:
     _DIRECTIONS[slave] = -1 if direction < 0 else 1
 
 
+#: largest magnitude of a real gear ratio (slave units per master unit): beyond it a
+#: master's displacement would overflow the slave's position
+MAX_RATIO = 1e6
+
+
 @dataclass(frozen=True)
 class GearTerm:
     """One master of a gear: slave displacement = master displacement x numerator /
@@ -95,10 +100,16 @@ class GearTerm:
                 ErrorCode.PARAMETER_OUT_OF_RANGE,
                 f"gear ratio {n}/{d}: numerator and denominator must be finite and non-zero",
             )
-        if self.counts and (int(n) != n or int(d) != d or d < 0):
+        if self.counts:
+            if int(n) != n or int(d) != d or d < 0:
+                raise MotionError(
+                    ErrorCode.PARAMETER_OUT_OF_RANGE,
+                    f"fraction gear ratio {n}/{d}: counts must be integers, master counts > 0",
+                )
+        elif not abs(n / d) <= MAX_RATIO:
             raise MotionError(
                 ErrorCode.PARAMETER_OUT_OF_RANGE,
-                f"fraction gear ratio {n}/{d}: counts must be integers, master counts > 0",
+                f"gear ratio {n}/{d} is beyond the largest ratio {MAX_RATIO:g}",
             )
         return self
 
@@ -161,22 +172,30 @@ class _Coupling:
             self.den = float(term.denominator)
             self.ratio = self.num / self.den
         self.lock_pos = self.pos.item(self.index)
-        self.lock_counts = round(self.lock_pos * self.cpu_m)
+        self.lock_counts = 0
         self.slave_counts = 0
         self.v_prev = self.vel.item(self.index)
 
     def lock(self) -> None:
         self.lock_pos = self.pos.item(self.index)
-        self.lock_counts = round(self.lock_pos * self.cpu_m)
         self.slave_counts = 0
+        if self.exact:
+            try:
+                self.lock_counts = round(self.lock_pos * self.cpu_m)
+            except (OverflowError, ValueError):
+                self.lock_counts = 0  # displacement() fails on such a master
 
     def displacement(self) -> float:
         """Slave displacement since the lock, from the absolute master displacement."""
         m = self.pos.item(self.index)
         if self.exact:
-            n = (round(m * self.cpu_m) - self.lock_counts) * self.num // self.den
+            try:
+                n = (round(m * self.cpu_m) - self.lock_counts) * self.num // self.den
+                x: float = n / self.cpu_s
+            except (OverflowError, ValueError):  # a master beyond any sensible travel
+                raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "gear overflow") from None
             self.slave_counts = n
-            return n / self.cpu_s
+            return x
         return (m - self.lock_pos) * self.num / self.den
 
     def velocity(self) -> float:
@@ -360,7 +379,19 @@ class GearProcess(Process):
     def step(self, ctl: Controller, dt: float) -> None:
         c1 = self._single
         if self.locked:
-            if c1 is not None:
+            if c1 is not None and not c1.exact:
+                # the hot path (one master, real ratio), inlined: no allocation, no ruckig
+                i = c1.index
+                m = c1.pos.item(i)
+                v = c1.vel.item(i)
+                self.position = self._at_lock + (m - c1.lock_pos) * c1.num / c1.den
+                self.velocity = c1.ratio * v
+                if c1.acc is not None:
+                    self.acceleration = c1.ratio * c1.acc.item(i)
+                else:
+                    self.acceleration = c1.ratio * (v - c1.v_prev) / dt
+                c1.v_prev = v
+            elif c1 is not None:
                 self.position = self._at_lock + c1.displacement()
                 self.velocity = c1.velocity()
                 self.acceleration = c1.acceleration(dt)
