@@ -228,8 +228,8 @@ def test_real_ratio_limits_from_the_seed() -> None:
 
 def test_fraction_ratio_uses_counts_not_units() -> None:
     s = system()
-    # hand wheel: 100 counts per unit; slave 1000 counts per unit; 3 slave counts per
-    # master count = 30 counts ... = 0.03 slave units per master count
+    # the hand wheel has 100 counts per unit, the slave 1000: 3 slave counts per master
+    # count, and 2.5 wheel units = 250 counts, make 750 slave counts (0.75 units)
     wheel = s.ctl.axis(4)
     s.ctl.set_feedback_input(wheel, 1.0)
     s.cycle()
