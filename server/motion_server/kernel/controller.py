@@ -57,6 +57,8 @@ class Pending:
         self.owner = owner
         self.process: Process | None = None
         self.cancelled = False
+        #: set when the command could not start (cancelled with an error)
+        self.error_code = 0
 
 
 class Controller:
@@ -214,9 +216,14 @@ class Controller:
         if pend is not None and all(p.reached for p in keep):
             ax.buffered = None
             if not pend.cancelled:
-                pend.process = self.start(
-                    ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
-                )
+                try:
+                    pend.process = self.start(
+                        ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
+                    )
+                except MotionError as exc:
+                    # it cannot start from where the axis is now: its owner reports it
+                    pend.error_code = int(exc.code)
+                    pend.cancelled = True
 
     def _sample_feedback(self, ax: Axis, g: MotionGroup, dt: float) -> None:
         cfg = ax.config
@@ -430,12 +437,16 @@ class Controller:
     ) -> Process:
         """Start a process. ``replace`` names the kinds it supersedes (``None``: all of
         them, the PLCopen aborting mode and Logix merge); the new process is built by
-        ``make(v, a)`` from the velocity and acceleration of what it replaces."""
-        v, a = self._retire(ax, replace, reason)
+        ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
+        raises, nothing has changed: the processes it would replace keep running."""
+        matching = [p for p in ax.processes if p.active and (replace is None or p.kind in replace)]
+        p = make(
+            sum((q.velocity for q in matching), 0.0), sum((q.acceleration for q in matching), 0.0)
+        )
+        self._retire(ax, replace, reason)
         if replace is None and ax.buffered is not None:
             ax.buffered.cancelled = True
             ax.buffered = None
-        p = make(v, a)
         ax.processes.append(p)
         if p.masters:
             self.coupling_changed()

@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from .enums import AbortReason, ProcessKind, ProcessState
+from .errors import MotionError
 from .profiles import Limits, Profile
 
 if TYPE_CHECKING:
@@ -91,8 +92,24 @@ class ProfiledProcess(Process):
 
     def change_limits(self, limits: Limits) -> None:
         """Motion Change Dynamics: re-plan toward the same target with new limits."""
-        self.limits = limits.validated()
-        self._retarget()
+        self.change_dynamics(limits)
+
+    def change_dynamics(self, limits: Limits, speed: float | None = None) -> None:
+        """MCD: new limits and, unless None, a new speed, planned as one change. If the
+        profile cannot be planned nothing changes and MotionError is raised."""
+        saved = dict(vars(self))
+        try:
+            self.limits = limits.validated()
+            if speed is None:
+                self._retarget()
+            else:
+                self.change_speed(speed)
+        except MotionError:
+            vars(self).update(saved)
+            raise
+
+    def change_speed(self, speed: float) -> None:
+        raise NotImplementedError
 
     def _retarget(self) -> None:
         raise NotImplementedError

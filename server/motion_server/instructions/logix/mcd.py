@@ -110,9 +110,7 @@ class MCD(LogixInstruction):
             d = lim.deceleration if dec is None else dec
             plans.append((p, Limits(lim.velocity, a, d, self._jerk(ax, lim, speed, a, d))))
         for p, limits in plans:
-            p.change_limits(limits)
-            if speed is not None:
-                p.change_speed(speed)
+            p.change_dynamics(limits, speed)
         self.set_bits(DN=True)
 
     def _jerk(self, ax: Axis, lim: Limits, speed: float | None, acc: float, dec: float) -> float:
