@@ -117,6 +117,11 @@ class Profile:
         )
         saved = {f: getattr(inp, f) for f in fields}
         mine = (self._target_position, self._target_velocity, self.finished)
+        # plan from where the profile is: once finished, step() integrates the held
+        # velocity without ruckig, so ruckig's copy of the state is stale
+        inp.current_position = [self.position]
+        inp.current_velocity = [self.velocity]
+        inp.current_acceleration = [self.acceleration]
         try:
             yield
             result = self._otg.calculate(inp, ruckig.Trajectory(1))
