@@ -10,6 +10,7 @@ continuous quantity over the window, and an average cannot exceed a bound of the
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -75,10 +76,10 @@ def diffs(p: np.ndarray, dt: float, order: int) -> np.ndarray:
     return np.diff(p, n=order) / dt**order
 
 
-def first_cycle(values: np.ndarray, predicate: object) -> int:
+def first_cycle(values: np.ndarray, predicate: Callable[[float], bool]) -> int:
     """Index of the first sample meeting ``predicate`` (samples start before the trigger,
     so the index is the number of cycles since the trigger cycle began)."""
-    hits = [k for k, v in enumerate(values) if predicate(v)]  # type: ignore[operator]
+    hits = [k for k, v in enumerate(values) if predicate(float(v))]
     assert hits, "never reached"
     return hits[0]
 
