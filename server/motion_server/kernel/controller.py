@@ -7,8 +7,9 @@ own coarse update period. Within a group step:
 1. feedback-only axes sample their input or signal (the feedback of the cycle);
 2. every axis with motion processes composes its command, masters before slaves;
 3. drives follow the command (vectorised): a critically damped second-order loop for servo
-   axes, actual = command for virtual axes, coasting at the coast deceleration for axes
-   whose drive is off; actual positions are quantised to encoder counts;
+   axes (the command interpolated linearly across the cycle, as a drive does), actual =
+   command for virtual axes, coasting at the coast deceleration for axes whose drive is
+   off; actual positions are quantised to encoder counts;
 4. following error is checked, and after-stop actions (disable, shutdown) are applied
    once the axis has come to rest.
 ``Controller.mdsc`` holds the MDAC links (:mod:`.mdac_links`, :mod:`.master_driven`).
@@ -31,6 +32,7 @@ from .enums import (
     AxisType,
     FeedbackSignal,
     ProcessKind,
+    ProcessState,
     ProgrammedStopMode,
 )
 from .errors import ErrorCode, MotionError
@@ -39,6 +41,11 @@ from .mdac_links import MasterDrivenControl
 from .processes import Process, StopRamp
 
 ProcessFactory = Callable[[float, float], Process]
+
+
+def _rounding_apart(x: float, y: float) -> bool:
+    """True when ``x`` and ``y`` differ by no more than accumulated rounding."""
+    return abs(x - y) <= 1e-9 * max(1.0, abs(y))
 
 
 class ConfigError(ValueError):
@@ -53,6 +60,8 @@ class Pending:
         self.owner = owner
         self.process: Process | None = None
         self.cancelled = False
+        #: set when the command could not start (cancelled with an error)
+        self.error_code = 0
 
 
 class Controller:
@@ -69,6 +78,9 @@ class Controller:
         self.act_x = np.zeros(n)  # continuous drive position (unquantised)
         self.act_pos = np.zeros(n)  # quantised feedback
         self.act_vel = np.zeros(n)
+        #: the command position the drive reached at the end of its last cycle (the drive
+        #: interpolates linearly from it to the new command across one cycle)
+        self.drv_cmd = np.zeros(n)
         self.drive_on = np.zeros(n, dtype=bool)
         self.omega = np.array([2.0 * math.pi * max(a.drive_bandwidth, 1e-3) for a in axes])
         self.cpu = np.array([a.counts_per_unit for a in axes])
@@ -199,6 +211,7 @@ class Controller:
 
     def _compose(self, ax: Axis, dt: float) -> None:
         keep: list[Process] = []
+        landing: float | None = None
         for p in ax.processes:
             if p.active:
                 try:
@@ -210,7 +223,11 @@ class Controller:
                 keep.append(p)
             else:
                 ax.base += p.position
+                if p.state == ProcessState.DONE and p.landing is not None:
+                    landing = p.landing
         ax.processes = keep
+        if landing is not None and not keep and _rounding_apart(ax.base, landing):
+            ax.base = landing  # an absolute move ends exactly on its target
         i = ax.index
         self.cmd_pos[i] = ax.base + sum(p.position for p in keep)
         self.cmd_vel[i] = sum(p.velocity for p in keep)
@@ -219,9 +236,14 @@ class Controller:
         if pend is not None and all(p.reached for p in keep):
             ax.buffered = None
             if not pend.cancelled:
-                pend.process = self.start(
-                    ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
-                )
+                try:
+                    pend.process = self.start(
+                        ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
+                    )
+                except MotionError as exc:
+                    # it cannot start from where the axis is now: its owner reports it
+                    pend.error_code = int(exc.code)
+                    pend.cancelled = True
 
     def _sample_feedback(self, ax: Axis, g: MotionGroup, dt: float) -> None:
         cfg = ax.config
@@ -252,14 +274,20 @@ class Controller:
         off_idx = idx[~on]
         if on_idx.size:
             if servo:
-                c = self.cmd_pos[on_idx]
+                # x'' + 2w x' + w^2 x = w^2 c(t), c(t) the command ramp from the last
+                # cycle's command c0 to the new one c1 (slope s). Its exact solution: the
+                # steady tracking point c(t) - 2s/w plus a decaying (A + Bt) e^(-wt).
+                c0 = self.drv_cmd[on_idx]
+                c1 = self.cmd_pos[on_idx]
                 w = self.omega[on_idx]
-                e0 = self.act_x[on_idx] - c
-                v0 = self.act_vel[on_idx]
+                s = (c1 - c0) / dt
+                lag = 2.0 * s / w
+                e0 = self.act_x[on_idx] - (c0 - lag)
+                de0 = self.act_vel[on_idx] - s
                 decay = np.exp(-w * dt)
-                c2 = v0 + w * e0
-                self.act_x[on_idx] = c + (e0 + c2 * dt) * decay
-                self.act_vel[on_idx] = (v0 - w * c2 * dt) * decay
+                b = de0 + w * e0
+                self.act_x[on_idx] = c1 - lag + (e0 + b * dt) * decay
+                self.act_vel[on_idx] = s + (de0 - w * b * dt) * decay
                 cpu = self.cpu[on_idx]
                 self.act_pos[on_idx] = np.round(self.act_x[on_idx] * cpu) / cpu
             else:
@@ -268,7 +296,10 @@ class Controller:
                 self.act_vel[on_idx] = self.cmd_vel[on_idx]
         if off_idx.size:
             v0 = self.act_vel[off_idx]
-            speed = np.maximum(np.abs(v0) - self.coast[off_idx] * dt, 0.0)
+            step = self.coast[off_idx] * dt
+            speed = np.maximum(np.abs(v0) - step, 0.0)
+            # a remnant below rounding of the per-cycle decrement is rest, not motion
+            speed[speed <= 1e-9 * step] = 0.0
             v1 = np.sign(v0) * speed
             self.act_x[off_idx] += 0.5 * (v0 + v1) * dt
             self.act_vel[off_idx] = v1
@@ -281,6 +312,7 @@ class Controller:
             self.cmd_pos[off_idx] = self.act_pos[off_idx]
             self.cmd_vel[off_idx] = v1
             self.cmd_acc[off_idx] = 0.0
+        self.drv_cmd[idx] = self.cmd_pos[idx]
 
     def _check_following_error(self, idx: np.ndarray) -> None:
         if idx.size == 0:
@@ -344,6 +376,7 @@ class Controller:
             # the command starts where the axis is, at rest
             ax.base = float(self.act_pos[i])
             self.cmd_pos[i] = ax.base
+            self.drv_cmd[i] = ax.base
             self.cmd_vel[i] = 0.0
             self.cmd_acc[i] = 0.0
         self.drive_on[i] = on
@@ -490,12 +523,16 @@ class Controller:
     ) -> Process:
         """Start a process. ``replace`` names the kinds it supersedes (``None``: all of
         them, the PLCopen aborting mode and Logix merge); the new process is built by
-        ``make(v, a)`` from the velocity and acceleration of what it replaces."""
-        v, a = self._retire(ax, replace, reason)
+        ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
+        raises, nothing has changed: the processes it would replace keep running."""
+        matching = [p for p in ax.processes if p.active and (replace is None or p.kind in replace)]
+        p = make(
+            sum((q.velocity for q in matching), 0.0), sum((q.acceleration for q in matching), 0.0)
+        )
+        self._retire(ax, replace, reason)
         if replace is None and ax.buffered is not None:
             ax.buffered.cancelled = True
             ax.buffered = None
-        p = make(v, a)
         ax.processes.append(p)
         if p.masters:
             self.coupling_changed()

@@ -55,10 +55,14 @@ class MAM(SpeedControlledMotion):
             raise self.out_of_range("Speed", "a move needs a speed > 0")
         limits = limits.validated()
         distance = self._distance(ax.command_position, ax.config.rollover)
+        landing = None
+        if int(self.op["MoveType"]) != MoveType.INCREMENTAL:
+            end = ax.command_position_unwound + distance
+            landing = ax.unwound_target(float(self.op["Position"]), end)
         dt = self.ctl.dt(ax)
 
         def make(v: float, a: float) -> Process:
-            return MoveProcess(dt, distance, limits, v, a, owner=self)
+            return MoveProcess(dt, distance, limits, v, a, owner=self, landing=landing)
 
         def make_master(link: MasterLink, master: Axis, ratio: float) -> Process:
             return MasterDrivenMove(
