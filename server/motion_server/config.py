@@ -148,6 +148,8 @@ class ModbusSection(_Model):
     group_base: Annotated[int, Field(ge=100, le=65534, multiple_of=2)] = 100
     axis_base: Annotated[int, Field(ge=100, le=65534, multiple_of=2)] = 1000
     instruction_base: Annotated[int, Field(ge=100, le=65534, multiple_of=2)] = 5000
+    #: ``every_type`` instances: block at every_type_base + 100·(type code − 1)
+    every_type_base: Annotated[int, Field(ge=100, le=60000, multiple_of=2)] = 20000
 
 
 class SiteMap(_Model):

@@ -9,6 +9,7 @@ import pytest
 
 from motion_server import config
 from motion_server.instructions import TagType, catalog
+from motion_server.instructions.registry import TYPE_CODES
 from motion_server.tagmap import Access, Folder, RegisterAccess, TagMap, build_tagmap
 
 AXES = """
@@ -102,12 +103,32 @@ def test_documented_bases_of_the_demo_map(demo: TagMap) -> None:
     assert demo.block("Diagnostics").base == 50
     assert demo.block("Group1").base == 100
     assert [demo.block(f"Axis{k}").base for k in (1, 2, 3, 4)] == [1000, 1050, 1100, 1150]
-    instances = demo.owners(Folder.INSTRUCTIONS)
-    assert [demo.block(name).base for name in instances] == [
-        5000 + 100 * k for k in range(len(instances))
-    ]
+    # the demo's <TYPE>_1 instances sit at 20000 + 100·(type code − 1), fixed per type
+    for name in demo.owners(Folder.INSTRUCTIONS):
+        block = demo.block(name)
+        assert block.base == 20000 + 100 * (TYPE_CODES[block.instruction or ""] - 1), name
+    assert demo.block("MSO_1").base == 20000
+    assert demo.block("MAJ_1").base == 20500
+    assert demo.block("MC_Power_1").base == 22000
     assert demo.access(999) == RegisterAccess.NONE
-    assert demo.access(4999) == RegisterAccess.NONE
+    assert demo.access(19999) == RegisterAccess.NONE
+
+
+def test_adding_an_instruction_type_moves_no_other_registers(demo: TagMap) -> None:
+    """An integrator's register table stays valid when a new type appears."""
+    from motion_server.instructions import registry
+
+    before = {t.name: t.address for t in demo}
+    codes = dict(registry.TYPE_CODES)
+    # the same map, with MAJ renumbered as if it were a new type at the end
+    registry.TYPE_CODES["MAJ"] = max(codes.values()) + 1
+    try:
+        after = {t.name: t.address for t in build_tagmap(config.load())}
+    finally:
+        registry.TYPE_CODES.clear()
+        registry.TYPE_CODES.update(codes)
+    moved = {n for n in before if before[n] != after[n]}
+    assert moved and all(n.startswith("MAJ_1.") for n in moved)
 
 
 def test_axis_group_diagnostics_and_clock_tags(demo: TagMap) -> None:

@@ -95,13 +95,14 @@ def test_checked_in_demo_exports_equal_a_fresh_export(fmt: str) -> None:
 def test_csv_columns() -> None:
     rows = list(csv.DictReader(io.StringIO(export(build_tagmap(config.load()), "csv"))))
     speed = next(r for r in rows if r["name"] == "MAJ_1.Speed")
-    # MAJ_1 is the first instance: base 5000; status bits 5000, ERR 5001, FLAGS 5002-5003,
-    # EXERR 5004; command bits 5006, Axis 5008, Direction 5010, Speed 5012
+    # MAJ (type code 6) is at 20000 + 100·5 = 20500: status bits 20500, ERR 20501,
+    # FLAGS 20502-20503, EXERR 20504; command bits 20506, Axis 20508, Direction 20510,
+    # Speed 20512 = 0x5020, Modbus reference 4 + (20512 + 1) = 420513
     assert speed == {
         "name": "MAJ_1.Speed",
-        "address": "5012",
-        "address_hex": "0x1394",
-        "reference": "405013",
+        "address": "20512",
+        "address_hex": "0x5020",
+        "reference": "420513",
         "bit": "",
         "count": "2",
         "unit_id": "1",
@@ -114,7 +115,7 @@ def test_csv_columns() -> None:
         "description": "speed (units/s, % of maximum, or units per master unit)",
     }
     execute = next(r for r in rows if r["name"] == "MAJ_1.Execute")
-    assert (execute["address"], execute["bit"], execute["reference"]) == ("5006", "0", "405007")
+    assert (execute["address"], execute["bit"], execute["reference"]) == ("20506", "0", "420507")
     direction = next(r for r in rows if r["name"] == "MAJ_1.Direction")
     assert direction["enum"] == "0=FORWARD; 1=REVERSE"
 
@@ -122,7 +123,7 @@ def test_csv_columns() -> None:
 def test_markdown_has_a_register_table_per_block() -> None:
     md = export(build_tagmap(config.load()), "md")
     assert "### MAJ_1 (MAJ)" in md
-    assert "| 5012–5013 | 0x1394 | 405013 |  | `MAJ_1.Speed` | REAL | R/W | mm/s |" in md
+    assert "| 20512–20513 | 0x5020 | 420513 |  | `MAJ_1.Speed` | REAL | R/W | mm/s |" in md
     assert "### Axis4" in md and "`Axis4.FeedbackInput`" in md
 
 

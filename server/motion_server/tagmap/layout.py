@@ -9,8 +9,11 @@ Clock          0                          up to register 49
 Diagnostics    50                         up to register 99
 groups         ``[modbus] group_base``    100 + 20·k (k-th group of the site map)
 axes           ``[modbus] axis_base``     1000 + 50·k (k-th axis of the site map)
-instructions   ``[modbus] instruction_    5000 + 100·k (k-th instance: declared ones,
-               base``                     then the ``every_type`` ones)
+instructions   ``[modbus] instruction_    5000 + 100·k (k-th declared instance)
+               base``
+every_type     ``[modbus] every_type_     20000 + 100·(code − 1): ``<TYPE>_1`` at a block
+               base``                     fixed by the type's stable code
+                                          (``instructions.registry.TYPE_CODES``)
 =============  =========================  ========================================
 
 An instance's ``modbus_base`` in the site map overrides its default base (it must be
@@ -35,6 +38,7 @@ from enum import IntEnum
 from typing import TYPE_CHECKING
 
 from ..instructions import Instruction, Kind, Operand, Quantity, StatusField, TagType, catalog
+from ..instructions.registry import type_code
 from .fields import (
     AXIS_FIELDS,
     DIAGNOSTICS_FIELDS,
@@ -299,18 +303,23 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
         )
         cls = catalog()[inst.type]
         items = instruction_items(cls, _instance_units(inst, axis_units))
-        if inst.modbus_base is not None:
+        explicit = inst.modbus_base
+        if i is None:
+            # an every_type instance: a fixed block per type, stable as types are added
+            explicit = mb.every_type_base + INSTRUCTION_STRIDE * (type_code(cls.TYPE) - 1)
+        if explicit is not None:
             placed = _place(
                 inst.name,
                 Folder.INSTRUCTIONS,
-                inst.modbus_base,
+                explicit,
                 INSTRUCTION_STRIDE,
                 items,
                 cls.TYPE,
             )
-            add(placed, (*where, "modbus_base"))
-            # the default slot of this instance stays free
-            base += placed[0].size
+            add(placed, (*where, "modbus_base") if i is not None else where)
+            if i is not None:
+                # the default slot of this declared instance stays free
+                base += placed[0].size
         else:
             block = _place(
                 inst.name, Folder.INSTRUCTIONS, base, INSTRUCTION_STRIDE, items, cls.TYPE
