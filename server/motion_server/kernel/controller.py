@@ -82,6 +82,10 @@ class Controller:
         #: interpolates linearly from it to the new command across one cycle)
         self.drv_cmd = np.zeros(n)
         self.drive_on = np.zeros(n, dtype=bool)
+        #: bumped whenever a drive switches on or off; the per-group on/off index
+        #: partitions below are recomputed only then (fancy indexing costs on small groups)
+        self._drive_version = 0
+        self._partitions: dict[int, tuple[int, np.ndarray, np.ndarray, np.ndarray]] = {}
         self.omega = np.array([2.0 * math.pi * max(a.drive_bandwidth, 1e-3) for a in axes])
         self.cpu = np.array([a.counts_per_unit for a in axes])
         self.coast = np.array([max(a.coast_deceleration, 0.0) for a in axes])
@@ -266,12 +270,20 @@ class Controller:
         self.cmd_pos[i] = q
         self.cmd_vel[i] = self.act_vel[i]
 
+    def _partition(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(drive on, drive off, drive on with a following-error limit) among ``idx``."""
+        cached = self._partitions.get(id(idx))
+        if cached is None or cached[0] != self._drive_version:
+            on = self.drive_on[idx]
+            on_idx = idx[on]
+            cached = (self._drive_version, on_idx, idx[~on], on_idx[self.fe_limit[on_idx] > 0.0])
+            self._partitions[id(idx)] = cached
+        return cached[1], cached[2], cached[3]
+
     def _drives(self, idx: np.ndarray, dt: float, servo: bool) -> None:
         if idx.size == 0:
             return
-        on = self.drive_on[idx]
-        on_idx = idx[on]
-        off_idx = idx[~on]
+        on_idx, off_idx, _ = self._partition(idx)
         if on_idx.size:
             if servo:
                 # x'' + 2w x' + w^2 x = w^2 c(t), c(t) the command ramp from the last
@@ -317,9 +329,11 @@ class Controller:
     def _check_following_error(self, idx: np.ndarray) -> None:
         if idx.size == 0:
             return
-        lim = self.fe_limit[idx]
-        err = np.abs(self.cmd_pos[idx] - self.act_pos[idx])
-        bad = idx[self.drive_on[idx] & (lim > 0.0) & (err > lim)]
+        watched = self._partition(idx)[2]
+        if watched.size == 0:
+            return
+        err = np.abs(self.cmd_pos[watched] - self.act_pos[watched])
+        bad = watched[err > self.fe_limit[watched]]
         for i in bad:
             self.fault(self.axes[int(i)], AxisFault.POSITION_ERROR)
 
@@ -379,6 +393,8 @@ class Controller:
             self.drv_cmd[i] = ax.base
             self.cmd_vel[i] = 0.0
             self.cmd_acc[i] = 0.0
+        if bool(self.drive_on[i]) != on:
+            self._drive_version += 1
         self.drive_on[i] = on
 
     def servo_on(self, ax: Axis) -> None:
