@@ -214,16 +214,27 @@ class Controller:
         return bool(abs(self.act_vel[i]) * dt * self.cpu[i] < 1.0)
 
     def _compose(self, ax: Axis, dt: float) -> None:
-        keep: list[Process] = []
-        landing: float | None = None
-        for p in ax.processes:
-            if p.active:
+        active = ProcessState.ACTIVE
+        procs = ax.processes
+        for p in procs:
+            if p.state is active:
                 try:
                     p.step(self, dt)
                 except MotionError as exc:
-                    p.state = p.state.ERROR
+                    p.state = ProcessState.ERROR
                     p.error_code = int(exc.code)
-            if p.active:
+        i = ax.index
+        if len(procs) == 1 and procs[0].state is active and ax.buffered is None:
+            # the common case, one running process: no lists, no sums
+            p = procs[0]
+            self.cmd_pos[i] = ax.base + p.position
+            self.cmd_vel[i] = p.velocity
+            self.cmd_acc[i] = p.acceleration
+            return
+        keep: list[Process] = []
+        landing: float | None = None
+        for p in procs:
+            if p.state is active:
                 keep.append(p)
             else:
                 ax.base += p.position
@@ -232,10 +243,14 @@ class Controller:
         ax.processes = keep
         if landing is not None and not keep and _rounding_apart(ax.base, landing):
             ax.base = landing  # an absolute move ends exactly on its target
-        i = ax.index
-        self.cmd_pos[i] = ax.base + sum(p.position for p in keep)
-        self.cmd_vel[i] = sum(p.velocity for p in keep)
-        self.cmd_acc[i] = sum(p.acceleration for p in keep)
+        pos = vel = acc = 0.0
+        for p in keep:
+            pos += p.position
+            vel += p.velocity
+            acc += p.acceleration
+        self.cmd_pos[i] = ax.base + pos
+        self.cmd_vel[i] = vel
+        self.cmd_acc[i] = acc
         pend = ax.buffered
         if pend is not None and all(p.reached for p in keep):
             ax.buffered = None
