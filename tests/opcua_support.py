@@ -46,7 +46,7 @@ login_lockout_s = {lockout}
 [[groups]]
 name = "Group1"
 coarse_update_period_ms = 2.0
-axes = ["Axis1", "Axis2"]
+axes = ["Axis1", "Axis2", "Axis3"]
 
 # the master: a virtual axis (actual = command, no drive lag)
 [[axes]]
@@ -63,8 +63,18 @@ max_velocity = 500.0
 max_acceleration = 5000.0
 max_deceleration = 5000.0
 
+# MC_Power is level-controlled: on its own axis, so that it does not hold Axis1 off
+[[axes]]
+name = "Axis3"
+type = "virtual"
+
 [instructions]
 every_type = true
+
+[[instructions.instances]]
+name = "MC_Power_1"
+type = "MC_Power"
+operands = {{ Axis = 3 }}
 """
 
 
