@@ -18,6 +18,9 @@ name = "modbus_test"
 clock = "manual"
 status_log_interval = 0.0
 
+[opcua]
+enabled = false
+
 [modbus]
 port = 0
 word_order = "{word_order}"
