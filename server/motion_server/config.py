@@ -2,13 +2,17 @@
 
 Validated with pydantic; every error names the file, the line and the field. The demo
 map embedded in the package (``data/demo.toml``) is what ``motion-server run`` uses when
-given none.
+given none (unless ``MOTION_SERVER_MAP`` names a file). Settings of the single-table
+sections can be overridden from the environment (containers, CI benches): see
+:func:`apply_environment`.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import tomllib
+from collections.abc import Mapping
 from enum import Enum
 from importlib import resources
 from pathlib import Path
@@ -29,6 +33,10 @@ from .kernel import (
 from .kernel.config import MAX_PERIOD, MIN_PERIOD
 
 DEMO_MAP = "demo.toml"
+#: environment variable naming the site map file used when none is given
+MAP_ENV = "MOTION_SERVER_MAP"
+#: prefix of the per-setting overrides: MOTION_SERVER_<SECTION>_<FIELD>
+ENV_PREFIX = "MOTION_SERVER_"
 NAME_RE = r"^[A-Za-z][A-Za-z0-9_]*$"
 
 
@@ -289,14 +297,52 @@ def parse(text: str, source: str = "<memory>") -> SiteMap:
     return site
 
 
-def load(path: str | Path | None = None) -> SiteMap:
-    """Load a site map file, or the embedded demo map when ``path`` is None."""
+def apply_environment(site: SiteMap, environ: Mapping[str, str] | None = None) -> SiteMap:
+    """The site map with ``MOTION_SERVER_<SECTION>_<FIELD>`` variables applied.
+
+    Every field of a single-table section (``[site]``, ``[controller]``, ``[modbus]``, ...)
+    can be set this way, e.g. ``MOTION_SERVER_MODBUS_HOST=0.0.0.0`` in a container or
+    ``MOTION_SERVER_CONTROLLER_CLOCK=manual`` on a test bench. Values are validated like
+    the TOML ones; an invalid value is a :class:`SiteMapError` naming the variable.
+    """
+    env = os.environ if environ is None else environ
+    data = site.model_dump()
+    used: dict[tuple[str, str], str] = {}
+    for section, info in SiteMap.model_fields.items():
+        model = info.annotation
+        if not (isinstance(model, type) and issubclass(model, _Model)):
+            continue
+        for field in model.model_fields:
+            var = f"{ENV_PREFIX}{section}_{field}".upper()
+            if var in env:
+                data[section][field] = env[var]
+                used[(section, field)] = var
+    if not used:
+        return site
+    try:
+        return SiteMap.model_validate({**data, "source": site.source})
+    except ValidationError as exc:
+        lines = []
+        for err in exc.errors():
+            loc = tuple(str(p) for p in err["loc"])
+            name = used.get((loc[0], loc[1])) if len(loc) > 1 else None
+            where = f"environment {name}" if name else ".".join(loc)
+            lines.append(f"{site.source}: {where}: {err['msg'].removeprefix('Value error, ')}")
+        raise SiteMapError("\n".join(lines)) from exc
+
+
+def load(path: str | Path | None = None, environ: Mapping[str, str] | None = None) -> SiteMap:
+    """Load a site map file, or (``path`` None) the file named by ``MOTION_SERVER_MAP``,
+    else the embedded demo map; then apply the environment overrides."""
+    env = os.environ if environ is None else environ
+    if path is None and env.get(MAP_ENV):
+        path = env[MAP_ENV]
     if path is None:
         text = resources.files("motion_server").joinpath("data", DEMO_MAP).read_text("utf-8")
-        return parse(text, f"<embedded {DEMO_MAP}>")
+        return apply_environment(parse(text, f"<embedded {DEMO_MAP}>"), env)
     p = Path(path)
     try:
         text = p.read_text("utf-8")
     except OSError as exc:
         raise SiteMapError(f"{p}: cannot read site map: {exc.strerror}") from exc
-    return parse(text, str(p))
+    return apply_environment(parse(text, str(p)), env)
