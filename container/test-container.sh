@@ -15,8 +15,8 @@
 #
 # Environment: PYTHON (host interpreter with pymodbus, default .venv/bin/python),
 # DEBIAN_MIRROR (default: the host's apt source for the suite, else deb.debian.org),
-# STORAGE_DRIVER (buildah's; default overlay, falling back to vfs), KEEP_WORK=1 (keep the
-# scratch directory for inspection).
+# STORAGE_DRIVER (overlay or vfs; default overlay where it works, else vfs),
+# KEEP_WORK=1 (keep the scratch directory for inspection).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -80,16 +80,24 @@ fi
 info "$(buildah --version), $(debootstrap --version)"
 [ -x "$PYTHON" ] || fail "no host interpreter at $PYTHON (run through make, or set PYTHON)"
 
-if [ -z "${STORAGE_DRIVER:-}" ]; then
-    # overlay is buildah's default; where it cannot mount, use vfs in a store of its own
+use_vfs() { # vfs copies instead of mounting layers: slower, works everywhere
+    BUILDAH=(buildah --storage-driver vfs --root /var/lib/containers/motion-server-vfs
+        --runroot /run/containers/motion-server-vfs)
+}
+case "${STORAGE_DRIVER:-auto}" in
+vfs) use_vfs ;;
+overlay) ;;
+*) # overlay is buildah's default; where it cannot mount, use vfs in a store of its own
     probe=$(buildah from scratch 2>/dev/null) || probe=""
     if [ -z "$probe" ] || ! buildah mount "$probe" >/dev/null 2>&1; then
         info "overlay storage unusable here: using vfs"
-        BUILDAH=(buildah --storage-driver vfs --root /var/lib/containers/motion-server-vfs
-            --runroot /run/containers/motion-server-vfs)
+        use_vfs
     fi
     [ -z "$probe" ] || buildah rm "$probe" >/dev/null 2>&1 || true
-fi
+    ;;
+esac
+unset STORAGE_DRIVER
+info "storage: ${BUILDAH[*]}"
 
 # --- 2. base image -------------------------------------------------------------------
 step 2/5 "base image"
