@@ -41,7 +41,8 @@ COPY --from=build /opt/motion-server /opt/motion-server
 RUN groupadd --gid 10001 motion \
     && useradd --uid 10001 --gid motion --home-dir /nonexistent --no-create-home \
         --shell /usr/sbin/nologin motion \
-    && mkdir -p /maps
+    && mkdir -p /maps /var/lib/motion-server \
+    && chown motion:motion /var/lib/motion-server
 # Listen on every interface of the container (the site map default is 127.0.0.1), on the
 # exposed ports whatever the site map says: publish them as you like (-p 15020:5020).
 # The OPC UA pair takes effect once the site map has an [opcua] section.
@@ -56,13 +57,14 @@ ENV PATH=/opt/motion-server/bin:$PATH \
 # at /maps/site.toml (-v ./maps:/maps:ro -e MOTION_SERVER_MAP=/maps/site.toml), or baked
 # into a derived image (COPY site.toml /maps/site.toml + ENV MOTION_SERVER_MAP=...).
 # OPC UA users: MOTION_SERVER_USERS_FILE names a users file (a mounted secret, by default
-# /run/secrets/motion_server_users when present); see README.md.
+# /run/secrets/motion_server_users when present) or MOTION_SERVER_USERS holds it inline;
+# see README.md. Generated state (the OPC UA certificate) goes to /var/lib/motion-server.
 WORKDIR /maps
 USER motion
 EXPOSE 5020 4840
 # Healthy while the controller heartbeat is readable over Modbus and (unless the clock is
 # manual) keeps counting.
-HEALTHCHECK --interval=15s --timeout=5s --start-period=10s --retries=3 \
+HEALTHCHECK --interval=15s --timeout=10s --start-period=10s --retries=3 \
     CMD ["python", "/opt/motion-server/container/heartbeat.py", "--quiet"]
 ENTRYPOINT ["motion-server"]
 CMD ["run"]
