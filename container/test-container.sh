@@ -227,7 +227,9 @@ if in_image "$CONTAINER" -- python -c 'import pytest' >/dev/null 2>&1; then
 fi
 out=$(in_image "$CONTAINER" -- motion-server check) || fail "motion-server check: $out"
 [[ "$out" == "<embedded demo.toml>: ok: "* ]] || fail "motion-server check said: $out"
-info "uid $uid, no test extra; $out"
+in_image "$CONTAINER" -- sh -c 'touch /var/lib/motion-server/probe && rm /var/lib/motion-server/probe' ||
+    fail "/var/lib/motion-server is not writable by the image user"
+info "uid $uid, data directory writable, no test extra; $out"
 
 mkdir -p "$WORK/maps"
 cat >"$WORK/maps/site.toml" <<'EOF'
