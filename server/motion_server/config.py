@@ -4,7 +4,7 @@ Validated with pydantic; every error names the file, the line and the field. The
 map embedded in the package (``data/demo.toml``) is what ``motion-server run`` uses when
 given none (unless ``MOTION_SERVER_MAP`` names a file). Settings of the single-table
 sections can be overridden from the environment (containers, CI benches): see
-:func:`apply_environment`.
+:func:`environment_settings`.
 """
 
 from __future__ import annotations
@@ -277,11 +277,18 @@ def _locate(text: str, loc: tuple[int | str, ...]) -> int:
     return line
 
 
-def parse(text: str, source: str = "<memory>") -> SiteMap:
+def parse(text: str, source: str = "<memory>", environ: Mapping[str, str] | None = None) -> SiteMap:
+    """Validate a site map text; ``environ`` settings (see :func:`environment_settings`)
+    replace the TOML values before validation, so every check sees them."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SiteMapError(f"{source}: invalid TOML: {exc}") from exc
+    overrides = environment_settings(environ or {})
+    for (section, field), (_, value) in overrides.items():
+        table = data.setdefault(section, {})
+        if isinstance(table, dict):
+            table[field] = value
     try:
         site = SiteMap.model_validate({**data, "source": source})
     except ValidationError as exc:
@@ -292,57 +299,48 @@ def parse(text: str, source: str = "<memory>") -> SiteMap:
         lines = []
         for loc, msg in found:
             field = ".".join(str(p) for p in loc) or "(top level)"
-            lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
+            var = overrides.get((str(loc[0]), str(loc[1]))) if len(loc) > 1 else None
+            if var:
+                lines.append(f"{source}: environment {var[0]}: {msg}")
+            else:
+                lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
         raise SiteMapError("\n".join(lines))
     return site
 
 
-def apply_environment(site: SiteMap, environ: Mapping[str, str] | None = None) -> SiteMap:
-    """The site map with ``MOTION_SERVER_<SECTION>_<FIELD>`` variables applied.
+def environment_settings(environ: Mapping[str, str]) -> dict[tuple[str, str], tuple[str, str]]:
+    """``MOTION_SERVER_<SECTION>_<FIELD>`` variables: (section, field) -> (variable, value).
 
     Every field of a single-table section (``[site]``, ``[controller]``, ``[modbus]``, ...)
     can be set this way, e.g. ``MOTION_SERVER_MODBUS_HOST=0.0.0.0`` in a container or
-    ``MOTION_SERVER_CONTROLLER_CLOCK=manual`` on a test bench. Values are validated like
-    the TOML ones; an invalid value is a :class:`SiteMapError` naming the variable.
+    ``MOTION_SERVER_CONTROLLER_CLOCK=manual`` on a test bench. The values are validated like
+    the TOML ones; an invalid one is a :class:`SiteMapError` naming the variable.
     """
-    env = os.environ if environ is None else environ
-    data = site.model_dump()
-    used: dict[tuple[str, str], str] = {}
+    found: dict[tuple[str, str], tuple[str, str]] = {}
     for section, info in SiteMap.model_fields.items():
         model = info.annotation
         if not (isinstance(model, type) and issubclass(model, _Model)):
             continue
         for field in model.model_fields:
             var = f"{ENV_PREFIX}{section}_{field}".upper()
-            if var in env:
-                data[section][field] = env[var]
-                used[(section, field)] = var
-    if not used:
-        return site
-    try:
-        return SiteMap.model_validate({**data, "source": site.source})
-    except ValidationError as exc:
-        lines = []
-        for err in exc.errors():
-            loc = tuple(str(p) for p in err["loc"])
-            name = used.get((loc[0], loc[1])) if len(loc) > 1 else None
-            where = f"environment {name}" if name else ".".join(loc)
-            lines.append(f"{site.source}: {where}: {err['msg'].removeprefix('Value error, ')}")
-        raise SiteMapError("\n".join(lines)) from exc
+            if var in environ:
+                found[(section, field)] = (var, environ[var])
+    return found
 
 
 def load(path: str | Path | None = None, environ: Mapping[str, str] | None = None) -> SiteMap:
     """Load a site map file, or (``path`` None) the file named by ``MOTION_SERVER_MAP``,
-    else the embedded demo map; then apply the environment overrides."""
+    else the embedded demo map, with the settings of the environment (``environ``,
+    default ``os.environ``) applied."""
     env = os.environ if environ is None else environ
     if path is None and env.get(MAP_ENV):
         path = env[MAP_ENV]
     if path is None:
         text = resources.files("motion_server").joinpath("data", DEMO_MAP).read_text("utf-8")
-        return apply_environment(parse(text, f"<embedded {DEMO_MAP}>"), env)
+        return parse(text, f"<embedded {DEMO_MAP}>", env)
     p = Path(path)
     try:
         text = p.read_text("utf-8")
     except OSError as exc:
         raise SiteMapError(f"{p}: cannot read site map: {exc.strerror}") from exc
-    return apply_environment(parse(text, str(p)), env)
+    return parse(text, str(p), env)

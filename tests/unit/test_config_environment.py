@@ -112,3 +112,10 @@ def test_process_environment_is_the_default(
 def test_empty_map_variable_means_the_demo_map() -> None:
     site = config.load(None, environ={"MOTION_SERVER_MAP": ""})
     assert site.source == "<embedded demo.toml>"
+
+
+def test_a_section_the_map_does_not_write_can_be_set() -> None:
+    # the demo map has no [modbus] table: the variable creates it
+    site = config.load(None, environ={"MOTION_SERVER_MODBUS_PORT": "0"})
+    assert site.modbus.port == 0
+    assert site.modbus.host == "127.0.0.1"
