@@ -1,7 +1,8 @@
 """Read the controller heartbeat of a motion-server over Modbus TCP; exit 0 when healthy.
 
 The container HEALTHCHECK, the compose bench client and `make test-container` use it.
-The heartbeat's register address comes from the tag map's JSON export
+The heartbeat (the ``Diagnostics.Heartbeat`` tag, incremented every cycle) and its
+register address come from the tag map's JSON export
 (``motion-server map --format json``, contract "motion-server-map/1"), never from a
 constant here. Healthy: the heartbeat can be read twice and has increased in between —
 or stood still while the server's clock is in manual mode (``Clock.Mode`` = 1), where
@@ -23,9 +24,9 @@ import time
 from typing import Any
 
 MAP_FORMAT = "motion-server-map/1"
-HEARTBEAT_TAG = "Controller.Heartbeat"
+#: the heartbeat tag: the first of these names the map has (``--tag`` picks another)
+HEARTBEAT_TAGS = ("Diagnostics.Heartbeat", "Controller.Heartbeat")
 CLOCK_MODE_TAG = "Clock.Mode"
-CLOCK_MANUAL = 1
 
 #: tag type -> (struct code, registers)
 TYPES: dict[str, tuple[str, int]] = {
@@ -119,21 +120,26 @@ class Reader:
         return value
 
 
-def check(reader: Reader, interval: float, require_increase: bool) -> str:
+def check(
+    reader: Reader, interval: float, require_increase: bool, names: tuple[str, ...] = HEARTBEAT_TAGS
+) -> str:
     """Read the heartbeat twice ``interval`` apart; a message when healthy, else raise."""
-    heartbeat = find_tag(reader.map, HEARTBEAT_TAG)
+    heartbeat = next((tag for n in names if (tag := find_tag(reader.map, n))), None)
     if heartbeat is None:
-        raise Unhealthy(f"the tag map has no {HEARTBEAT_TAG}")
+        raise Unhealthy(f"the tag map has no {' or '.join(names)}")
+    name = heartbeat["name"]
     first = reader.read(heartbeat)
     time.sleep(interval)
     second = reader.read(heartbeat)
     if second > first:
-        return f"{HEARTBEAT_TAG} {first} -> {second} at {reader.where}"
+        return f"{name} {first} -> {second} at {reader.where}"
     mode_tag = find_tag(reader.map, CLOCK_MODE_TAG)
-    manual = mode_tag is not None and reader.read(mode_tag) == CLOCK_MANUAL
+    manual = False
+    if mode_tag is not None:
+        manual = reader.read(mode_tag) == mode_tag.get("enum", {}).get("MANUAL", 1)
     if manual and not require_increase:
-        return f"{HEARTBEAT_TAG} {second} at {reader.where} (manual clock)"
-    raise Unhealthy(f"{HEARTBEAT_TAG} did not increase: {first} -> {second} at {reader.where}")
+        return f"{name} {second} at {reader.where} (manual clock)"
+    raise Unhealthy(f"{name} did not increase: {first} -> {second} at {reader.where}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -148,13 +154,15 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="fail when the heartbeat stands still, even in manual clock mode",
     )
+    p.add_argument("--tag", help=f"heartbeat tag (default: {' or '.join(HEARTBEAT_TAGS)})")
     p.add_argument("--quiet", action="store_true", help="print nothing when healthy")
     args = p.parse_args(argv)
     try:
         tag_map = load_map(args.map_json)
         port = args.port if args.port is not None else default_port()
         with Reader(tag_map, args.host, port, args.timeout) as reader:
-            message = check(reader, args.interval, args.require_increase)
+            names = (args.tag,) if args.tag else HEARTBEAT_TAGS
+            message = check(reader, args.interval, args.require_increase, names)
     except Exception as exc:  # a health check reports, it never shows a traceback
         print(f"unhealthy: {exc}", file=sys.stderr)
         return 1

@@ -57,7 +57,12 @@ MAP: dict[str, Any] = {
     "modbus": {"word_order": "big", "unit_id": 1},
     "tags": [
         {"name": "Controller.Heartbeat", "type": "UDINT", "modbus": {"address": 10, "count": 2}},
-        {"name": "Clock.Mode", "type": "INT", "modbus": {"address": 20, "count": 1}},
+        {
+            "name": "Clock.Mode",
+            "type": "INT",
+            "modbus": {"address": 20, "count": 1},
+            "enum": {"REALTIME": 0, "MANUAL": 1, "SCALED": 2},
+        },
     ],
 }
 
@@ -70,8 +75,10 @@ class FakeReader:
         self.where = "fake:5020"
         self.heartbeats = heartbeats
         self.clock_mode = clock_mode
+        self.names: list[str] = []
 
     def read(self, tag: dict[str, Any]) -> int:
+        self.names.append(tag["name"])
         if tag["name"] == "Clock.Mode":
             return self.clock_mode
         return self.heartbeats.pop(0)
@@ -93,10 +100,23 @@ def test_a_still_heartbeat_in_manual_clock_is_healthy_unless_increase_is_require
         hb.check(FakeReader([7, 7], 1), 0.0, require_increase=True)
 
 
+def test_the_diagnostics_heartbeat_comes_first() -> None:
+    reader = FakeReader([1, 2], 0)
+    diagnostics = {**MAP["tags"][0], "name": "Diagnostics.Heartbeat"}
+    reader.map = {**MAP, "tags": [*MAP["tags"], diagnostics]}
+    assert hb.check(reader, 0.0, require_increase=True).startswith("Diagnostics.Heartbeat 1 -> 2")
+    assert reader.names == ["Diagnostics.Heartbeat", "Diagnostics.Heartbeat"]
+
+
+def test_scaled_clock_is_not_manual() -> None:
+    with pytest.raises(hb.Unhealthy):
+        hb.check(FakeReader([7, 7], clock_mode=2), 0.0, require_increase=False)
+
+
 def test_a_map_without_heartbeat_is_unhealthy() -> None:
     reader = FakeReader([1, 2], 0)
     reader.map = {**MAP, "tags": MAP["tags"][1:]}
-    with pytest.raises(hb.Unhealthy, match=r"no Controller\.Heartbeat"):
+    with pytest.raises(hb.Unhealthy, match=r"no Diagnostics\.Heartbeat or Controller\.Heartbeat"):
         hb.check(reader, 0.0, require_increase=False)
 
 
