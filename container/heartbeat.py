@@ -81,6 +81,16 @@ def decode(registers: list[int], tag_type: str, word_order: str) -> int | float:
     return value
 
 
+def encode(value: float, tag_type: str, word_order: str) -> list[int]:
+    """Holding registers of a tag value: the inverse of :func:`decode`."""
+    code, count = TYPES[tag_type]
+    raw = struct.pack(">" + code, int(value) if code not in "fd" else float(value))
+    words = [int.from_bytes(raw[i : i + 2], "big") for i in range(0, 2 * count, 2)]
+    if word_order == "little":
+        words.reverse()
+    return words
+
+
 def default_port() -> int:
     """The Modbus port of the site map this interpreter sees (with the environment)."""
     from motion_server import config
@@ -107,6 +117,23 @@ class Reader:
 
     def __exit__(self, *exc: object) -> None:
         self.client.close()
+
+    def tag(self, name: str) -> dict[str, Any]:
+        found = find_tag(self.map, name)
+        if found is None:
+            raise Unhealthy(f"the tag map has no {name}")
+        return found
+
+    def write(self, name: str, value: float) -> None:
+        """Write a whole tag (a BOOL as its register with only its bit set)."""
+        tag = self.tag(name)
+        bit = tag["modbus"].get("bit")
+        value = (int(bool(value)) << int(bit)) if bit is not None else value
+        words = encode(value, tag["type"], self.word_order)
+        address = int(tag["modbus"]["address"])
+        reply = self.client.write_registers(address, words, device_id=self.unit)
+        if reply.isError():
+            raise Unhealthy(f"writing {name} at register {address}: {reply}")
 
     def read(self, tag: dict[str, Any]) -> int | float:
         address, count = int(tag["modbus"]["address"]), int(tag["modbus"]["count"])

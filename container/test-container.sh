@@ -10,8 +10,9 @@
 #   4. image      non-root user, exposed ports, healthcheck, runtime dependencies only,
 #                 `motion-server check` on the embedded and on a mounted site map
 #   5. run        `motion-server run` in the image: status line, the heartbeat read twice
-#                 over Modbus from the host on 127.0.0.1 (it must increase), the image's
-#                 own HEALTHCHECK command, then SIGTERM -> programmed stop, exit status 0
+#                 over Modbus from the host on 127.0.0.1 (it must count ~250 cycles in
+#                 0.5 s), the image's own HEALTHCHECK command, a jog started over Modbus,
+#                 then SIGTERM -> the programmed stop of the jog, exit status 0
 #
 # Environment: PYTHON (host interpreter with pymodbus, default .venv/bin/python),
 # DEBIAN_MIRROR (default: the host's apt source for the suite, else deb.debian.org),
@@ -301,18 +302,47 @@ wait_for() { # pattern, seconds
 wait_for ' cycle [0-9]* t=' 30
 info "pid $SERVER_PID, Modbus port $PORT: $(grep -m1 ' cycle [0-9]* t=' "$LOG" | cut -d' ' -f5-9)"
 
-if in_image "$CONTAINER" -- motion-server map --help >/dev/null 2>&1; then
-    in_image "$CONTAINER" -- motion-server map --format json >"$WORK/map.json" ||
-        fail "motion-server map --format json"
-    out=$("$PYTHON" container/heartbeat.py --host 127.0.0.1 --port "$PORT" \
-        --map-json "$WORK/map.json" --require-increase) || fail "heartbeat from the host"
-    info "from the host: $out"
-    out=$(in_image --env MOTION_SERVER_MODBUS_PORT="$PORT" "$CONTAINER" -- \
-        python /opt/motion-server/container/heartbeat.py) || fail "the image's healthcheck"
-    info "HEALTHCHECK in the image: $out"
-else
-    info "SKIPPED heartbeat over Modbus: this build has no 'motion-server map' yet"
-fi
+in_image "$CONTAINER" -- motion-server map --format json >"$WORK/map.json" ||
+    fail "motion-server map --format json in the image"
+# Twice from the host, 0.5 s apart: at the demo map's 2 ms period the heartbeat counts
+# 0.5 / 0.002 = 250 cycles in between (realtime clock; accept half to one and a half).
+out=$("$PYTHON" container/heartbeat.py --host 127.0.0.1 --port "$PORT" \
+    --map-json "$WORK/map.json" --interval 0.5 --require-increase) ||
+    fail "heartbeat read from the host: $out"
+counted=$(sed -E 's/.* ([0-9]+) -> ([0-9]+) .*/\2 - \1/' <<<"$out")
+counted=$((counted))
+((counted >= 125 && counted <= 375)) || fail "heartbeat counted $counted cycles in 0.5 s, not ~250"
+info "from the host: $out ($counted cycles, 250 expected)"
+# the image's HEALTHCHECK command, as the engine would run it inside the container
+out=$(in_image --env MOTION_SERVER_MODBUS_PORT="$PORT" "$CONTAINER" -- \
+    $(cfg '{{range $i, $a := .Docker.Config.Healthcheck.Test}}{{if $i}}{{$a}} {{end}}{{end}}')) ||
+    fail "the image's healthcheck: $out"
+info "HEALTHCHECK in the image: exit 0 ${out:-(quiet)}"
+
+# Jog the master so that SIGTERM has motion to stop: MC_Power_1 powers Axis1, MAJ_1 jogs it
+# at 100 mm/s. Its programmed stop is a fast stop at its maximum deceleration, 5000 mm/s²
+# in the demo map: 100 / 5000 = 0.020 s = 10 cycles of 2 ms.
+out=$("$PYTHON" - "$WORK/map.json" "$PORT" <<'EOF'
+import sys, time
+sys.path.insert(0, "container")
+import heartbeat as hb
+
+with hb.Reader(hb.load_map(sys.argv[1]), "127.0.0.1", int(sys.argv[2]), 3.0) as r:
+    r.write("MC_Power_1.Axis", 1)
+    r.write("MC_Power_1.Enable", 1)
+    for name, value in [("Axis", 1), ("Direction", 0), ("Speed", 100.0), ("SpeedUnits", 0),
+                        ("AccelRate", 5000.0), ("AccelUnits", 0), ("DecelRate", 5000.0),
+                        ("DecelUnits", 0), ("Profile", 0)]:
+        r.write(f"MAJ_1.{name}", value)
+    r.write("MAJ_1.Execute", 1)
+    time.sleep(0.3)
+    print(" ".join(f"{n}={r.read(r.tag(n))}" for n in
+                   ("MAJ_1.DN", "MAJ_1.ER", "MAJ_1.ERR", "MAJ_1.IP", "Axis1.CommandVelocity")))
+EOF
+) || fail "jog over Modbus: $out"
+[ "$out" = "MAJ_1.DN=1 MAJ_1.ER=0 MAJ_1.ERR=0 MAJ_1.IP=1 Axis1.CommandVelocity=100.0" ] ||
+    fail "jog over Modbus: $out"
+info "jog: $out"
 
 kill -TERM "$SERVER_PID"
 rc=0
@@ -323,7 +353,8 @@ SERVER_PID=""
     cat "$LOG" >&2
     fail "the server exited with status $rc after SIGTERM"
 }
-grep -q 'programmed stop complete' "$LOG" || fail "no programmed stop on SIGTERM"
+grep -q 'programmed stop complete after 10 cycles (0.020 s simulated)' "$LOG" ||
+    fail "SIGTERM: no programmed stop of the jog in 10 cycles: $(grep 'programmed stop' "$LOG")"
 grep -q 'motion_server: stopped' "$LOG" || fail "no clean stop on SIGTERM"
 info "SIGTERM: $(grep -m1 'programmed stop complete' "$LOG" | cut -d' ' -f5-)"
 

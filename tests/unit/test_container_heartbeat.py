@@ -136,3 +136,19 @@ def test_an_unreachable_server_is_reported_not_raised(
     rc = hb.main(["--map-json", str(path), "--port", "1", "--timeout", "0.5"])
     assert rc == 1
     assert "unhealthy: cannot connect to Modbus server at 127.0.0.1:1" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("value", "tag_type", "word_order", "registers"),
+    [
+        (1, "DINT", "big", [0x0000, 0x0001]),
+        (1, "DINT", "little", [0x0001, 0x0000]),
+        (-2, "DINT", "big", [0xFFFF, 0xFFFE]),
+        (100.0, "REAL", "big", [0x42C8, 0x0000]),  # 100.0 = 0x42C80000
+        (5000.0, "REAL", "little", [0x4000, 0x459C]),  # 5000.0 = 0x459C4000
+        (1, "BOOL", "big", [0x0001]),
+    ],
+)
+def test_encode(value: float, tag_type: str, word_order: str, registers: list[int]) -> None:
+    assert hb.encode(value, tag_type, word_order) == registers
+    assert hb.decode(registers, tag_type, word_order) == value
