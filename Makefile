@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint typecheck unit bench clean test-container
+.PHONY: run test lint typecheck unit bench maps tools clean test-container
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -17,15 +17,29 @@ $(STAMP): pyproject.toml | $(BIN)/python
 run: $(STAMP)
 	$(BIN)/motion-server run $(MAP)
 
+# only the source trees that exist yet (bench/ arrives with the benchmarks)
+LINT_DIRS := $(wildcard server clients tests bench)
+
 lint: $(STAMP)
-	$(BIN)/ruff check server clients tests bench
-	$(BIN)/ruff format --check server clients tests bench
+	$(BIN)/ruff check $(LINT_DIRS)
+	$(BIN)/ruff format --check $(LINT_DIRS)
 
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-test: lint typecheck
+test: lint typecheck tools
 	$(BIN)/pytest -q
+
+# mbpoll: the Modbus client that is not Python, for the interop tests (Debian package;
+# installed when missing and we are root, as on a fresh CI machine)
+tools:
+	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll) \
+		>/dev/null 2>&1 || echo "note: mbpoll not installed; its interop test will be skipped"; }
+
+# regenerate the checked-in exports of the demo map (a test compares them)
+maps: $(STAMP)
+	@for f in json csv md; do $(BIN)/motion-server map --format $$f -o maps/demo-map.$$f; done
 
 # Build the Dockerfile and smoke-test the image with buildah (as root; see container/).
 test-container: $(STAMP)

@@ -1,4 +1,4 @@
-"""``motion-server``: run the server, check a site map."""
+"""``motion-server``: run the server, check a site map, export its tag map."""
 
 from __future__ import annotations
 
@@ -6,9 +6,11 @@ import argparse
 import asyncio
 import logging
 import sys
+from pathlib import Path
 
 from . import __version__, config
 from .runtime import ClockMode, Runtime
+from .tagmap import FORMATS, build_tagmap, export
 
 log = logging.getLogger("motion_server")
 
@@ -20,20 +22,29 @@ def _load(path: str | None) -> config.SiteMap:
         raise SystemExit(f"motion-server: site map error:\n{exc}") from None
 
 
-async def _serve(rt: Runtime) -> None:
+async def _serve(rt: Runtime, modbus: bool | None) -> None:
     rt.install_signal_handlers()
-    await rt.run()
+    await rt.serve(modbus=modbus)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     site = _load(args.map)
+    changes = {
+        k: v for k, v in (("host", args.modbus_host), ("port", args.modbus_port)) if v is not None
+    }
+    if changes:
+        try:
+            modbus = config.ModbusSection.model_validate(site.modbus.model_dump() | changes)
+        except ValueError as exc:
+            raise SystemExit(f"motion-server: {exc}") from None
+        site = site.model_copy(update={"modbus": modbus})
     rt = Runtime(site)
     if args.clock:
         rt.set_mode(ClockMode[args.clock.upper()])
     if args.scale:
         rt.scale = args.scale
     log.info("site map %s", site.source)
-    asyncio.run(_serve(rt))
+    asyncio.run(_serve(rt, False if args.no_modbus else None))
     log.info("stopped")
     return 0
 
@@ -45,6 +56,16 @@ def cmd_check(args: argparse.Namespace) -> int:
         f"{site.source}: ok: {len(system.ctl.axes)} axes, {len(system.ctl.groups)} groups, "
         f"{len(system.instances)} instruction instances"
     )
+    return 0
+
+
+def cmd_map(args: argparse.Namespace) -> int:
+    site = _load(args.map)
+    text = export(build_tagmap(site), args.format)
+    if args.output:
+        Path(args.output).write_text(text, "utf-8")
+    else:
+        sys.stdout.write(text)
     return 0
 
 
@@ -61,7 +82,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="override the site map's clock mode",
     )
     run.add_argument("--scale", type=float, help="simulated seconds per real second (scaled)")
+    run.add_argument("--modbus-host", help="bind address of Modbus TCP (site map: [modbus] host)")
+    run.add_argument(
+        "--modbus-port", type=int, help="Modbus TCP port, 0 = ephemeral (site map: [modbus] port)"
+    )
+    run.add_argument("--no-modbus", action="store_true", help="do not serve Modbus TCP")
     run.set_defaults(func=cmd_run)
+    mp = sub.add_parser("map", help="export the tag map (Modbus registers, OPC UA nodes)")
+    mp.add_argument("map", nargs="?", help="site map (TOML)")
+    mp.add_argument("--format", choices=FORMATS, default="json", help="json (default), csv, md")
+    mp.add_argument("-o", "--output", help="write to this file instead of standard output")
+    mp.set_defaults(func=cmd_map)
     chk = sub.add_parser("check", help="validate a site map and exit")
     chk.add_argument("map", nargs="?", help="site map (TOML)")
     chk.set_defaults(func=cmd_check)

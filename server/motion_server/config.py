@@ -144,11 +144,20 @@ class InstructionsSection(_Model):
 
 
 class ModbusSection(_Model):
+    """Modbus TCP front-end. ``port = 0`` binds an ephemeral port (tests); ``unit_id = 0``
+    answers every unit id. The bases place the register blocks of each kind (see
+    ``motion_server.tagmap.layout``)."""
+
     enabled: bool = True
     host: str = "127.0.0.1"
     port: Annotated[int, Field(ge=0, le=65535)] = 5020
     unit_id: Annotated[int, Field(ge=0, le=255)] = 1
     word_order: Literal["big", "little"] = "big"
+    group_base: Annotated[int, Field(ge=100, le=65534, multiple_of=2)] = 100
+    axis_base: Annotated[int, Field(ge=100, le=65534, multiple_of=2)] = 1000
+    instruction_base: Annotated[int, Field(ge=100, le=65534, multiple_of=2)] = 5000
+    #: ``every_type`` instances: block at every_type_base + 100·(type code − 1)
+    every_type_base: Annotated[int, Field(ge=100, le=60000, multiple_of=2)] = 20000
 
 
 class SiteMap(_Model):
@@ -272,6 +281,9 @@ def _locate(text: str, loc: tuple[int | str, ...]) -> int:
         assign = re.compile(rf"^\s*{re.escape(key)}\s*=")
         n2 = next((m for m in range(start, end) if assign.match(lines[m])), None)
         if n2 is None:
+            # a dotted header names this key with the next one ([[instructions.instances]])
+            if i < len(loc) and isinstance(loc[i], str):
+                continue
             break
         line = n2 + 1
     return line
@@ -295,6 +307,10 @@ def parse(text: str, source: str = "<memory>", environ: Mapping[str, str] | None
         found = [(tuple(e["loc"]), e["msg"].removeprefix("Value error, ")) for e in exc.errors()]
     else:
         found = site.problems()
+        if not found:
+            from .tagmap import layout_problems  # the tag map builds on this module
+
+            found = layout_problems(site)
     if found:
         lines = []
         for loc, msg in found:

@@ -7,7 +7,13 @@ clock:
   cycles back to back (at most ``max_catch_up`` of them, the rest are dropped and logged)
   and counts every late cycle as an overrun. The period never stretches.
 - ``scaled``: the same schedule at ``scale`` simulated seconds per real second.
-- ``manual``: time stands still until :meth:`Runtime.request_cycles` asks for N cycles.
+- ``manual``: time stands still until :meth:`Runtime.request_cycles` asks for N cycles
+  (a client's ``Clock.Step``); they run in chunks that yield to the loop, and
+  :meth:`Runtime.settle` returns once they all ran.
+
+:meth:`Runtime.serve` runs the loop with the front-ends of the site map (Modbus TCP)
+around it. The runtime is the tag image's host: it owns the clock tags and the
+diagnostics counters.
 
 Stopping (SIGINT/SIGTERM or :meth:`request_stop`) runs the programmed stop of every group,
 as a controller does when it leaves run mode, and returns once all axes are at rest.
@@ -21,23 +27,23 @@ import logging
 import signal
 import time
 from collections.abc import Callable
-from enum import IntEnum
 
 from . import __version__
 from .config import SiteMap
+from .frontends.modbus import ModbusFrontend
 from .instructions import MotionSystem
 from .kernel import GroupStop
+from .kernel.group import OperatingMode
+from .tagmap import ClockMode, TagImage, TagMap, build_tagmap
 
 log = logging.getLogger("motion_server.runtime")
 
 #: simulated seconds the shutdown stop may take before the runtime gives up waiting
 SHUTDOWN_STOP_LIMIT = 30.0
+#: manual clock: cycles run back to back before the loop yields to the front-ends
+MANUAL_CHUNK = 200
 
-
-class ClockMode(IntEnum):
-    REALTIME = 0
-    MANUAL = 1
-    SCALED = 2
+__all__ = ["ClockMode", "Runtime"]
 
 
 class Runtime:
@@ -63,10 +69,17 @@ class Runtime:
         #: called after every cycle (front-ends refresh their images here)
         self.after_cycle: list[Callable[[], None]] = []
         self._pending_cycles = 0
-        self._wake = asyncio.Event()
+        self._settled = asyncio.Event()
+        #: the loop sleeps on this future until its deadline or a wake-up
+        self._waiter: asyncio.Future[None] | None = None
         self._stop_requested = False
         self._stopped = asyncio.Event()
         self._reschedule = True
+        self.tagmap: TagMap = build_tagmap(site)
+        self.image = TagImage(self.tagmap, self.system, self)
+        self.modbus: ModbusFrontend | None = None
+        #: set once the front-ends listen (``serve``)
+        self.ready = asyncio.Event()
 
     # -- cycles -----------------------------------------------------------------------------
     @property
@@ -97,19 +110,29 @@ class Runtime:
             log.info("clock mode %s -> %s", self.mode.name.lower(), mode.name.lower())
             self.mode = mode
             self._reschedule = True
-            self._wake.set()
+            if mode != ClockMode.MANUAL:
+                self._pending_cycles = 0
+                self._settled.set()
+            self._wake()
 
     def request_cycles(self, count: int) -> None:
         """Manual clock: run ``count`` more cycles (ignored in the other modes)."""
-        if count > 0:
+        if count > 0 and self.mode == ClockMode.MANUAL:
             self._pending_cycles += count
-            self._wake.set()
+            self._settled.clear()
+            self._wake()
+
+    async def settle(self) -> None:
+        """Return once the cycles requested so far have run (or can no longer run)."""
+        while self._pending_cycles and not self._stop_requested:
+            self._settled.clear()
+            await self._settled.wait()
 
     def request_stop(self) -> None:
         if not self._stop_requested:
             log.info("stop requested: programmed stop of every group")
             self._stop_requested = True
-            self._wake.set()
+            self._wake()
 
     # -- the loop ---------------------------------------------------------------------------
     async def run(self) -> None:
@@ -129,13 +152,14 @@ class Runtime:
             now = loop.time()
             if self.mode == ClockMode.MANUAL:
                 if self._pending_cycles:
-                    n, self._pending_cycles = self._pending_cycles, 0
+                    n = min(self._pending_cycles, MANUAL_CHUNK)
                     self.cycle(n)
+                    self._pending_cycles -= n
+                    if not self._pending_cycles:
+                        self._settled.set()
                     await asyncio.sleep(0)
                     continue
-                self._wake.clear()
-                with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(self._wake.wait(), timeout=0.5)
+                await self._sleep_until(loop.time() + 0.5)
                 self._reschedule = True
             else:
                 if self._reschedule:
@@ -157,19 +181,54 @@ class Runtime:
                 if due:
                     self.cycle(due)
                     deadline += due * step
-                self._wake.clear()
-                with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(
-                        self._wake.wait(), timeout=max(0.0, deadline - loop.time())
-                    )
+                await self._sleep_until(deadline)
             if self.status_log_interval and loop.time() >= next_log:
                 next_log = loop.time() + self.status_log_interval
                 log.info("%s", self.status_line())
+        self._pending_cycles = 0
+        self._settled.set()
         await self._programmed_stop()
         self._stopped.set()
 
+    async def serve(self, modbus: bool | None = None) -> None:
+        """Run the loop with the front-ends around it; they close after the stop.
+
+        ``modbus`` overrides the site map's ``[modbus] enabled``.
+        """
+        cfg = self.site.modbus
+        if cfg.enabled if modbus is None else modbus:
+            self.modbus = ModbusFrontend(self.image, cfg.host, cfg.port, cfg.unit_id)
+            await self.modbus.start()
+        self.ready.set()
+        try:
+            await self.run()
+        finally:
+            if self.modbus is not None:
+                await self.modbus.stop()
+
+    def _wake(self) -> None:
+        """End the loop's sleep now (a request, a mode change, a stop)."""
+        if self._waiter is not None and not self._waiter.done():
+            self._waiter.set_result(None)
+
+    async def _sleep_until(self, deadline: float) -> None:
+        """Sleep until ``deadline`` (loop time) or :meth:`_wake`: one future and one timer,
+        far cheaper per cycle than ``wait_for`` on an event."""
+        loop = asyncio.get_running_loop()
+        if self._stop_requested or (self._pending_cycles and self.mode == ClockMode.MANUAL):
+            return
+        fut: asyncio.Future[None] = loop.create_future()
+        self._waiter = fut
+        timer = loop.call_at(deadline, _resolve, fut)
+        try:
+            await fut
+        finally:
+            timer.cancel()
+            self._waiter = None
+
     async def _programmed_stop(self) -> None:
-        stops: list[GroupStop] = [self.ctl.group_stop(g.number) for g in self.ctl.groups]
+        # leaving run mode: the programmed stop of every group, no more instruction scans
+        stops: list[GroupStop] = self.ctl.set_mode(OperatingMode.PROGRAM)
         limit = int(SHUTDOWN_STOP_LIMIT / self.period)
         n = 0
         while not all(s.complete for s in stops) and n < limit:
@@ -199,3 +258,8 @@ class Runtime:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, self.request_stop)
+
+
+def _resolve(fut: asyncio.Future[None]) -> None:
+    if not fut.done():
+        fut.set_result(None)

@@ -77,19 +77,25 @@ class Instruction:
     def validate(self) -> None:
         """Judge the latched operands: out of range -> ERR 13 naming the operand."""
         for i, op in enumerate(self.OPERANDS):
+            if not self.operand_used(op):
+                continue
             value = self.op[op.name]
             if op.kind == Kind.AXIS:
                 try:
                     self.ctl.axis(int(value))
-                except MotionError:
+                except (MotionError, TypeError, ValueError, OverflowError):
                     raise OperandError(ErrorCode.AXIS_NOT_CONFIGURED, i, op) from None
             elif op.kind == Kind.GROUP:
                 try:
                     self.ctl.group(int(value))
-                except MotionError:
+                except (MotionError, TypeError, ValueError, OverflowError):
                     raise OperandError(ErrorCode.GROUP_NOT_CONFIGURED, i, op) from None
             elif not op.check(value):
                 raise OperandError(ErrorCode.PARAMETER_OUT_OF_RANGE, i, op)
+
+    def operand_used(self, op: Operand) -> bool:
+        """False for an operand the latched selectors make irrelevant (not judged)."""
+        return True
 
     def axis(self, name: str = "Axis") -> Axis:
         return self.ctl.axis(int(self.op[name]))
@@ -308,11 +314,16 @@ class PLCopenBlock(Instruction):
 
     def _publish(self) -> None:
         s = self.state
-        self.outputs["Busy"] = s == BlockState.BUSY
-        self.outputs["Active"] = s == BlockState.BUSY and self.active
-        self.outputs["Done"] = s == BlockState.DONE
-        self.outputs["CommandAborted"] = s == BlockState.ABORTED
-        self.outputs["Error"] = s == BlockState.ERROR
+        common = {
+            "Busy": s == BlockState.BUSY,
+            "Active": s == BlockState.BUSY and self.active,
+            "Done": s == BlockState.DONE,
+            "CommandAborted": s == BlockState.ABORTED,
+            "Error": s == BlockState.ERROR,
+        }
+        for name, value in common.items():
+            if name in self.outputs:  # a block may lack some (MC_Reset has no Active)
+                self.outputs[name] = value
         self.publish_extra()
 
     def publish_extra(self) -> None:

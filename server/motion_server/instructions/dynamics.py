@@ -3,6 +3,11 @@
 Logix gives each rate with a units selector (units per second, % of the axis maximum,
 ...). These helpers turn the latched operands into kernel :class:`Limits`, raising the
 ERR 13 of the operand at fault.
+
+Master-driven speed control (MDSC): selector value 4 gives a rate per master unit (speed
+in units per MasterUnit, acceleration and deceleration per MasterUnit², jerk per
+MasterUnit³). All dynamics of one instruction are then in master units, or all in time
+units; a mix is a runtime error (ERR 105). Jerk in % of time fits both modes.
 """
 
 from __future__ import annotations
@@ -10,7 +15,7 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import TYPE_CHECKING
 
-from ..kernel import Axis, Limits
+from ..kernel import Axis, ErrorCode, Limits, MotionError
 
 if TYPE_CHECKING:
     from .base import Instruction
@@ -19,17 +24,31 @@ if TYPE_CHECKING:
 class SpeedUnits(IntEnum):
     UNITS_PER_SEC = 0
     PERCENT_OF_MAXIMUM = 1
+    UNITS_PER_MASTER_UNIT = 4
 
 
 class AccelUnits(IntEnum):
     UNITS_PER_SEC2 = 0
     PERCENT_OF_MAXIMUM = 1
+    UNITS_PER_MASTER_UNIT2 = 4
 
 
 class JerkUnits(IntEnum):
     UNITS_PER_SEC3 = 0
     PERCENT_OF_MAXIMUM = 1
     PERCENT_OF_TIME = 2
+    UNITS_PER_MASTER_UNIT3 = 4
+
+
+class DriveMode(IntEnum):
+    """Whether an instruction's profile advances with time or with master travel."""
+
+    TIME_DRIVEN = 0
+    MASTER_DRIVEN = 1
+
+
+#: the selector value that means "per master unit" (speed, accel/decel and jerk alike)
+MASTER_UNITS = 4
 
 
 class ProfileType(IntEnum):
@@ -45,6 +64,34 @@ class MergeMode(IntEnum):
 class MergeSpeed(IntEnum):
     PROGRAMMED = 0
     CURRENT = 1
+
+
+def drive_mode(inst: Instruction, units: tuple[str, ...], jerk_units: str | None) -> DriveMode:
+    """Time- or master-driven, from the units selectors ``units`` (and ``jerk_units``
+    when the jerk is used). A mix of the two is refused with ERR 105."""
+    judged = list(units)
+    if jerk_units is not None and int(inst.op[jerk_units]) != JerkUnits.PERCENT_OF_TIME:
+        judged.append(jerk_units)
+    master = [u for u in judged if int(inst.op[u]) == MASTER_UNITS]
+    if len(master) == len(judged):
+        return DriveMode.MASTER_DRIVEN
+    if not master:
+        return DriveMode.TIME_DRIVEN
+    mixed = ", ".join(master)
+    raise MotionError(
+        ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE,
+        f"{mixed} in master units but not every other rate: all dynamics of one instruction "
+        "must be time-driven or all master-driven",
+    )
+
+
+def logix_drive_mode(inst: Instruction) -> DriveMode:
+    """Drive mode of a MAJ/MAM from SpeedUnits, AccelUnits, DecelUnits (and JerkUnits for
+    an S-curve profile)."""
+    s_curve = int(inst.op["Profile"]) == ProfileType.S_CURVE
+    return drive_mode(
+        inst, ("SpeedUnits", "AccelUnits", "DecelUnits"), "JerkUnits" if s_curve else None
+    )
 
 
 def speed(inst: Instruction, ax: Axis, value: str = "Speed", units: str = "SpeedUnits") -> float:

@@ -76,8 +76,11 @@ class MotionBlock(PLCopenBlock):
     def poll(self) -> None:
         if self.process is None and self.pending is not None:
             if self.pending.cancelled:
-                self.pending = None
-                self.fire(BlockEvent.ABORT)
+                code, self.pending = self.pending.error_code, None
+                if code:
+                    self.fail(code)
+                else:
+                    self.fire(BlockEvent.ABORT)
                 return
             self.process = self.pending.process
             if self.process is None:

@@ -10,6 +10,37 @@ from typing import TypeVar
 from .base import Instruction
 
 _REGISTRY: dict[str, type[Instruction]] = {}
+
+#: Stable number of every instruction type. Append-only: the demo map's ``<TYPE>_1``
+#: instances sit at a register block chosen by this number, so adding a type never moves
+#: the registers of the others. A new type must get the next free number here.
+TYPE_CODES: dict[str, int] = {
+    "MSO": 1,
+    "MSF": 2,
+    "MAFR": 3,
+    "MASD": 4,
+    "MASR": 5,
+    "MAJ": 6,
+    "MAM": 7,
+    "MAS": 8,
+    "MCD": 9,
+    "MAG": 10,
+    "MGS": 11,
+    "MGSD": 12,
+    "MGSR": 13,
+    "MDAC": 14,
+    "MC_Power": 21,
+    "MC_Reset": 22,
+    "MC_MoveAbsolute": 23,
+    "MC_MoveRelative": 24,
+    "MC_MoveVelocity": 25,
+    "MC_Stop": 26,
+    "MC_Halt": 27,
+    "MC_GearIn": 28,
+    "MC_GearOut": 29,
+    "MC_GearInPos": 30,
+    "MC_CombineAxes": 31,
+}
 _SUBPACKAGES = ("logix", "plcopen")
 _loaded = False
 
@@ -19,6 +50,8 @@ T = TypeVar("T", bound=type[Instruction])
 def register(cls: T) -> T:
     if not cls.TYPE:
         raise TypeError(f"{cls.__name__} has no TYPE")
+    if cls.TYPE not in TYPE_CODES:
+        raise TypeError(f"instruction type {cls.TYPE} has no entry in registry.TYPE_CODES")
     if cls.TYPE in _REGISTRY and _REGISTRY[cls.TYPE] is not cls:
         raise TypeError(f"instruction type {cls.TYPE} registered twice")
     _REGISTRY[cls.TYPE] = cls
@@ -43,3 +76,8 @@ def instruction_type(name: str) -> type[Instruction]:
         return types[name]
     except KeyError:
         raise KeyError(f"unknown instruction type {name!r}; known: {', '.join(types)}") from None
+
+
+def type_code(name: str) -> int:
+    """The stable number of an instruction type (see :data:`TYPE_CODES`)."""
+    return TYPE_CODES[name]

@@ -83,14 +83,14 @@ class Operand:
     exclusive_min: bool = False
 
     def check(self, value: Any) -> bool:
-        if self.type.is_float and not math.isfinite(float(value)):
-            return False
-        if self.enum is not None:
-            try:
-                self.enum(int(value))
-            except ValueError:
+        try:
+            v = float(value)
+            if not math.isfinite(v):
                 return False
-        v = float(value)
+            if self.enum is not None:
+                self.enum(int(value))
+        except (TypeError, ValueError, OverflowError):
+            return False
         if self.minimum is not None and (
             v <= self.minimum if self.exclusive_min else v < self.minimum
         ):

@@ -13,7 +13,9 @@ class MotionSystem:
     """The kernel plus named instruction instances, scanned in a fixed order.
 
     ``cycle()``: every instance latches and executes on its trigger edge, the kernel
-    steps one base period, every instance updates its status from the kernel.
+    steps one base period, every instance updates its status from the kernel. Outside run
+    mode (``Controller.set_mode``) the instances are not scanned, like a program that is
+    not executed; their status still follows the kernel.
     """
 
     def __init__(self, ctl: Controller) -> None:
@@ -33,8 +35,9 @@ class MotionSystem:
     def cycle(self, count: int = 1) -> None:
         instances = list(self.instances.values())
         for _ in range(count):
-            for inst in instances:
-                inst.scan()
+            if self.ctl.run_mode:
+                for inst in instances:
+                    inst.scan()
             self.ctl.step()
             for inst in instances:
                 inst.update()

@@ -81,6 +81,14 @@ class Axis:
     def position_error(self) -> float:
         return float(self._ctl.cmd_pos[self.index] - self._ctl.act_pos[self.index])
 
+    def unwound_target(self, target: float, near: float) -> float:
+        """The unwound position that reads ``target``: on a rotary axis, in the turn
+        nearest the unwound position ``near``."""
+        r = self.config.rollover
+        if r <= 0.0:
+            return target
+        return target + round((near - target) / r) * r
+
     def wrap(self, position: float) -> float:
         r = self.config.rollover
         if r > 0.0:
@@ -152,7 +160,8 @@ class Axis:
             return PLCopenState.SYNCHRONIZED_MOTION
         if ProcessKind.JOG in kinds:
             return PLCopenState.CONTINUOUS_MOTION
-        if ProcessKind.MOVE in kinds:
+        if ProcessKind.MOVE in kinds or ProcessKind.STOP in kinds:
+            # a ramp that is not a stop (MC_Halt) is discrete motion until at rest
             return PLCopenState.DISCRETE_MOTION
         return PLCopenState.STANDSTILL
 

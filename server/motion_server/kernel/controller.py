@@ -7,9 +7,12 @@ own coarse update period. Within a group step:
 1. feedback-only axes sample their input or signal (the feedback of the cycle);
 2. every axis with motion processes composes its command, masters before slaves;
 3. drives follow the command (vectorised): a critically damped second-order loop for servo
-   axes, actual = command for virtual axes, coasting at the coast deceleration for axes
-   whose drive is off; actual positions are quantised to encoder counts;
-4. following error is checked, and after-stop actions (disable, shutdown) are applied.
+   axes (the command interpolated linearly across the cycle, as a drive does), actual =
+   command for virtual axes, coasting at the coast deceleration for axes whose drive is
+   off; actual positions are quantised to encoder counts;
+4. following error is checked, and after-stop actions (disable, shutdown) are applied
+   once the axis has come to rest.
+``Controller.mdsc`` holds the MDAC links (:mod:`.mdac_links`, :mod:`.master_driven`).
 """
 
 from __future__ import annotations
@@ -29,13 +32,20 @@ from .enums import (
     AxisType,
     FeedbackSignal,
     ProcessKind,
+    ProcessState,
     ProgrammedStopMode,
 )
 from .errors import ErrorCode, MotionError
-from .group import GroupStop, MotionGroup
+from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode
+from .mdac_links import MasterDrivenControl
 from .processes import Process, StopRamp
 
 ProcessFactory = Callable[[float, float], Process]
+
+
+def _rounding_apart(x: float, y: float) -> bool:
+    """True when ``x`` and ``y`` differ by no more than accumulated rounding."""
+    return abs(x - y) <= 1e-9 * max(1.0, abs(y))
 
 
 class ConfigError(ValueError):
@@ -50,6 +60,8 @@ class Pending:
         self.owner = owner
         self.process: Process | None = None
         self.cancelled = False
+        #: set when the command could not start (cancelled with an error)
+        self.error_code = 0
 
 
 class Controller:
@@ -66,6 +78,9 @@ class Controller:
         self.act_x = np.zeros(n)  # continuous drive position (unquantised)
         self.act_pos = np.zeros(n)  # quantised feedback
         self.act_vel = np.zeros(n)
+        #: the command position the drive reached at the end of its last cycle (the drive
+        #: interpolates linearly from it to the new command across one cycle)
+        self.drv_cmd = np.zeros(n)
         self.drive_on = np.zeros(n, dtype=bool)
         self.omega = np.array([2.0 * math.pi * max(a.drive_bandwidth, 1e-3) for a in axes])
         self.cpu = np.array([a.counts_per_unit for a in axes])
@@ -109,6 +124,9 @@ class Controller:
         self._groups_by_number = {g.number: g for g in self.groups}
         self.tick = 0
         self._order_dirty = True
+        self.mode = OperatingMode.RUN
+        #: MDAC master assignments (master-driven speed control)
+        self.mdsc = MasterDrivenControl(self)
 
     @staticmethod
     def _check_unique(values: Iterable[object], what: str) -> None:
@@ -150,6 +168,7 @@ class Controller:
         for g in self.groups:
             if self.tick % g.every == 0:
                 self._step_group(g)
+        self.mdsc.update()
 
     def run(self, cycles: int) -> None:
         for _ in range(cycles):
@@ -167,7 +186,11 @@ class Controller:
         self._drives(g.virtual_idx, dt, servo=False)
         self._check_following_error(g.servo_idx)
         for ax in g.axes:
-            if ax.after_stop != AfterStop.NOTHING and not any(p.active for p in ax.processes):
+            if (
+                ax.after_stop != AfterStop.NOTHING
+                and not any(p.active for p in ax.processes)
+                and self._at_standstill(ax, dt)
+            ):
                 action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
                 if action == AfterStop.DISABLE:
                     self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
@@ -177,8 +200,18 @@ class Controller:
             s.update()
         g.stops = [s for s in g.stops if not s.complete]
 
+    def _at_standstill(self, ax: Axis, dt: float) -> bool:
+        """The drive has settled: it moves less than one count per coarse update (a
+        disable or shutdown after a fast stop waits for this, so the axis does not coast
+        on the servo lag)."""
+        i = ax.index
+        if not self.drive_on[i] or ax.type != AxisType.SERVO:
+            return True
+        return bool(abs(self.act_vel[i]) * dt * self.cpu[i] < 1.0)
+
     def _compose(self, ax: Axis, dt: float) -> None:
         keep: list[Process] = []
+        landing: float | None = None
         for p in ax.processes:
             if p.active:
                 try:
@@ -190,7 +223,11 @@ class Controller:
                 keep.append(p)
             else:
                 ax.base += p.position
+                if p.state == ProcessState.DONE and p.landing is not None:
+                    landing = p.landing
         ax.processes = keep
+        if landing is not None and not keep and _rounding_apart(ax.base, landing):
+            ax.base = landing  # an absolute move ends exactly on its target
         i = ax.index
         self.cmd_pos[i] = ax.base + sum(p.position for p in keep)
         self.cmd_vel[i] = sum(p.velocity for p in keep)
@@ -199,9 +236,14 @@ class Controller:
         if pend is not None and all(p.reached for p in keep):
             ax.buffered = None
             if not pend.cancelled:
-                pend.process = self.start(
-                    ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
-                )
+                try:
+                    pend.process = self.start(
+                        ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
+                    )
+                except MotionError as exc:
+                    # it cannot start from where the axis is now: its owner reports it
+                    pend.error_code = int(exc.code)
+                    pend.cancelled = True
 
     def _sample_feedback(self, ax: Axis, g: MotionGroup, dt: float) -> None:
         cfg = ax.config
@@ -232,14 +274,20 @@ class Controller:
         off_idx = idx[~on]
         if on_idx.size:
             if servo:
-                c = self.cmd_pos[on_idx]
+                # x'' + 2w x' + w^2 x = w^2 c(t), c(t) the command ramp from the last
+                # cycle's command c0 to the new one c1 (slope s). Its exact solution: the
+                # steady tracking point c(t) - 2s/w plus a decaying (A + Bt) e^(-wt).
+                c0 = self.drv_cmd[on_idx]
+                c1 = self.cmd_pos[on_idx]
                 w = self.omega[on_idx]
-                e0 = self.act_x[on_idx] - c
-                v0 = self.act_vel[on_idx]
+                s = (c1 - c0) / dt
+                lag = 2.0 * s / w
+                e0 = self.act_x[on_idx] - (c0 - lag)
+                de0 = self.act_vel[on_idx] - s
                 decay = np.exp(-w * dt)
-                c2 = v0 + w * e0
-                self.act_x[on_idx] = c + (e0 + c2 * dt) * decay
-                self.act_vel[on_idx] = (v0 - w * c2 * dt) * decay
+                b = de0 + w * e0
+                self.act_x[on_idx] = c1 - lag + (e0 + b * dt) * decay
+                self.act_vel[on_idx] = s + (de0 - w * b * dt) * decay
                 cpu = self.cpu[on_idx]
                 self.act_pos[on_idx] = np.round(self.act_x[on_idx] * cpu) / cpu
             else:
@@ -248,7 +296,10 @@ class Controller:
                 self.act_vel[on_idx] = self.cmd_vel[on_idx]
         if off_idx.size:
             v0 = self.act_vel[off_idx]
-            speed = np.maximum(np.abs(v0) - self.coast[off_idx] * dt, 0.0)
+            step = self.coast[off_idx] * dt
+            speed = np.maximum(np.abs(v0) - step, 0.0)
+            # a remnant below rounding of the per-cycle decrement is rest, not motion
+            speed[speed <= 1e-9 * step] = 0.0
             v1 = np.sign(v0) * speed
             self.act_x[off_idx] += 0.5 * (v0 + v1) * dt
             self.act_vel[off_idx] = v1
@@ -261,6 +312,7 @@ class Controller:
             self.cmd_pos[off_idx] = self.act_pos[off_idx]
             self.cmd_vel[off_idx] = v1
             self.cmd_acc[off_idx] = 0.0
+        self.drv_cmd[idx] = self.cmd_pos[idx]
 
     def _check_following_error(self, idx: np.ndarray) -> None:
         if idx.size == 0:
@@ -324,6 +376,7 @@ class Controller:
             # the command starts where the axis is, at rest
             ax.base = float(self.act_pos[i])
             self.cmd_pos[i] = ax.base
+            self.drv_cmd[i] = ax.base
             self.cmd_vel[i] = 0.0
             self.cmd_acc[i] = 0.0
         self.drive_on[i] = on
@@ -356,14 +409,77 @@ class Controller:
             self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
 
     def shutdown(self, ax: Axis) -> None:
-        """MASD: Axis Shutdown at once; the drive is off and the axis coasts."""
+        """MASD: Axis Shutdown at once; the drive is off and the axis coasts.
+
+        The axis's MDAC links break (as slave and as master), and every process on another
+        axis that follows it (master-driven motion, gearing) is released: see
+        :meth:`release_followers`.
+        """
+        self.mdsc.break_axis(ax, AbortReason.SHUTDOWN)
         self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
+        self.release_followers(ax, AbortReason.SHUTDOWN)
 
     def shutdown_reset(self, ax: Axis) -> None:
         """MASR: from Axis Shutdown (or faulted) to Axis Ready, faults cleared."""
         ax.fault = 0
         if ax.state in (AxisState.AXIS_SHUTDOWN, AxisState.AXIS_FAULTED):
             self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
+
+    def group_shutdown(self, ref: int | str) -> MotionGroup:
+        """MGSD: every axis of the group (feedback-only ones too) to Axis Shutdown."""
+        g = self.group(ref)
+        for ax in g.axes:
+            self.shutdown(ax)
+        return g
+
+    def group_shutdown_reset(self, ref: int | str) -> MotionGroup:
+        """MGSR: every axis of the group from Axis Shutdown (or faulted) to Axis Ready."""
+        g = self.group(ref)
+        for ax in g.axes:
+            self.shutdown_reset(ax)
+        return g
+
+    def release_followers(self, master: Axis, reason: AbortReason) -> None:
+        """Release every process on another axis that reads ``master`` (its ``masters``):
+        a shut-down master no longer drives anything (see :meth:`release`)."""
+        for ax in self.axes:
+            if ax is not master:
+                hit = [p for p in ax.processes if p.active and master.number in p.masters]
+                self.release(ax, hit, reason)
+
+    def release(self, ax: Axis, processes: Collection[Process], reason: AbortReason) -> None:
+        """Switch ``processes`` of ``ax`` to a time-driven stop, as a controller does when a
+        slave loses its master: they are aborted with ``reason`` and the axis decelerates
+        their velocity to rest at its maximum deceleration (trapezoidal, StoppingStatus
+        set), keeping its power state; its other processes go on. An axis whose drive is
+        off simply coasts."""
+        hit = [p for p in processes if p.active and p in ax.processes]
+        if not hit:
+            return
+        v = sum(p.velocity for p in hit)
+        for p in hit:
+            p.abort(reason)
+            ax.base += p.position
+        ax.processes = [p for p in ax.processes if p.active]
+        self.coupling_changed()
+        if self.drive_on[ax.index] and v != 0.0:
+            ax.processes.append(StopRamp(self.dt(ax), ax.config.max_deceleration, 0.0, v))
+
+    # -- operating mode ---------------------------------------------------------------------
+    def set_mode(self, mode: OperatingMode) -> list[GroupStop]:
+        """Change the operating mode. Leaving RUN breaks every MDAC link and runs the
+        programmed stop of every group; the returned handles tell when they are done."""
+        if mode == self.mode:
+            return []
+        self.mode = mode
+        self.mdsc.break_all(AbortReason.STOPPED)
+        if mode == OperatingMode.RUN:
+            return []
+        return [self.group_stop(g.number) for g in self.groups]
+
+    @property
+    def run_mode(self) -> bool:
+        return self.mode == OperatingMode.RUN
 
     # -- motion -----------------------------------------------------------------------------
     def require_motion(self, ax: Axis) -> None:
@@ -407,12 +523,16 @@ class Controller:
     ) -> Process:
         """Start a process. ``replace`` names the kinds it supersedes (``None``: all of
         them, the PLCopen aborting mode and Logix merge); the new process is built by
-        ``make(v, a)`` from the velocity and acceleration of what it replaces."""
-        v, a = self._retire(ax, replace, reason)
+        ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
+        raises, nothing has changed: the processes it would replace keep running."""
+        matching = [p for p in ax.processes if p.active and (replace is None or p.kind in replace)]
+        p = make(
+            sum((q.velocity for q in matching), 0.0), sum((q.acceleration for q in matching), 0.0)
+        )
+        self._retire(ax, replace, reason)
         if replace is None and ax.buffered is not None:
             ax.buffered.cancelled = True
             ax.buffered = None
-        p = make(v, a)
         ax.processes.append(p)
         if p.masters:
             self.coupling_changed()
@@ -456,6 +576,9 @@ class Controller:
         if kinds is None and ax.buffered is not None:
             ax.buffered.cancelled = True
             ax.buffered = None
+        if kinds is None:
+            # a stop of all motion breaks the axis's MDAC links as slave (MAS All)
+            self.mdsc.break_slave(ax, AbortReason.STOPPED)
         ramp = self.start(ax, make, replace=kinds, reason=AbortReason.STOPPED)
         assert isinstance(ramp, StopRamp)
         return ramp
@@ -463,37 +586,46 @@ class Controller:
     def group_stop(
         self, ref: int | str, forced: ProgrammedStopMode | None = None, owner: object = None
     ) -> GroupStop:
-        """Stop every axis of a group by its programmed stop mode, or by ``forced``.
+        """Stop every axis of a group by its programmed stop mode, or by ``forced`` (MGS).
 
-        Fast modes decelerate at the axis maximum deceleration, always trapezoidal; hard
-        modes turn the drive off at once and the axis coasts.
+        - Fast Stop: decelerate at the axis maximum deceleration, stay in Servo Control.
+        - Fast Disable / Fast Shutdown: the same ramp, then (once the drive has settled)
+          Axis Ready / Axis Shutdown with the drive off.
+        - Hard Disable / Hard Shutdown: drive off at once, the axis coasts at its coast
+          deceleration (Axis Ready / Axis Shutdown).
+
+        Ramps are always trapezoidal (no jerk limit) and time-driven, whatever the profile
+        and speed units of the motion they replace. Every MDAC link with an axis of the
+        group as slave or master breaks and pending reassignments are cleared; the MDAC's
+        AC stays set until the slave has stopped.
         """
         g = self.group(ref)
+        handle = GroupStop(g, owner)
+        for ax in g.axes:
+            self.mdsc.break_axis(ax, AbortReason.STOPPED, hold_active=True)
         for ax in g.axes:
             if ax.type == AxisType.FEEDBACK_ONLY:
                 continue
             mode = ax.programmed_stop_mode if forced is None else forced
-            if mode in (ProgrammedStopMode.HARD_DISABLE, ProgrammedStopMode.HARD_SHUTDOWN):
-                if mode == ProgrammedStopMode.HARD_SHUTDOWN:
-                    self.shutdown(ax)
-                else:
-                    self.servo_off(ax)
-                continue
-            after = {
-                ProgrammedStopMode.FAST_STOP: AfterStop.NOTHING,
-                ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
-                ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
-            }[mode]
-            if ax.state == AxisState.SERVO_CONTROL:
-                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner)
-                ax.after_stop = after
-            elif after == AfterStop.SHUTDOWN:
+            if mode == ProgrammedStopMode.HARD_SHUTDOWN:
                 self.shutdown(ax)
-        handle = GroupStop(g, owner)
-        handle.update()
-        if not handle.complete:
-            g.stops.append(handle)
+            elif mode == ProgrammedStopMode.HARD_DISABLE:
+                self.servo_off(ax)
+            elif ax.state == AxisState.SERVO_CONTROL:
+                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner)
+                ax.after_stop = AFTER_FAST_STOP[mode]
+            elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
+                self.shutdown(ax)
+            # StoppingStatus until the axis is at rest (coasting axes have no ramp)
+            ax.stop_latch = handle
+        g.stops.append(handle)
         return handle
+
+    def group_stopping(self, ax: Axis) -> bool:
+        """True while a group stop (MGS, leaving run mode) is bringing ``ax``'s group to
+        rest."""
+        g = self._groups_by_number[ax.group]
+        return any(not s.complete for s in g.stops)
 
     def set_feedback_input(self, ax: Axis, position: float) -> None:
         """Hand-wheel reading of a feedback-only axis (taken at the next cycle)."""

@@ -1,4 +1,5 @@
-"""Motion groups: a set of axes sharing a coarse update period, and group stops."""
+"""Motion groups: a set of axes sharing a coarse update period, group stops, and the
+controller's operating mode (leaving run mode stops every group)."""
 
 from __future__ import annotations
 
@@ -8,10 +9,27 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .config import GroupConfig
-from .enums import AfterStop, AxisState, AxisType
+from .enums import AfterStop, AxisState, AxisType, ProgrammedStopMode
 
 if TYPE_CHECKING:
     from .axis import Axis
+
+
+#: what follows the ramp of a fast programmed stop mode (the hard modes have no ramp)
+AFTER_FAST_STOP: dict[ProgrammedStopMode, AfterStop] = {
+    ProgrammedStopMode.FAST_STOP: AfterStop.NOTHING,
+    ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
+    ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
+}
+
+
+class OperatingMode(IntEnum):
+    """The controller's operating mode. Leaving RUN runs the programmed stop of every
+    group (as a Logix controller does on Run -> Program) and breaks every MDAC link;
+    in PROGRAM mode instructions are not executed."""
+
+    PROGRAM = 0
+    RUN = 1
 
 
 class GroupState(IntEnum):
@@ -60,19 +78,30 @@ class MotionGroup:
 
 
 class GroupStop:
-    """Handle of a group stop in progress (MGS, leaving run mode): complete when every
-    axis has come to rest and its after-stop action (disable, shutdown) has been applied."""
+    """Handle of a group stop in progress (MGS, leaving run mode).
+
+    ``initiated`` once the group's next coarse update has applied the stop to every axis
+    (MGS DN); ``complete`` when every axis has come to rest and its after-stop action
+    (disable, shutdown) has been applied (MGS PC).
+    """
 
     def __init__(self, group: MotionGroup, owner: object = None) -> None:
         self.group = group
         self.owner = owner
+        self.initiated = False
         self.complete = False
 
     def update(self) -> None:
+        """Called after each coarse update of the group."""
+        self.initiated = True
         if self.complete:
             return
-        self.complete = all(
-            not a.moving and a.after_stop == AfterStop.NOTHING
-            for a in self.group.axes
-            if a.type != AxisType.FEEDBACK_ONLY
-        )
+        done = True
+        for a in self.group.axes:
+            if a.type == AxisType.FEEDBACK_ONLY:
+                continue
+            if a.moving or a.after_stop != AfterStop.NOTHING:
+                done = False
+            elif a.stop_latch is self:
+                a.stop_latch = None  # this axis is at rest: StoppingStatus ends
+        self.complete = done

@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from .enums import AbortReason, ProcessKind, ProcessState
+from .errors import MotionError
 from .profiles import Limits, Profile
 
 if TYPE_CHECKING:
@@ -35,6 +36,9 @@ class Process:
         self.acceleration = 0.0
         #: True for processes created by a stop (MAS, MC_Stop, MGS); StoppingStatus
         self.stopping = False
+        #: absolute (unwound) command position an absolute move ends on: when it completes
+        #: alone, the axis lands there exactly instead of on a rounded sum of displacements
+        self.landing: float | None = None
 
     @property
     def active(self) -> bool:
@@ -88,8 +92,24 @@ class ProfiledProcess(Process):
 
     def change_limits(self, limits: Limits) -> None:
         """Motion Change Dynamics: re-plan toward the same target with new limits."""
-        self.limits = limits.validated()
-        self._retarget()
+        self.change_dynamics(limits)
+
+    def change_dynamics(self, limits: Limits, speed: float | None = None) -> None:
+        """MCD: new limits and, unless None, a new speed, planned as one change. If the
+        profile cannot be planned nothing changes and MotionError is raised."""
+        saved = dict(vars(self))
+        try:
+            self.limits = limits.validated()
+            if speed is None:
+                self._retarget()
+            else:
+                self.change_speed(speed)
+        except MotionError:
+            vars(self).update(saved)
+            raise
+
+    def change_speed(self, speed: float) -> None:
+        raise NotImplementedError
 
     def _retarget(self) -> None:
         raise NotImplementedError
@@ -153,18 +173,32 @@ class MoveProcess(ProfiledProcess):
         velocity: float = 0.0,
         acceleration: float = 0.0,
         owner: Any = None,
+        landing: float | None = None,
     ) -> None:
         super().__init__(dt, limits, velocity, acceleration, owner)
         self.displacement = displacement
+        self.landing = landing
+        #: MCD set the speed to 0: the move ramps to rest and waits, still in process
+        self.paused = False
         self._retarget()
 
     def _retarget(self) -> None:
-        self.profile.to_position(self.displacement, self.limits)
+        if self.paused:
+            self.profile.to_velocity(0.0, self.limits)
+        else:
+            self.profile.to_position(self.displacement, self.limits)
+
+    def _after_step(self) -> None:
+        if self.profile.finished and not self.paused:
+            self.finish()
 
     def change_speed(self, speed: float) -> None:
-        self.limits = Limits(
-            abs(speed), self.limits.acceleration, self.limits.deceleration, self.limits.jerk
-        )
+        """MCD: a new speed toward the same target; speed 0 pauses the move."""
+        self.paused = speed == 0.0
+        if not self.paused:
+            self.limits = Limits(
+                abs(speed), self.limits.acceleration, self.limits.deceleration, self.limits.jerk
+            ).validated()
         self._retarget()
 
 

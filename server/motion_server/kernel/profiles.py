@@ -9,7 +9,10 @@ infinite) means a trapezoidal velocity profile. ``intermediate_positions`` is ne
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import ruckig
 
@@ -72,27 +75,69 @@ class Profile:
         if not math.isfinite(displacement):
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target position must be finite")
         limits = limits.validated()
-        inp = self._inp
-        inp.control_interface = ruckig.ControlInterface.Position
-        inp.target_position = [float(displacement)]
-        inp.target_velocity = [0.0]
-        inp.target_acceleration = [0.0]
-        self._target_position = float(displacement)
-        self._apply_limits(limits, direction=displacement - self.position)
+        with self._planning():
+            inp = self._inp
+            inp.control_interface = ruckig.ControlInterface.Position
+            inp.target_position = [float(displacement)]
+            inp.target_velocity = [0.0]
+            inp.target_acceleration = [0.0]
+            self._target_position = float(displacement)
+            self._apply_limits(limits, direction=displacement - self.position)
 
     def to_velocity(self, velocity: float, limits: Limits) -> None:
         """Ramp to a constant ``velocity`` (signed) and hold it."""
         if not math.isfinite(velocity):
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
         limits = limits.validated()
+        with self._planning():
+            inp = self._inp
+            inp.control_interface = ruckig.ControlInterface.Velocity
+            inp.target_velocity = [float(velocity)]
+            inp.target_acceleration = [0.0]
+            self._target_position = None
+            self._target_velocity = float(velocity)
+            direction = velocity if velocity != 0.0 else self.velocity
+            self._apply_limits(limits, direction=direction)
+
+    @contextmanager
+    def _planning(self) -> Iterator[None]:
+        """Change the plan as one transaction: ruckig must be able to compute it (limits
+        that are valid but absurd, such as an acceleration of 1e-157, make it fail); if it
+        cannot, the previous plan stays and MotionError(PROFILE_FAILED) is raised."""
         inp = self._inp
-        inp.control_interface = ruckig.ControlInterface.Velocity
-        inp.target_velocity = [float(velocity)]
-        inp.target_acceleration = [0.0]
-        self._target_position = None
-        self._target_velocity = float(velocity)
-        direction = velocity if velocity != 0.0 else self.velocity
-        self._apply_limits(limits, direction=direction)
+        fields = (
+            "control_interface",
+            "target_position",
+            "target_velocity",
+            "target_acceleration",
+            "max_velocity",
+            "max_acceleration",
+            "min_acceleration",
+            "max_jerk",
+        )
+        saved = {f: getattr(inp, f) for f in fields}
+        mine = (self._target_position, self._target_velocity, self.finished)
+        # plan from where the profile is: once finished, step() integrates the held
+        # velocity without ruckig, so ruckig's copy of the state is stale
+        inp.current_position = [self.position]
+        inp.current_velocity = [self.velocity]
+        inp.current_acceleration = [self.acceleration]
+        try:
+            yield
+            result = self._otg.calculate(inp, ruckig.Trajectory(1))
+            if result not in (ruckig.Result.Working, ruckig.Result.Finished):
+                raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")
+        except (RuntimeError, ruckig.RuckigError) as exc:
+            self._restore(saved, mine)
+            raise MotionError(ErrorCode.PROFILE_FAILED, str(exc).strip()[:200]) from exc
+        except MotionError:
+            self._restore(saved, mine)
+            raise
+
+    def _restore(self, saved: dict[str, Any], mine: tuple[float | None, float, bool]) -> None:
+        for f, value in saved.items():
+            setattr(self._inp, f, value)
+        self._target_position, self._target_velocity, self.finished = mine
 
     def _apply_limits(self, limits: Limits, direction: float) -> None:
         inp = self._inp
@@ -116,7 +161,7 @@ class Profile:
             return
         try:
             result = self._otg.update(self._inp, self._out)
-        except RuntimeError as exc:  # pragma: no cover - inputs are validated beforehand
+        except (RuntimeError, ruckig.RuckigError) as exc:  # pragma: no cover - planned before
             raise MotionError(ErrorCode.PROFILE_FAILED, str(exc)) from exc
         if result not in (ruckig.Result.Working, ruckig.Result.Finished):
             raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")

@@ -2,21 +2,24 @@
 
 A new MAJ on the axis supersedes the jog process in progress (inheriting its velocity)
 and superimposes on the others (gear, move); Merge enabled ends every other process and
-blends from the axis's current velocity.
+blends from the axis's current velocity. With every rate in master units (SpeedUnits,
+AccelUnits, DecelUnits = 4) the jog is master-driven: it runs at Speed units per unit of
+its MDAC master's travel (see :mod:`.mdsc`).
 """
 
 from __future__ import annotations
 
 from enum import IntEnum
 
-from ...kernel import JogProcess, Limits, ProcessKind
+from ...kernel import Axis, JogProcess, Limits, ProcessKind
+from ...kernel.master_driven import MasterDrivenJog
+from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
-from .. import dynamics
-from ..dynamics import MergeMode, MergeSpeed
-from ..logix_common import ProcessInstruction
+from ..dynamics import DriveMode
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
 from ..schema import Operand, TagType
+from .mdsc import SpeedControlledMotion
 
 
 class JogDirection(IntEnum):
@@ -25,7 +28,7 @@ class JogDirection(IntEnum):
 
 
 @register
-class MAJ(ProcessInstruction):
+class MAJ(SpeedControlledMotion):
     TYPE = "MAJ"
     DESCRIPTION = "Motion Axis Jog"
     SETS_PC = False
@@ -37,21 +40,25 @@ class MAJ(ProcessInstruction):
 
     def execute(self) -> None:
         ax = self.axis()
-        self.ctl.require_motion(ax)
-        merge = int(self.op["Merge"]) == MergeMode.ENABLED
-        speed = dynamics.speed(self, ax)
-        if merge and int(self.op["MergeSpeed"]) == MergeSpeed.CURRENT:
-            speed = abs(ax.command_velocity)
-        limits = dynamics.logix_limits(self, ax, speed)
+        self.check_axis(ax)
+        mode, speed, limits = self.plan(ax)
         if speed <= 0.0:
-            limits = Limits(
-                ax.config.max_velocity, limits.acceleration, limits.deceleration, limits.jerk
-            )
+            # a jog at speed 0: the velocity limit is only a placeholder
+            top = ax.config.max_velocity if mode == DriveMode.TIME_DRIVEN else 1.0
+            limits = Limits(top, limits.acceleration, limits.deceleration, limits.jerk)
+        limits = limits.validated()
         sign = -1.0 if int(self.op["Direction"]) == JogDirection.REVERSE else 1.0
         dt = self.ctl.dt(ax)
+        merge_current = self.merge_at_current_speed
 
         def make(v: float, a: float) -> Process:
             return JogProcess(dt, sign * speed, limits, v, a, owner=self)
 
-        replace = None if merge else (ProcessKind.JOG,)
-        self.started(self.ctl.start(ax, make, replace=replace))
+        def make_master(link: MasterLink, master: Axis, ratio: float) -> Process:
+            target = abs(ratio) if merge_current else speed
+            return MasterDrivenJog(
+                self.ctl, master, link.reference, sign * target, limits, ratio, owner=self
+            )
+
+        replace = None if self.merging else (ProcessKind.JOG,)
+        self.launch(ax, ProcessKind.JOG, mode, speed, make, make_master, replace)

@@ -2,7 +2,9 @@
 
 A new MAM supersedes the move process in progress (inheriting its velocity) and
 superimposes on the others: an incremental MAM on a geared slave is the documented phase
-advance/retard. Rotary move types need a rotary axis and a target in [0, rollover).
+advance/retard. Rotary move types need a rotary axis and a target in [0, rollover). With
+every rate in master units the move is master-driven: it covers its distance while its
+MDAC master travels (see :mod:`.mdsc`).
 """
 
 from __future__ import annotations
@@ -10,14 +12,14 @@ from __future__ import annotations
 import math
 from enum import IntEnum
 
-from ...kernel import MoveProcess, ProcessKind
+from ...kernel import Axis, MoveProcess, ProcessKind
+from ...kernel.master_driven import MasterDrivenMove
+from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
-from .. import dynamics
-from ..dynamics import MergeMode, MergeSpeed
-from ..logix_common import ProcessInstruction
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
 from ..schema import Operand, Quantity, TagType
+from .mdsc import SpeedControlledMotion
 
 
 class MoveType(IntEnum):
@@ -29,7 +31,7 @@ class MoveType(IntEnum):
 
 
 @register
-class MAM(ProcessInstruction):
+class MAM(SpeedControlledMotion):
     TYPE = "MAM"
     DESCRIPTION = "Motion Axis Move"
     OPERANDS = (
@@ -47,22 +49,28 @@ class MAM(ProcessInstruction):
 
     def execute(self) -> None:
         ax = self.axis()
-        self.ctl.require_motion(ax)
-        merge = int(self.op["Merge"]) == MergeMode.ENABLED
-        speed = dynamics.speed(self, ax)
-        if merge and int(self.op["MergeSpeed"]) == MergeSpeed.CURRENT:
-            speed = abs(ax.command_velocity)
+        self.check_axis(ax)
+        mode, speed, limits = self.plan(ax)
         if speed <= 0.0:
             raise self.out_of_range("Speed", "a move needs a speed > 0")
-        limits = dynamics.logix_limits(self, ax, speed)
+        limits = limits.validated()
         distance = self._distance(ax.command_position, ax.config.rollover)
+        landing = None
+        if int(self.op["MoveType"]) != MoveType.INCREMENTAL:
+            end = ax.command_position_unwound + distance
+            landing = ax.unwound_target(float(self.op["Position"]), end)
         dt = self.ctl.dt(ax)
 
         def make(v: float, a: float) -> Process:
-            return MoveProcess(dt, distance, limits, v, a, owner=self)
+            return MoveProcess(dt, distance, limits, v, a, owner=self, landing=landing)
 
-        replace = None if merge else (ProcessKind.MOVE,)
-        self.started(self.ctl.start(ax, make, replace=replace))
+        def make_master(link: MasterLink, master: Axis, ratio: float) -> Process:
+            return MasterDrivenMove(
+                self.ctl, master, link.reference, distance, limits, ratio, owner=self
+            )
+
+        replace = None if self.merging else (ProcessKind.MOVE,)
+        self.launch(ax, ProcessKind.MOVE, mode, speed, make, make_master, replace)
 
     def _distance(self, here: float, rollover: float) -> float:
         kind = MoveType(int(self.op["MoveType"]))

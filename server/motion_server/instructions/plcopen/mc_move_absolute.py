@@ -58,6 +58,7 @@ class MC_MoveAbsolute(MotionBlock):
                 distance = (target - here) % rollover if v > 0 else -((here - target) % rollover)
             else:
                 distance = math.remainder(target - here, rollover)
-            return MoveProcess(dt, distance, limits, v, a, owner=self)
+            landing = ax.unwound_target(target, ax.command_position_unwound + distance)
+            return MoveProcess(dt, distance, limits, v, a, owner=self, landing=landing)
 
         self.begin(ax, make)

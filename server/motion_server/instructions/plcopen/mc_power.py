@@ -55,7 +55,7 @@ class MC_Power(PLCopenBlock):
     def _status(self) -> None:
         try:
             on = self.ctl.axis(int(self.op["Axis"])).servo_on
-        except MotionError:
+        except (MotionError, TypeError, ValueError, OverflowError):
             on = False
         self.outputs["Status"] = on
         self.outputs["Valid"] = on and not self.outputs["Error"]

@@ -1,0 +1,1 @@
+"""Protocol front-ends: thin adapters from requests to tag-image reads and writes."""

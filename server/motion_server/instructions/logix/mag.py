@@ -1,0 +1,188 @@
+"""MAG, Motion Axis Gear: gear a slave axis to a master at a real or fraction ratio.
+
+DN and IP are set in the same scan; IP stays until the gear process is superseded (a new
+MAG on the slave), stopped (MAS All/Gear, MGS), merged (MAJ/MAM with Merge), shut down or
+faulted. Jog and move processes on the slave superimpose on the gearing.
+
+Decisions the seed leaves open (DESIGN.md):
+
+- **Ratio sign**: the slave moves by Direction sign x Ratio x master displacement, so a
+  negative Ratio inverts whatever Direction selects. Reverse and Unchanged act on the
+  Direction part only: the direction kept per slave axis is the last resolved Direction
+  (same or opposite), never the Ratio's sign. A slave never geared counts as Same.
+- **Real ratio resolution**: five decimals, as the seed's range says (0.00001 to 9.99999
+  by magnitude): the REAL is rounded to a whole number of 1e-5 and used as that exact
+  decimal, so a REAL tag's float32 error does not accumulate into slave position.
+- **Fraction**: SlaveCounts and MasterCounts must be >= 1 (the Direction gives the sign);
+  counts are each axis's conversion constant per unit; the master's position is taken as
+  the nearest whole count.
+- **Clutch** enabled: the slave's gear velocity ramps at AccelRate (units/s^2 or % of the
+  slave's maximum acceleration) to ratio x master velocity, trapezoidal, then locks; a new
+  MAG with clutch starts from the velocity of the gearing it supersedes (merge on the
+  fly). Clutch disabled: locks at once.
+- **Errors**: slave feedback-only ERR 8, not in Servo Control ERR 5 (shut down 7, faulted
+  20); Command reference to a feedback-only master ERR 8; a master/slave loop (including
+  the slave as its own master) ERR 10; operands out of range ERR 13 with EXERR.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+from ...kernel import ProcessKind
+from ...kernel.gearing import (
+    GearProcess,
+    GearTerm,
+    MasterSource,
+    RateRamp,
+    check_master,
+    gearing_direction,
+)
+from ...kernel.processes import Process
+from .. import dynamics
+from ..dynamics import AccelUnits
+from ..logix_common import ProcessInstruction
+from ..operands import MASTER_AXIS, SLAVE_AXIS
+from ..registry import register
+from ..schema import Operand, Quantity, TagType
+
+
+class GearDirection(IntEnum):
+    SAME = 0
+    OPPOSITE = 1
+    REVERSE = 2
+    UNCHANGED = 3
+
+
+class RatioFormat(IntEnum):
+    REAL = 0
+    FRACTION = 1
+
+
+class Clutch(IntEnum):
+    ENABLED = 0
+    DISABLED = 1
+
+
+#: real ratios are whole numbers of this resolution (five decimals)
+RATIO_SCALE = 100_000
+RATIO_STEPS = (1, 999_999)
+
+
+def resolve_direction(selection: GearDirection, current: int) -> int:
+    """+1 (same) or -1 (opposite) from the Direction operand and the current direction."""
+    if selection == GearDirection.SAME:
+        return 1
+    if selection == GearDirection.OPPOSITE:
+        return -1
+    if selection == GearDirection.REVERSE:
+        return -current
+    return current
+
+
+@register
+class MAG(ProcessInstruction):
+    TYPE = "MAG"
+    DESCRIPTION = "Motion Axis Gear: electronic gearing of a slave to a master"
+    SETS_PC = False
+    #: MAG(SlaveAxis, MasterAxis, MotionControl, Direction, ...): EXERR counts it
+    MOTION_CONTROL_INDEX = 2
+    OPERANDS = (
+        SLAVE_AXIS,
+        MASTER_AXIS,
+        Operand(
+            "Direction",
+            TagType.DINT,
+            GearDirection.SAME,
+            enum=GearDirection,
+            description="0 same, 1 opposite, 2 reverse current, 3 unchanged",
+        ),
+        Operand(
+            "Ratio",
+            TagType.REAL,
+            1.0,
+            quantity=Quantity.RATIO,
+            description="slave units per master unit, sign-sensitive, |Ratio| 0.00001..9.99999",
+        ),
+        Operand(
+            "SlaveCounts",
+            TagType.UDINT,
+            1,
+            description="fraction ratio: slave feedback counts (>= 1)",
+        ),
+        Operand(
+            "MasterCounts",
+            TagType.UDINT,
+            1,
+            description="fraction ratio: master feedback counts (>= 1)",
+        ),
+        Operand(
+            "MasterReference",
+            TagType.DINT,
+            MasterSource.COMMAND,
+            enum=MasterSource,
+            description="0 actual, 1 command",
+        ),
+        Operand(
+            "RatioFormat", TagType.DINT, RatioFormat.REAL, enum=RatioFormat, description="0 real"
+        ),
+        Operand(
+            "Clutch", TagType.DINT, Clutch.ENABLED, enum=Clutch, description="0 enabled, 1 disabled"
+        ),
+        Operand(
+            "AccelRate",
+            TagType.REAL,
+            100.0,
+            quantity=Quantity.ACCELERATION,
+            description="clutch acceleration (units/s^2 or % of maximum)",
+        ),
+        Operand(
+            "AccelUnits",
+            TagType.DINT,
+            AccelUnits.PERCENT_OF_MAXIMUM,
+            enum=AccelUnits,
+            description="0 units/s^2, 1 % of maximum",
+        ),
+    )
+
+    def execute(self) -> None:
+        slave = self.axis("SlaveAxis")
+        master = self.axis("MasterAxis")
+        self.ctl.require_motion(slave)
+        source = MasterSource(int(self.op["MasterReference"]))
+        check_master(self.ctl, slave, master, source)
+        direction = resolve_direction(
+            GearDirection(int(self.op["Direction"])), gearing_direction(slave)
+        )
+        if int(self.op["RatioFormat"]) == RatioFormat.FRACTION:
+            counts = {}
+            for name in ("SlaveCounts", "MasterCounts"):
+                counts[name] = int(self.op[name])
+                if counts[name] < 1:
+                    raise self.out_of_range(name, f"{name} must be >= 1")
+            term = GearTerm(
+                master.number,
+                source,
+                direction * counts["SlaveCounts"],
+                counts["MasterCounts"],
+                counts=True,
+            )
+        else:
+            ratio = float(self.op["Ratio"])
+            steps = round(abs(ratio) * RATIO_SCALE)
+            if not RATIO_STEPS[0] <= steps <= RATIO_STEPS[1]:
+                raise self.out_of_range("Ratio", f"|Ratio| must be 0.00001..9.99999, got {ratio}")
+            sign = -direction if ratio < 0 else direction
+            term = GearTerm(master.number, source, sign * steps, RATIO_SCALE)
+        ramp = None
+        if int(self.op["Clutch"]) == Clutch.ENABLED:
+            rate = dynamics.rate(
+                self, slave, "AccelRate", "AccelUnits", slave.config.max_acceleration
+            )
+            ramp = RateRamp(rate)
+        ctl = self.ctl
+
+        def make(v: float, a: float) -> Process:
+            return GearProcess(ctl, slave, (term,), ramp, v, a, owner=self, direction=direction)
+
+        self.started(ctl.start(slave, make, replace=(ProcessKind.GEAR,)))

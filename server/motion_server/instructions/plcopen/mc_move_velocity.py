@@ -1,0 +1,99 @@
+"""MC_MoveVelocity: run at Velocity in Direction until another command takes over.
+
+The block never completes: it stays Busy and Active while it controls the axis, and sets
+InVelocity once the commanded velocity is reached. InVelocity is reset with the falling
+edge of Execute (after being shown for at least one cycle), but the motion goes on.
+CommandAborted when another aborting command (a move, MC_Stop, MC_Halt ...) takes over.
+Velocity 0 is allowed: the axis ramps to rest and stays in ContinuousMotion.
+Direction: positive 1, negative 3, current 4 (the direction the axis moves in when the
+command starts; positive at rest). Shortest way (2) has no meaning here: ErrorID 13.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import Any
+
+from ...kernel import Controller, JogProcess
+from ...kernel.processes import Process
+from ...kernel.profiles import Limits
+from ..operands import AXIS, plcopen_dynamics
+from ..plcopen_common import BUFFER_MODE, MotionBlock
+from ..registry import register
+from ..schema import Operand, Quantity, StatusField, TagType
+
+
+class VelocityDirection(IntEnum):
+    POSITIVE = 1
+    NEGATIVE = 3
+    CURRENT = 4
+
+
+@register
+class MC_MoveVelocity(MotionBlock):
+    TYPE = "MC_MoveVelocity"
+    DESCRIPTION = "Run at a velocity until another command takes over"
+    DONE_ON_FINISH = False
+    OPERANDS = (
+        AXIS,
+        Operand(
+            "Velocity",
+            TagType.LREAL,
+            10.0,
+            minimum=0.0,
+            quantity=Quantity.VELOCITY,
+            description="speed (>= 0); the sign comes from Direction",
+        ),
+        *plcopen_dynamics(with_velocity=False),
+        Operand(
+            "Direction",
+            TagType.DINT,
+            VelocityDirection.POSITIVE,
+            enum=VelocityDirection,
+            description="1 positive, 3 negative, 4 current",
+        ),
+        BUFFER_MODE,
+    )
+    OUTPUTS = (StatusField("InVelocity", TagType.BOOL, "the commanded velocity is reached"),)
+
+    def __init__(self, name: str, ctl: Controller, defaults: dict[str, Any] | None = None) -> None:
+        super().__init__(name, ctl, defaults)
+        #: InVelocity was published: with Execute low it is reset at the next scan
+        self._in_velocity_seen = False
+
+    def execute(self) -> None:
+        ax = self.axis()
+        self.check_axis(ax)
+        speed = float(self.op["Velocity"])
+        direction = VelocityDirection(int(self.op["Direction"]))
+        limits = Limits(
+            speed or ax.config.max_velocity,
+            float(self.op["Acceleration"]),
+            float(self.op["Deceleration"]),
+            float(self.op["Jerk"]),
+        ).validated()
+        dt = self.ctl.dt(ax)
+
+        def make(v: float, a: float) -> Process:
+            # the direction is judged when the command starts (a buffered one starts later)
+            if direction == VelocityDirection.CURRENT:
+                sign = -1.0 if v < 0.0 else 1.0
+            else:
+                sign = -1.0 if direction == VelocityDirection.NEGATIVE else 1.0
+            return JogProcess(dt, sign * speed, limits, v, a, owner=self)
+
+        self.begin(ax, make)
+
+    def on_restart(self) -> None:
+        self._in_velocity_seen = False
+
+    def update(self) -> None:
+        super().update()
+        if self.outputs["InVelocity"]:
+            self._in_velocity_seen = True
+
+    def publish_extra(self) -> None:
+        p = self.process
+        at_speed = self.outputs["Busy"] and isinstance(p, JogProcess) and p.active and p.at_speed
+        held = bool(self.inputs[self.TRIGGER]) or not self._in_velocity_seen
+        self.outputs["InVelocity"] = bool(at_speed and held)

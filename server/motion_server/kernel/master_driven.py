@@ -1,0 +1,294 @@
+"""Master Driven Speed Control (MDSC): master-driven processes, and the rules.
+
+An MDAC assigns a master axis to a slave for a motion type (All, Jog, Move); the links
+(assignments, pending reassignment, link-breaking stops) live in :mod:`.mdac_links`. A
+MAJ or MAM whose dynamics are in master units then runs a *master-driven* process: its
+profile advances with the master's travel instead of time. Speed is in slave units per master
+unit, acceleration in units per master unit², jerk in units per master unit³, so the
+slave's speed is the programmed speed times the master's speed.
+
+Decisions (where the Logix manuals leave it open):
+
+- Lock direction is "immediate, forward only": the profile advances with the master's
+  forward travel; a master moving in reverse holds the slave where it is.
+- A virtual master is read at its command position, a feedback-only master at its actual
+  position, whatever the MasterReference says (the manuals' rule).
+- Changing the master: an MDAC All to another master while an MDAC All is in place makes
+  the reassignment *pending*; the next MAJ/MAM on the slave that goes IP switches it. A
+  master-driven instruction that changes the slave's master while the slave moves is
+  refused when the new master is idle (ERR 97) or when the new effective speed, programmed
+  speed × new master speed, is under 5 % of the slave's speed (ERR 103); the pending
+  reassignment then stays pending. Processes already running keep the master they started
+  with; only new instructions use the new one.
+- A link of a type other than All is reassigned only after a stop breaks it (ERR 105).
+- A link breaks on MAS All, MGS, MASD, MGSD, a fault or a mode change on the slave, and on
+  MGS, MASD, MGSD, a fault or a mode change on the master. The master-driven processes
+  still running under a broken link switch to time-driven and stop (the slave ramps to
+  rest at its maximum deceleration), as MGS does to master-driven axes; a change of
+  master (superseded link) leaves them running on their old master.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+from typing import TYPE_CHECKING, Any
+
+import ruckig
+
+from .enums import AxisType, ProcessKind
+from .errors import ErrorCode, MotionError
+from .processes import Process
+from .profiles import Limits
+
+if TYPE_CHECKING:
+    from .axis import Axis
+    from .controller import Controller
+
+#: a slave moving slower than this (units/s) counts as standing still for the master change
+MOVING_EPSILON = 1e-9
+#: the new effective slave speed must be at least this share of the speed before a change
+MIN_SPEED_SHARE = 0.05
+
+
+class MotionType(IntEnum):
+    """MDAC Motion Type: which single-axis motion the assignment covers."""
+
+    ALL = 0
+    JOG = 1
+    MOVE = 2
+
+
+class MasterReference(IntEnum):
+    """Master position source (Logix numbering)."""
+
+    ACTUAL = 0
+    COMMAND = 1
+
+
+def master_position(ctl: Controller, master: Axis, reference: MasterReference) -> float:
+    """Unwound position of the master as the link reads it."""
+    i = master.index
+    if master.type == AxisType.VIRTUAL:
+        return float(ctl.cmd_pos[i])
+    if master.type == AxisType.FEEDBACK_ONLY or reference == MasterReference.ACTUAL:
+        return float(ctl.act_pos[i])
+    return float(ctl.cmd_pos[i])
+
+
+def master_speed(ctl: Controller, master: Axis, reference: MasterReference) -> float:
+    """The master's forward speed (units/s) as the link reads it; reverse counts as 0."""
+    i = master.index
+    if master.type == AxisType.VIRTUAL:
+        v = float(ctl.cmd_vel[i])
+    elif master.type == AxisType.FEEDBACK_ONLY or reference == MasterReference.ACTUAL:
+        v = float(ctl.act_vel[i])
+    else:
+        v = float(ctl.cmd_vel[i])
+    return max(v, 0.0)
+
+
+class MasterProfile:
+    """A ruckig trajectory planned in the master-position domain (offline, sampled at the
+    master travel ``s``): positions in slave units, "velocity" a ratio (units per master
+    unit). Beyond its duration a velocity target continues at constant ratio and a
+    position target holds."""
+
+    def __init__(
+        self, limits: Limits, ratio: float, velocity: float | None, position: float | None
+    ) -> None:
+        limits = limits.validated()
+        inp = ruckig.InputParameter(1)
+        inp.current_position = [0.0]
+        inp.current_velocity = [float(ratio)]
+        inp.current_acceleration = [0.0]
+        if position is not None:
+            if not math.isfinite(position):
+                raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "distance must be finite")
+            inp.control_interface = ruckig.ControlInterface.Position
+            inp.target_position = [float(position)]
+            inp.target_velocity = [0.0]
+            direction = position
+        else:
+            assert velocity is not None
+            if not math.isfinite(velocity):
+                raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "speed must be finite")
+            inp.control_interface = ruckig.ControlInterface.Velocity
+            inp.target_velocity = [float(velocity)]
+            direction = velocity if velocity != 0.0 else ratio
+        inp.target_acceleration = [0.0]
+        top = abs(velocity) if velocity is not None and position is None else 0.0
+        inp.max_velocity = [max(limits.velocity, abs(ratio), top)]
+        if direction >= 0.0:
+            inp.max_acceleration = [limits.acceleration]
+            inp.min_acceleration = [-limits.deceleration]
+        else:
+            inp.max_acceleration = [limits.deceleration]
+            inp.min_acceleration = [-limits.acceleration]
+        inp.max_jerk = [limits.ruckig_jerk]
+        self._traj = ruckig.Trajectory(1)
+        try:
+            result = ruckig.Ruckig(1).calculate(inp, self._traj)
+        except RuntimeError as exc:  # pragma: no cover - inputs are validated beforehand
+            raise MotionError(ErrorCode.PROFILE_FAILED, str(exc)) from exc
+        if result not in (ruckig.Result.Working, ruckig.Result.Finished):
+            raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")
+        self.duration = float(self._traj.duration)
+        self.target_position = position
+
+    def at(self, s: float) -> tuple[float, float]:
+        """Position and ratio after master travel ``s``."""
+        if self.target_position is not None and s >= self.duration:
+            return self.target_position, 0.0
+        p, v, _ = self._traj.at_time(max(s, 0.0))
+        return float(p[0]), float(v[0])
+
+
+class MasterDrivenProcess(Process):
+    """A jog or move whose profile advances with the forward travel of its master."""
+
+    def __init__(
+        self,
+        ctl: Controller,
+        master: Axis,
+        reference: MasterReference,
+        limits: Limits,
+        ratio: float,
+        owner: Any = None,
+    ) -> None:
+        super().__init__(owner)
+        self.master = master.number
+        self.masters = (master.number,)
+        self.reference = reference
+        self.limits = limits.validated()
+        #: master travel (forward) since the process started
+        self.travel = 0.0
+        self.ratio = ratio
+        #: the slave follows the master at the programmed ratio (TrackingMaster)
+        self.tracking = False
+        self._master = master
+        self._last_master = master_position(ctl, master, reference)
+        self._origin = 0.0  # position at the last (re)plan
+        self._plan_travel = 0.0  # travel at the last (re)plan
+        self.profile = self._plan(ratio)
+        self._sample()
+        self.velocity = self.ratio * master_speed(ctl, master, reference)
+
+    # -- planning -------------------------------------------------------------------------
+    def _plan(self, ratio: float) -> MasterProfile:
+        raise NotImplementedError
+
+    @property
+    def target_ratio(self) -> float:
+        raise NotImplementedError
+
+    def _sample(self) -> None:
+        p, u = self.profile.at(self.travel - self._plan_travel)
+        self.position = self._origin + p
+        self.ratio = u
+        tol = 1e-9 * max(1.0, abs(self.target_ratio))
+        if abs(u - self.target_ratio) <= tol:
+            self.tracking = True
+
+    def _replan(self) -> None:
+        self._origin = self.position
+        self._plan_travel = self.travel
+        self.profile = self._plan(self.ratio)
+        self.tracking = False
+        self._sample()
+
+    # -- stepping -------------------------------------------------------------------------
+    def step(self, ctl: Controller, dt: float) -> None:
+        m = master_position(ctl, self._master, self.reference)
+        ds = max(m - self._last_master, 0.0)
+        self._last_master = m
+        self.travel += ds
+        before = self.velocity
+        self._sample()
+        self.velocity = self.ratio * ds / dt
+        self.acceleration = (self.velocity - before) / dt
+        self._after_sample()
+
+    def _after_sample(self) -> None:
+        pass
+
+    def change_limits(self, limits: Limits) -> None:
+        """Motion Change Dynamics: re-plan from here with new limits (master units)."""
+        self.limits = limits.validated()
+        self._replan()
+
+
+class MasterDrivenJog(MasterDrivenProcess):
+    """MAJ in master units: run at ``speed`` units per master unit until stopped."""
+
+    kind = ProcessKind.JOG
+
+    def __init__(
+        self,
+        ctl: Controller,
+        master: Axis,
+        reference: MasterReference,
+        speed: float,
+        limits: Limits,
+        ratio: float = 0.0,
+        owner: Any = None,
+    ) -> None:
+        self.speed = speed
+        super().__init__(ctl, master, reference, limits, ratio, owner)
+
+    @property
+    def target_ratio(self) -> float:
+        return self.speed
+
+    def _plan(self, ratio: float) -> MasterProfile:
+        return MasterProfile(self.limits, ratio, velocity=self.speed, position=None)
+
+    def change_speed(self, speed: float) -> None:
+        sign = -1.0 if self.speed < 0 else 1.0
+        self.speed = sign * abs(speed)
+        self._replan()
+
+    @property
+    def reached(self) -> bool:
+        return self.tracking or super().reached
+
+
+class MasterDrivenMove(MasterDrivenProcess):
+    """MAM in master units: travel ``distance`` and rest there when the master has moved
+    far enough."""
+
+    kind = ProcessKind.MOVE
+
+    def __init__(
+        self,
+        ctl: Controller,
+        master: Axis,
+        reference: MasterReference,
+        distance: float,
+        limits: Limits,
+        ratio: float = 0.0,
+        owner: Any = None,
+    ) -> None:
+        self.distance = distance
+        super().__init__(ctl, master, reference, limits, ratio, owner)
+
+    @property
+    def target_ratio(self) -> float:
+        return math.copysign(self.limits.velocity, self.distance - self._origin)
+
+    def _plan(self, ratio: float) -> MasterProfile:
+        return MasterProfile(
+            self.limits, ratio, velocity=None, position=self.distance - self._origin
+        )
+
+    def _after_sample(self) -> None:
+        if self.travel - self._plan_travel >= self.profile.duration:
+            self.position = self.distance
+            self.velocity = 0.0
+            self.finish()
+
+    def change_speed(self, speed: float) -> None:
+        self.limits = Limits(
+            abs(speed), self.limits.acceleration, self.limits.deceleration, self.limits.jerk
+        )
+        self._replan()

@@ -1,0 +1,208 @@
+"""Exports of a tag map: JSON (the ``motion-server-map/1`` contract), CSV and Markdown.
+
+All three list the tags in address order and are deterministic, so the exports checked in
+for the demo map can be compared with a fresh export.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from importlib import resources
+from typing import Any
+
+from .model import MAP_FORMAT, Block, Tag, TagMap
+
+FORMATS = ("json", "csv", "md")
+SCHEMA_FILE = "map.schema.json"
+
+#: function codes the Modbus front-end serves, and the exceptions it answers
+FUNCTION_CODES = (3, 6, 16, 22, 23)
+EXCEPTIONS = {
+    1: "function code not served",
+    2: "a register outside the map, or a write to a read-only register",
+    3: "a value the tag cannot hold (SINT range, Clock.Mode, non-finite hand-wheel input)",
+    11: "unknown unit id (no device answers)",
+}
+
+
+def reference(address: int) -> str:
+    """The 6-digit holding-register reference of a 0-based address: 0 -> 400001."""
+    return f"4{address + 1:05d}"
+
+
+def enum_text(tag: Tag) -> str:
+    return "; ".join(f"{v}={k}" for k, v in tag.enum_members().items())
+
+
+def tag_record(tag: Tag) -> dict[str, Any]:
+    rec: dict[str, Any] = {
+        "name": tag.name,
+        "type": tag.type.value,
+        "access": tag.access.value,
+        "modbus": {"address": tag.address, "count": tag.count},
+        "opcua": {"node_id": tag.node_id},
+    }
+    if tag.bit is not None:
+        rec["modbus"]["bit"] = tag.bit
+    if tag.enum is not None:
+        rec["enum"] = tag.enum_members()
+    if tag.units:
+        rec["units"] = tag.units
+    if tag.minimum is not None:
+        rec["minimum"] = tag.minimum
+    if tag.maximum is not None:
+        rec["maximum"] = tag.maximum
+    if tag.description:
+        rec["description"] = tag.description
+    return rec
+
+
+def to_dict(tagmap: TagMap) -> dict[str, Any]:
+    """The JSON contract as a Python object."""
+    return {
+        "format": MAP_FORMAT,
+        "site": tagmap.site,
+        "modbus": {
+            "word_order": tagmap.word_order.value,
+            "unit_id": tagmap.unit_id,
+            "function_codes": list(FUNCTION_CODES),
+        },
+        "opcua": {"namespace_uri": tagmap.namespace_uri},
+        "tags": [tag_record(t) for t in tagmap],
+    }
+
+
+def to_json(tagmap: TagMap) -> str:
+    return json.dumps(to_dict(tagmap), indent=2, ensure_ascii=False) + "\n"
+
+
+CSV_COLUMNS = (
+    "name",
+    "address",
+    "address_hex",
+    "reference",
+    "bit",
+    "count",
+    "unit_id",
+    "type",
+    "word_order",
+    "access",
+    "units",
+    "enum",
+    "node_id",
+    "description",
+)
+
+
+def to_csv(tagmap: TagMap) -> str:
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    for t in tagmap:
+        w.writerow(
+            [
+                t.name,
+                t.address,
+                f"0x{t.address:04X}",
+                reference(t.address),
+                "" if t.bit is None else t.bit,
+                t.count,
+                tagmap.unit_id,
+                t.type.value,
+                tagmap.word_order.value,
+                t.access.value,
+                t.units,
+                enum_text(t),
+                t.node_id,
+                t.description,
+            ]
+        )
+    return out.getvalue()
+
+
+def _md_cell(text: object) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _md_block(tagmap: TagMap, block: Block) -> list[str]:
+    kind = f" ({block.instruction})" if block.instruction else ""
+    lines = [
+        f"### {block.owner}{kind}",
+        "",
+        f"Registers {block.base}–{block.end - 1} ({reference(block.base)}–"
+        f"{reference(block.end - 1)})"
+        + (
+            f"; writable {block.command_start}–{block.command_end - 1}."
+            if block.command_end > block.command_start
+            else "; read-only."
+        ),
+        "",
+        "| Register | Hex | Ref | Bit | Tag | Type | Access | Units | Values | Description |",
+        "|---:|---:|---:|---:|---|---|---|---|---|---|",
+    ]
+    for t in tagmap.owned_by(block.owner):
+        span = str(t.address) if t.count == 1 else f"{t.address}–{t.end - 1}"
+        lines.append(
+            "| "
+            + " | ".join(
+                _md_cell(c)
+                for c in (
+                    span,
+                    f"0x{t.address:04X}",
+                    reference(t.address),
+                    "" if t.bit is None else t.bit,
+                    f"`{t.name}`",
+                    t.type.value,
+                    "R/W" if t.writable else "R",
+                    t.units,
+                    enum_text(t),
+                    t.description,
+                )
+            )
+            + " |"
+        )
+    return [*lines, ""]
+
+
+def to_markdown(tagmap: TagMap) -> str:
+    order = "big (ABCD: most significant word first)"
+    if tagmap.word_order.value == "little":
+        order = "little (CDAB: least significant word first)"
+    lines = [
+        f"# Modbus register map: site `{tagmap.site}`",
+        "",
+        "Generated by `motion-server map --format md`; do not edit by hand.",
+        "",
+        f"- Holding registers, 0-based on the wire (reference 4xxxxx = address + 400001); "
+        f"unit id {tagmap.unit_id}.",
+        f"- Word order of 32/64-bit values: {order}; they start on even registers.",
+        "- BOOLs are bits of a 16-bit register (bit 0 = least significant). Command bits "
+        "(written by clients) and status bits (written by the server) never share a register.",
+        "- Function codes: " + ", ".join(str(c) for c in FUNCTION_CODES) + ".",
+        "- Trigger an instruction: write its operands, then a rising edge on its trigger "
+        "(bit 0 of its command bit register); poll the status bits and ERR / ErrorID.",
+        "- Exceptions: " + "; ".join(f"{c:02d} {text}" for c, text in EXCEPTIONS.items()) + ".",
+        f"- OPC UA namespace `{tagmap.namespace_uri}`; node ids are `Folder.Owner.Field`.",
+        "",
+    ]
+    for block in tagmap.blocks:
+        lines += _md_block(tagmap, block)
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def export(tagmap: TagMap, fmt: str) -> str:
+    """The export of ``tagmap`` in ``fmt`` (json, csv or md)."""
+    writers = {"json": to_json, "csv": to_csv, "md": to_markdown}
+    try:
+        return writers[fmt](tagmap)
+    except KeyError:
+        raise ValueError(f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}") from None
+
+
+def json_schema() -> dict[str, Any]:
+    """The JSON Schema of the ``motion-server-map/1`` contract."""
+    text = resources.files(__package__).joinpath(SCHEMA_FILE).read_text("utf-8")
+    schema: dict[str, Any] = json.loads(text)
+    return schema

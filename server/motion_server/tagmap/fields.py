@@ -1,0 +1,139 @@
+"""The tags that are not instruction operands: axis, group, diagnostics and clock fields.
+
+Instruction tags come from each instruction class's own schema (``input_operands()`` and
+``status_fields()``); these tables are the equivalent schema for the other owners. The
+live values behind them are bound in :mod:`.image`.
+"""
+
+from __future__ import annotations
+
+import builtins
+from dataclasses import dataclass
+from enum import IntEnum
+
+from ..instructions.schema import Quantity, TagType
+from ..kernel import AxisState, AxisType, GroupState, PLCopenState
+
+
+class ClockMode(IntEnum):
+    """``Clock.Mode``: how simulated time advances (DESIGN.md, "The scan")."""
+
+    REALTIME = 0
+    MANUAL = 1
+    SCALED = 2
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    """One field of a non-instruction owner. ``units`` fixes the units; otherwise they
+    follow ``quantity`` and the owner's axis units."""
+
+    name: str
+    type: TagType
+    writable: bool = False
+    quantity: Quantity = Quantity.NONE
+    enum: builtins.type[IntEnum] | None = None
+    description: str = ""
+    units: str = ""
+
+
+MOTION_STATUS_BITS = (
+    "bits: 0 Accel, 1 Decel, 2 Move, 3 Jog, 4 Gearing, 5 Homing, 6 Stopping, 7 Homed, "
+    "8 PositionCam, 9 TimeCam, 10 PositionCamPending, 11 TimeCamPending, 12 GearingLock, "
+    "13 PositionCamLock"
+)
+
+AXIS_FIELDS: tuple[FieldSpec, ...] = (
+    FieldSpec("Number", TagType.DINT, description="axis number (what axis operands hold)"),
+    FieldSpec("Type", TagType.INT, enum=AxisType, description="servo, virtual, feedback only"),
+    FieldSpec("AxisState", TagType.INT, enum=AxisState, description="Logix power state"),
+    FieldSpec("PLCopenState", TagType.INT, enum=PLCopenState, description="PLCopen axis state"),
+    FieldSpec(
+        "MotionStatus", TagType.UDINT, description="Logix MotionStatus " + MOTION_STATUS_BITS
+    ),
+    FieldSpec("AxisFault", TagType.UDINT, description="fault bits: 0 position error, 1 profile"),
+    FieldSpec("ActualPosition", TagType.LREAL, quantity=Quantity.POSITION),
+    FieldSpec("CommandPosition", TagType.LREAL, quantity=Quantity.POSITION),
+    FieldSpec("ActualVelocity", TagType.LREAL, quantity=Quantity.VELOCITY),
+    FieldSpec("CommandVelocity", TagType.LREAL, quantity=Quantity.VELOCITY),
+    FieldSpec("CommandAcceleration", TagType.LREAL, quantity=Quantity.ACCELERATION),
+    FieldSpec(
+        "PositionError",
+        TagType.LREAL,
+        quantity=Quantity.POSITION,
+        description="command minus actual position (following error)",
+    ),
+)
+
+#: only feedback-only axes with ``feedback_signal = "input"`` (a hand wheel) have it
+FEEDBACK_INPUT = FieldSpec(
+    "FeedbackInput",
+    TagType.LREAL,
+    writable=True,
+    quantity=Quantity.POSITION,
+    description="hand-wheel reading: the actual position taken at the next cycle",
+)
+
+GROUP_FIELDS: tuple[FieldSpec, ...] = (
+    FieldSpec("Number", TagType.DINT, description="group number (what group operands hold)"),
+    FieldSpec("GroupState", TagType.INT, enum=GroupState),
+    FieldSpec("CoarseUpdatePeriod", TagType.REAL, units="ms"),
+    FieldSpec("AxisCount", TagType.INT, description="number of axes in the group"),
+)
+
+
+def group_member(k: int) -> FieldSpec:
+    """``GroupN.Member<k>``: the number of the group's k-th axis (1-based k)."""
+    return FieldSpec(f"Member{k}", TagType.DINT, description=f"axis number of member {k}")
+
+
+DIAGNOSTICS_FIELDS: tuple[FieldSpec, ...] = (
+    FieldSpec("Heartbeat", TagType.UDINT, description="incremented every cycle (wraps at 2^32)"),
+    FieldSpec("CycleTime", TagType.REAL, units="us", description="CPU time of the last cycle"),
+    FieldSpec("MaxCycleTime", TagType.REAL, units="us", description="longest cycle so far"),
+    FieldSpec("Overruns", TagType.UDINT, description="cycles that started late (realtime)"),
+    FieldSpec("DroppedCycles", TagType.UDINT, description="cycles dropped beyond the catch-up"),
+    FieldSpec("VersionMajor", TagType.INT, description="server version, major"),
+    FieldSpec("VersionMinor", TagType.INT, description="server version, minor"),
+    FieldSpec("VersionPatch", TagType.INT, description="server version, patch"),
+    FieldSpec("AxisCount", TagType.INT),
+    FieldSpec("GroupCount", TagType.INT),
+    FieldSpec("InstanceCount", TagType.INT, description="instruction instances"),
+)
+
+
+def clock_fields(remote_clock: bool) -> tuple[FieldSpec, ...]:
+    """Clock tags; with ``remote_clock = false`` the command fields are read-only."""
+    w = remote_clock
+    return (
+        FieldSpec(
+            "Step",
+            TagType.BOOL,
+            writable=w,
+            description="rising edge: run StepCycles cycles (manual mode; the write is "
+            "answered once they ran)",
+        ),
+        FieldSpec("Mode", TagType.INT, writable=w, enum=ClockMode),
+        FieldSpec("StepCycles", TagType.UDINT, writable=w, description="cycles per Step edge"),
+        FieldSpec("Cycle", TagType.UDINT, description="completed cycles (wraps at 2^32)"),
+        FieldSpec("SimTime", TagType.LREAL, units="s", description="simulated time"),
+        FieldSpec("Period", TagType.REAL, units="ms", description="base period of a cycle"),
+        FieldSpec("Scale", TagType.REAL, description="simulated s per real s (scaled mode)"),
+    )
+
+
+UNITS_SUFFIX: dict[Quantity, str] = {
+    Quantity.POSITION: "",
+    Quantity.VELOCITY: "/s",
+    Quantity.ACCELERATION: "/s²",
+    Quantity.JERK: "/s³",
+}
+
+
+def units_of(quantity: Quantity, axis_units: str) -> str:
+    """Engineering units of a quantity on an axis measured in ``axis_units``."""
+    if quantity == Quantity.PERCENT:
+        return "%"
+    if quantity in UNITS_SUFFIX and axis_units:
+        return axis_units + UNITS_SUFFIX[quantity]
+    return ""

@@ -1,0 +1,386 @@
+"""Register layout: from a site map to a :class:`TagMap`.
+
+Every owner gets its own block of holding registers, at a documented base per kind:
+
+=============  =========================  ========================================
+kind           default base               block
+=============  =========================  ========================================
+Clock          0                          up to register 49
+Diagnostics    50                         up to register 99
+groups         ``[modbus] group_base``    100 + 20·k (k-th group of the site map)
+axes           ``[modbus] axis_base``     1000 + 50·k (k-th axis of the site map)
+instructions   ``[modbus] instruction_    5000 + 100·k (k-th declared instance)
+               base``
+every_type     ``[modbus] every_type_     20000 + 100·(code − 1): ``<TYPE>_1`` at a block
+               base``                     fixed by the type's stable code
+                                          (``instructions.registry.TYPE_CODES``)
+=============  =========================  ========================================
+
+An instance's ``modbus_base`` in the site map overrides its default base (it must be
+even); a block larger than its stride takes the next multiple of the stride and moves the
+blocks after it. Overlapping blocks are a site-map error naming the field.
+
+Inside a block: first the read-only status region (a register of status BOOLs, bit 0 =
+first BOOL, then the status words), then, from an even register, the writable command
+region (a register of command BOOLs — the trigger is bit 0 — then the operands). 32 and
+64-bit values start on even registers; a 16-bit value may fill the hole an alignment
+left. Command and status bits never share a register. Every register of a block is valid:
+unused ones read 0; writes to the read-only part answer a Modbus exception.
+"""
+
+from __future__ import annotations
+
+import builtins
+import itertools
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import TYPE_CHECKING
+
+from ..instructions import Instruction, Kind, Operand, Quantity, StatusField, TagType, catalog
+from ..instructions.registry import type_code
+from .fields import (
+    AXIS_FIELDS,
+    DIAGNOSTICS_FIELDS,
+    FEEDBACK_INPUT,
+    GROUP_FIELDS,
+    FieldSpec,
+    clock_fields,
+    group_member,
+    units_of,
+)
+from .model import MAX_ADDRESS, Access, Block, Folder, Tag, TagMap, TagMapError, WordOrder
+
+if TYPE_CHECKING:
+    from ..config import InstanceSection, SiteMap
+
+CLOCK_BASE = 0
+DIAGNOSTICS_BASE = 50
+GROUP_STRIDE = 20
+AXIS_STRIDE = 50
+INSTRUCTION_STRIDE = 100
+#: owner names the server uses itself
+RESERVED_OWNERS = ("Clock", "Diagnostics")
+
+Problems = list[tuple[tuple[int | str, ...], str]]
+
+
+@dataclass(frozen=True)
+class _Item:
+    """A field on its way to becoming a tag."""
+
+    field: str
+    type: TagType
+    writable: bool
+    quantity: Quantity = Quantity.NONE
+    enum: builtins.type[IntEnum] | None = None
+    description: str = ""
+    units: str = ""
+    minimum: float | None = None
+    maximum: float | None = None
+
+
+class _Allocator:
+    """Hands out registers upward from ``start``; 32/64-bit values go to even registers
+    and a later 16-bit value fills the hole an alignment left."""
+
+    def __init__(self, start: int) -> None:
+        self.next = start
+        self.holes: list[int] = []
+
+    def take(self, words: int) -> int:
+        if words == 1:
+            if self.holes:
+                return self.holes.pop(0)
+            self.next += 1
+            return self.next - 1
+        if self.next % 2:
+            self.holes.append(self.next)
+            self.next += 1
+        self.next += words
+        return self.next - words
+
+
+def _region(alloc: _Allocator, items: Sequence[_Item]) -> list[tuple[_Item, int, int | None]]:
+    """Place a region's items: (item, address, bit)."""
+    placed: list[tuple[_Item, int, int | None]] = []
+    bools = [i for i in items if i.type == TagType.BOOL]
+    for k in range(0, len(bools), 16):
+        reg = alloc.take(1)
+        placed += [(item, reg, bit) for bit, item in enumerate(bools[k : k + 16])]
+    for item in items:
+        if item.type != TagType.BOOL:
+            placed.append((item, alloc.take(item.type.words), None))
+    return placed
+
+
+def block_size(items: Sequence[_Item]) -> tuple[int, int, int]:
+    """(status end, command start, command end) offsets of a block holding ``items``."""
+    alloc = _Allocator(0)
+    _region(alloc, [i for i in items if not i.writable])
+    status_end = alloc.next
+    writable = [i for i in items if i.writable]
+    if not writable:
+        return status_end, status_end, status_end
+    start = status_end + status_end % 2
+    alloc = _Allocator(start)
+    _region(alloc, writable)
+    return status_end, start, alloc.next
+
+
+def _place(
+    owner: str,
+    folder: Folder,
+    base: int,
+    stride: int,
+    items: Sequence[_Item],
+    instruction: str = "",
+    node_prefix: str = "",
+) -> tuple[Block, list[Tag]]:
+    _, cmd_start, cmd_end = block_size(items)
+    size = max(cmd_end, 1)
+    span = -(-size // stride) * stride
+    placed = _region(_Allocator(base), [i for i in items if not i.writable])
+    placed += _region(_Allocator(base + cmd_start), [i for i in items if i.writable])
+    prefix = node_prefix or f"{folder.value}.{owner}"
+    tags = [
+        Tag(
+            name=f"{owner}.{item.field}",
+            owner=owner,
+            field=item.field,
+            folder=folder,
+            type=item.type,
+            access=Access.READ_WRITE if item.writable else Access.READ,
+            address=address,
+            count=item.type.words,
+            bit=bit,
+            node_id=f"{prefix}.{item.field}",
+            units=item.units,
+            quantity=item.quantity,
+            enum=item.enum,
+            description=item.description,
+            minimum=item.minimum,
+            maximum=item.maximum,
+            instruction=instruction,
+        )
+        for item, address, bit in placed
+    ]
+    block = Block(owner, folder, base, base + span, base + cmd_start, base + cmd_end, instruction)
+    return block, tags
+
+
+def _spec_items(specs: Iterable[FieldSpec], axis_units: str = "") -> list[_Item]:
+    return [
+        _Item(
+            s.name,
+            s.type,
+            s.writable,
+            s.quantity,
+            s.enum,
+            s.description,
+            s.units or units_of(s.quantity, axis_units),
+        )
+        for s in specs
+    ]
+
+
+def instruction_items(cls: type[Instruction], units: dict[str, str] | None = None) -> list[_Item]:
+    """The tags of one instruction type: its status fields (read) and its trigger and
+    operands (read/write). ``units`` gives axis units by operand-name prefix (``""`` for
+    the instruction's own axis, ``"Master"`` for operands named Master...)."""
+    units = units or {}
+
+    def unit(op: Operand | StatusField) -> str:
+        axis_units = units.get("Master" if op.name.startswith("Master") else "", "")
+        return units_of(op.quantity, axis_units)
+
+    items = [
+        _Item(f.name, f.type, False, f.quantity, f.enum, f.description, unit(f))
+        for f in cls.status_fields()
+    ]
+    for op in cls.input_operands():
+        desc = op.description
+        if op.kind == Kind.AXIS:
+            desc = desc or "axis number"
+        items.append(
+            _Item(
+                op.name,
+                op.type,
+                True,
+                op.quantity,
+                op.enum,
+                desc,
+                unit(op),
+                op.minimum,
+                op.maximum,
+            )
+        )
+    return items
+
+
+def _instance_units(inst: InstanceSection, axis_units: dict[int, str]) -> dict[str, str]:
+    """Units of the instance's own axis and of its master, from its configured operands."""
+    cls = catalog()[inst.type]
+    values = {op.name: inst.operands.get(op.name, op.default) for op in cls.OPERANDS}
+    axes = {op.name: int(values[op.name]) for op in cls.OPERANDS if op.kind == Kind.AXIS}
+    own = next((axes[n] for n in ("Axis", "SlaveAxis") if n in axes), None)
+    if own is None and axes:
+        own = next(iter(axes.values()))
+    out: dict[str, str] = {}
+    if own is not None:
+        out[""] = axis_units.get(own, "")
+    if "MasterAxis" in axes:
+        out["Master"] = axis_units.get(axes["MasterAxis"], "")
+    return out
+
+
+def build_tagmap(site: SiteMap) -> TagMap:
+    """The tag map of a site; raises :class:`TagMapError` when blocks overlap."""
+    tagmap, problems = _build(site)
+    if problems:
+        raise TagMapError(problems)
+    return tagmap
+
+
+def layout_problems(site: SiteMap) -> Problems:
+    """Layout errors of a site map as (field location, message) pairs."""
+    return _build(site)[1]
+
+
+def _build(site: SiteMap) -> tuple[TagMap, Problems]:
+    mb = site.modbus
+    blocks: list[tuple[Block, tuple[int | str, ...]]] = []
+    tags: list[Tag] = []
+
+    def add(result: tuple[Block, list[Tag]], where: tuple[int | str, ...]) -> int:
+        block, new = result
+        blocks.append((block, where))
+        tags.extend(new)
+        return block.end
+
+    add(
+        _place(
+            "Clock",
+            Folder.CLOCK,
+            CLOCK_BASE,
+            DIAGNOSTICS_BASE - CLOCK_BASE,
+            _spec_items(clock_fields(site.controller.remote_clock)),
+            node_prefix="Clock",
+        ),
+        ("controller",),
+    )
+    add(
+        _place(
+            "Diagnostics",
+            Folder.DIAGNOSTICS,
+            DIAGNOSTICS_BASE,
+            50,
+            _spec_items(DIAGNOSTICS_FIELDS),
+            node_prefix="Diagnostics",
+        ),
+        ("controller",),
+    )
+    base = mb.group_base
+    for gi, g in enumerate(site.groups):
+        items = _spec_items(GROUP_FIELDS)
+        items += _spec_items(group_member(k + 1) for k in range(len(g.axes)))
+        base = add(_place(g.name, Folder.GROUPS, base, GROUP_STRIDE, items), ("groups", gi))
+    base = mb.axis_base
+    configs = site.axis_configs()
+    for ai, (a, cfg) in enumerate(zip(site.axes, configs, strict=True)):
+        specs = list(AXIS_FIELDS)
+        if cfg.type.name == "FEEDBACK_ONLY" and cfg.feedback_signal.name == "INPUT":
+            specs.append(FEEDBACK_INPUT)
+        block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, _spec_items(specs, cfg.units))
+        base = add(block, ("axes", ai))
+    axis_units = {c.number: c.units for c in configs}
+    declared = {inst.name: i for i, inst in enumerate(site.instructions.instances)}
+    base = mb.instruction_base
+    for inst in site.instances():
+        i = declared.get(inst.name)
+        where: tuple[int | str, ...] = (
+            ("instructions", "instances", i) if i is not None else ("instructions", "every_type")
+        )
+        cls = catalog()[inst.type]
+        items = instruction_items(cls, _instance_units(inst, axis_units))
+        explicit = inst.modbus_base
+        if i is None:
+            # an every_type instance: a fixed block per type, stable as types are added
+            explicit = mb.every_type_base + INSTRUCTION_STRIDE * (type_code(cls.TYPE) - 1)
+        if explicit is not None:
+            placed = _place(
+                inst.name,
+                Folder.INSTRUCTIONS,
+                explicit,
+                INSTRUCTION_STRIDE,
+                items,
+                cls.TYPE,
+            )
+            add(placed, (*where, "modbus_base") if i is not None else where)
+            if i is not None:
+                # the default slot of this declared instance stays free
+                base += placed[0].size
+        else:
+            block = _place(
+                inst.name, Folder.INSTRUCTIONS, base, INSTRUCTION_STRIDE, items, cls.TYPE
+            )
+            base = add(block, where)
+    problems = _overlaps(blocks) + _owner_clashes(site)
+    for inst in site.instances():
+        if inst.modbus_base is not None and inst.modbus_base % 2:
+            i = declared[inst.name]
+            problems.append(
+                (
+                    ("instructions", "instances", i, "modbus_base"),
+                    f"{inst.name}: modbus_base {inst.modbus_base} must be even "
+                    "(32/64-bit values start on even registers)",
+                )
+            )
+    tagmap = TagMap(
+        site=site.site.name,
+        namespace_uri=site.site.namespace_uri or f"urn:motion-server:{site.site.name}",
+        unit_id=mb.unit_id,
+        word_order=WordOrder(mb.word_order),
+        tags=tuple(tags),
+        blocks=tuple(b for b, _ in blocks),
+    )
+    return tagmap, problems
+
+
+def _overlaps(blocks: list[tuple[Block, tuple[int | str, ...]]]) -> Problems:
+    out: Problems = []
+    ordered = sorted(blocks, key=lambda bw: bw[0].base)
+    for (prev, _), (cur, where) in itertools.pairwise(ordered):
+        if cur.base < prev.end:
+            out.append(
+                (
+                    where,
+                    f"registers {cur.base}-{cur.end - 1} of {cur.owner} overlap "
+                    f"{prev.base}-{prev.end - 1} of {prev.owner}",
+                )
+            )
+    for b, where in blocks:
+        if b.end - 1 > MAX_ADDRESS:
+            out.append(
+                (where, f"registers {b.base}-{b.end - 1} of {b.owner} pass register {MAX_ADDRESS}")
+            )
+    return out
+
+
+def _owner_clashes(site: SiteMap) -> Problems:
+    """Tag names are ``Owner.Field``: axis, group and instance names must differ."""
+    out: Problems = []
+    seen: dict[str, str] = {name: "the server" for name in RESERVED_OWNERS}
+    owners: list[tuple[str, tuple[int | str, ...], str]] = [
+        (g.name, ("groups", i, "name"), "group") for i, g in enumerate(site.groups)
+    ]
+    owners += [(a.name, ("axes", i, "name"), "axis") for i, a in enumerate(site.axes)]
+    owners += [
+        (inst.name, ("instructions", "instances", i, "name"), "instance")
+        for i, inst in enumerate(site.instructions.instances)
+    ]
+    for name, where, what in owners:
+        if name in seen and seen[name] != what:
+            out.append((where, f"{what} name {name!r} is already used by {seen[name]}"))
+        seen.setdefault(name, what)
+    return out
