@@ -16,7 +16,8 @@
 #
 # Environment: PYTHON (host interpreter with pymodbus, default .venv/bin/python),
 # DEBIAN_MIRROR (default: the host's apt source for the suite, else deb.debian.org),
-# STORAGE_DRIVER (overlay or vfs; default overlay where it works, else vfs),
+# STORAGE_DRIVER (overlay or vfs; default overlay where it works, else vfs; each has an
+# image store of its own under /var/lib/containers/motion-server-<driver>),
 # KEEP_WORK=1 (keep the scratch directory for inspection).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -81,24 +82,29 @@ fi
 info "$(buildah --version), $(debootstrap --version)"
 [ -x "$PYTHON" ] || fail "no host interpreter at $PYTHON (run through make, or set PYTHON)"
 
-use_vfs() { # vfs copies instead of mounting layers: slower, works everywhere
-    BUILDAH=(buildah --storage-driver vfs --root /var/lib/containers/motion-server-vfs
-        --runroot /run/containers/motion-server-vfs)
+# An image store of our own (images, layer cache), apart from anything else on the machine
+# that uses buildah: pruning it touches nothing but ours. overlay where it can mount, else
+# vfs (copies instead of mounting layers: slower, works everywhere).
+store() { # driver
+    BUILDAH=(buildah --storage-driver "$1" --root "/var/lib/containers/motion-server-$1"
+        --runroot "/run/containers/motion-server-$1")
 }
 case "${STORAGE_DRIVER:-auto}" in
-vfs) use_vfs ;;
-overlay) ;;
-*) # overlay is buildah's default; where it cannot mount, use vfs in a store of its own
-    probe=$(buildah from scratch 2>/dev/null) || probe=""
-    if [ -z "$probe" ] || ! buildah mount "$probe" >/dev/null 2>&1; then
+vfs | overlay) store "$STORAGE_DRIVER" ;;
+*)
+    store overlay
+    probe=$("${BUILDAH[@]}" from scratch 2>/dev/null) || probe=""
+    if [ -z "$probe" ] || ! "${BUILDAH[@]}" mount "$probe" >/dev/null 2>&1; then
         info "overlay storage unusable here: using vfs"
-        use_vfs
+        [ -z "$probe" ] || "${BUILDAH[@]}" rm "$probe" >/dev/null 2>&1 || true
+        probe=""
+        store vfs
     fi
-    [ -z "$probe" ] || buildah rm "$probe" >/dev/null 2>&1 || true
+    [ -z "$probe" ] || "${BUILDAH[@]}" rm "$probe" >/dev/null 2>&1 || true
     ;;
 esac
 unset STORAGE_DRIVER
-info "storage: ${BUILDAH[*]}"
+info "image store: ${BUILDAH[*]:1}"
 
 # --- 2. base image -------------------------------------------------------------------
 step 2/5 "base image"
@@ -204,6 +210,12 @@ if ! "${BUILDAH[@]}" bud --isolation chroot --format docker --layers "${build_ar
     tail -30 "$WORK/build.log" >&2
     fail "image build (log above)"
 fi
+# Keep the layer cache of this build, drop what earlier builds left: name the build stage
+# too (answered from the cache), then prune the unnamed images no named one builds on.
+"${BUILDAH[@]}" bud --isolation chroot --format docker --layers "${build_args[@]}" \
+    --target build -f Dockerfile -t "$IMAGE-build" . >>"$WORK/build.log" 2>&1 ||
+    fail "naming the build stage"
+"${BUILDAH[@]}" rmi --prune >/dev/null 2>&1 || true
 info "built $IMAGE ($("${BUILDAH[@]}" images --format '{{.Size}}' "$IMAGE"))"
 
 # --- 4. image checks -----------------------------------------------------------------
