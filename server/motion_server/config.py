@@ -2,7 +2,9 @@
 
 Validated with pydantic; every error names the file, the line and the field. The demo
 map embedded in the package (``data/demo.toml``) is what ``motion-server run`` uses when
-given none.
+given none (unless ``MOTION_SERVER_MAP`` names a file). Settings of the single-table
+sections can be overridden from the environment (containers, CI benches): see
+:func:`environment_settings`.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import os
 import re
 import tomllib
 import typing
+from collections.abc import Mapping
 from enum import Enum
 from importlib import resources
 from pathlib import Path
@@ -31,6 +34,10 @@ from .kernel import (
 from .kernel.config import MAX_PERIOD, MIN_PERIOD
 
 DEMO_MAP = "demo.toml"
+#: environment variable naming the site map file used when none is given
+MAP_ENV = "MOTION_SERVER_MAP"
+#: prefix of the per-setting overrides: MOTION_SERVER_<SECTION>_<FIELD>
+ENV_PREFIX = "MOTION_SERVER_"
 NAME_RE = r"^[A-Za-z][A-Za-z0-9_]*$"
 
 
@@ -175,7 +182,8 @@ class OpcUaUser(_Model):
 class OpcUaSection(_Model):
     """OPC UA front-end. ``port = 0`` binds an ephemeral port (tests). The server
     certificate and key are generated in ``data_dir`` on first start and kept there.
-    Anonymous access and the None endpoint are off unless asked for."""
+    Anonymous access and the None endpoint are off unless asked for, and honoured only on
+    a loopback bind unless ``allow_insecure_remote`` is set as well."""
 
     enabled: bool = True
     host: str = "127.0.0.1"
@@ -187,6 +195,9 @@ class OpcUaSection(_Model):
     allow_anonymous: bool = False
     anonymous_role: Literal["viewer", "operator", "admin"] = "viewer"
     allow_none_endpoint: bool = False
+    #: anonymous access and the None endpoint are honoured on a loopback bind only,
+    #: unless this is set too (the server drops both, with a warning, otherwise)
+    allow_insecure_remote: bool = False
     users: list[OpcUaUser] = Field(default_factory=list)
     #: how often changed values are pushed to the OPC UA nodes
     publish_rate_hz: Annotated[float, Field(gt=0.0, le=1000.0)] = 20.0
@@ -340,11 +351,18 @@ def _locate(text: str, loc: tuple[int | str, ...]) -> int:
     return line
 
 
-def parse(text: str, source: str = "<memory>") -> SiteMap:
+def parse(text: str, source: str = "<memory>", environ: Mapping[str, str] | None = None) -> SiteMap:
+    """Validate a site map text; ``environ`` settings (see :func:`environment_settings`)
+    replace the TOML values before validation, so every check sees them."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SiteMapError(f"{source}: invalid TOML: {exc}") from exc
+    overrides = environment_settings(environ or {})
+    for (section, field), (_, value) in overrides.items():
+        table = data.setdefault(section, {})
+        if isinstance(table, dict):
+            table[field] = value
     try:
         site = SiteMap.model_validate({**data, "source": source})
     except ValidationError as exc:
@@ -359,22 +377,51 @@ def parse(text: str, source: str = "<memory>") -> SiteMap:
         lines = []
         for loc, msg in found:
             field = ".".join(str(p) for p in loc) or "(top level)"
-            lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
+            var = overrides.get((str(loc[0]), str(loc[1]))) if len(loc) > 1 else None
+            if var:
+                lines.append(f"{source}: environment {var[0]}: {msg}")
+            else:
+                lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
         raise SiteMapError("\n".join(lines))
     return site
 
 
-def load(path: str | Path | None = None) -> SiteMap:
-    """Load a site map file, or the embedded demo map when ``path`` is None."""
+def environment_settings(environ: Mapping[str, str]) -> dict[tuple[str, str], tuple[str, str]]:
+    """``MOTION_SERVER_<SECTION>_<FIELD>`` variables: (section, field) -> (variable, value).
+
+    Every field of a single-table section (``[site]``, ``[controller]``, ``[modbus]``, ...)
+    can be set this way, e.g. ``MOTION_SERVER_MODBUS_HOST=0.0.0.0`` in a container or
+    ``MOTION_SERVER_CONTROLLER_CLOCK=manual`` on a test bench. The values are validated like
+    the TOML ones; an invalid one is a :class:`SiteMapError` naming the variable.
+    """
+    found: dict[tuple[str, str], tuple[str, str]] = {}
+    for section, info in SiteMap.model_fields.items():
+        model = info.annotation
+        if not (isinstance(model, type) and issubclass(model, _Model)):
+            continue
+        for field in model.model_fields:
+            var = f"{ENV_PREFIX}{section}_{field}".upper()
+            if var in environ:
+                found[(section, field)] = (var, environ[var])
+    return found
+
+
+def load(path: str | Path | None = None, environ: Mapping[str, str] | None = None) -> SiteMap:
+    """Load a site map file, or (``path`` None) the file named by ``MOTION_SERVER_MAP``,
+    else the embedded demo map, with the settings of the environment (``environ``,
+    default ``os.environ``) applied."""
+    env = os.environ if environ is None else environ
+    if path is None and env.get(MAP_ENV):
+        path = env[MAP_ENV]
     if path is None:
         text = resources.files("motion_server").joinpath("data", DEMO_MAP).read_text("utf-8")
-        return parse(text, f"<embedded {DEMO_MAP}>")
+        return parse(text, f"<embedded {DEMO_MAP}>", env)
     p = Path(path)
     try:
         text = p.read_text("utf-8")
     except OSError as exc:
         raise SiteMapError(f"{p}: cannot read site map: {exc.strerror}") from exc
-    return parse(text, str(p))
+    return parse(text, str(p), env)
 
 
 def users_file_path(environ: dict[str, str] | None = None) -> Path | None:

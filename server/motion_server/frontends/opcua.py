@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ipaddress
 import logging
 import socket
 from collections.abc import Iterable
@@ -100,6 +101,16 @@ class _Published:
     text_node: ua.NodeId | None = None  # ValueAsText of an enumerated value
 
 
+def _is_loopback(host: str) -> bool:
+    """True for a loopback address or the name localhost."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
 class OpcUaFrontend:
     """An OPC UA server for one tag image (see the module docstring)."""
 
@@ -110,8 +121,17 @@ class OpcUaFrontend:
         users: Iterable[OpcUaUser] | None = None,
     ) -> None:
         self.image = image
-        self.config = config or OpcUaSection()
-        cfg = self.config
+        cfg = config or OpcUaSection()
+        if (cfg.allow_anonymous or cfg.allow_none_endpoint) and not (
+            cfg.allow_insecure_remote or _is_loopback(cfg.host)
+        ):
+            log.warning(
+                "OPC UA: bound to %s, not loopback: anonymous access and the None endpoint are "
+                "refused (set allow_insecure_remote to allow them off loopback)",
+                cfg.host,
+            )
+            cfg = cfg.model_copy(update={"allow_anonymous": False, "allow_none_endpoint": False})
+        self.config = cfg
         accounts = [
             Account(u.name, _ROLES[u.role], u.password_hash)
             for u in (cfg.users if users is None else users)
