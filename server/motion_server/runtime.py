@@ -34,7 +34,9 @@ from .frontends.modbus import ModbusFrontend
 from .instructions import MotionSystem
 from .kernel import GroupStop
 from .kernel.group import OperatingMode
+from .safety.watchdog import Watchdog
 from .tagmap import ClockMode, TagImage, TagMap, build_tagmap
+from .tagmap.image import Getter, Setter
 
 log = logging.getLogger("motion_server.runtime")
 
@@ -66,7 +68,8 @@ class Runtime:
         self.dropped = 0
         self.last_cycle_time = 0.0  # seconds of CPU the last cycle took
         self.max_cycle_time = 0.0
-        #: called after every cycle (front-ends refresh their images here)
+        #: called before every cycle (the watchdogs) and after it (front-ends)
+        self.before_cycle: list[Callable[[], None]] = []
         self.after_cycle: list[Callable[[], None]] = []
         self._pending_cycles = 0
         self._settled = asyncio.Event()
@@ -76,7 +79,12 @@ class Runtime:
         self._stopped = asyncio.Event()
         self._reschedule = True
         self.tagmap: TagMap = build_tagmap(site)
-        self.image = TagImage(self.tagmap, self.system, self)
+        self.watchdogs = {w.name: Watchdog(w, self.ctl) for w in site.watchdogs}
+        bindings: dict[str, tuple[Getter, Setter | None]] = {}
+        for wd in self.watchdogs.values():
+            bindings |= wd.bindings()
+            self.before_cycle.append(wd.check)
+        self.image = TagImage(self.tagmap, self.system, self, bindings)
         self.modbus: ModbusFrontend | None = None
         #: set once the front-ends listen (``serve``)
         self.ready = asyncio.Event()
@@ -98,6 +106,8 @@ class Runtime:
         """Run ``count`` cycles now, whatever the clock mode (tests, manual steps)."""
         for _ in range(count):
             t0 = time.perf_counter()
+            for before in self.before_cycle:
+                before()
             self.system.cycle()
             self.heartbeat = (self.heartbeat + 1) & 0xFFFFFFFF
             for hook in self.after_cycle:
