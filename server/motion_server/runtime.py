@@ -34,6 +34,8 @@ from .frontends.modbus import ModbusFrontend
 from .instructions import MotionSystem
 from .kernel import GroupStop
 from .kernel.group import OperatingMode
+from .safety.access import AccessPolicy
+from .safety.audit import AuditLog
 from .safety.watchdog import Watchdog
 from .tagmap import ClockMode, TagImage, TagMap, build_tagmap
 from .tagmap.image import Getter, Setter
@@ -85,6 +87,10 @@ class Runtime:
             bindings |= wd.bindings()
             self.before_cycle.append(wd.check)
         self.image = TagImage(self.tagmap, self.system, self, bindings)
+        #: the audit log of client writes (``[audit]``), None when off
+        self.audit = AuditLog.from_config(site.audit, site.data_dir, lambda: self.ctl.tick)
+        if self.audit is not None:
+            self.image.observers.append(self.audit.accepted)
         self.modbus: ModbusFrontend | None = None
         #: set once the front-ends listen (``serve``)
         self.ready = asyncio.Event()
@@ -207,7 +213,10 @@ class Runtime:
         """
         cfg = self.site.modbus
         if cfg.enabled if modbus is None else modbus:
-            self.modbus = ModbusFrontend(self.image, cfg.host, cfg.port, cfg.unit_id)
+            policy = AccessPolicy(cfg.access, self.tagmap)
+            self.modbus = ModbusFrontend(
+                self.image, cfg.host, cfg.port, cfg.unit_id, policy, self.audit
+            )
             await self.modbus.start()
         self.ready.set()
         try:
@@ -215,6 +224,8 @@ class Runtime:
         finally:
             if self.modbus is not None:
                 await self.modbus.stop()
+            if self.audit is not None:
+                self.audit.close()
 
     def _wake(self) -> None:
         """End the loop's sleep now (a request, a mode change, a stop)."""
