@@ -48,10 +48,12 @@ from contextvars import ContextVar
 from typing import Any
 
 from pymodbus.constants import ExcCodes
+from pymodbus.exceptions import ModbusIOException
 from pymodbus.pdu import ExceptionResponse
 from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
+from pymodbus.transaction import TransactionManager
 
 from ..safety.access import AccessPolicy
 from ..safety.audit import AuditLog
@@ -117,8 +119,28 @@ class _Handler(ServerRequestHandler):
         self.frontend._left(self)
 
     def callback_data(self, data: bytes, addr: tuple[Any, ...] | None = None) -> int:
+        """pymodbus's handler, but an undecodable request is answered with its own
+        function code (upstream answers 0x80: function code 0) and transaction id."""
         self.last_activity = self.loop.time()
-        return super().callback_data(data, addr)
+        try:
+            used = TransactionManager.callback_data(self, data, addr)
+        except ModbusIOException as exc:
+            fc = data[7] & 0x7F if len(data) > 7 else 0
+            code = (
+                ExcCodes.ILLEGAL_VALUE if fc in SERVED_FUNCTION_CODES else ExcCodes.ILLEGAL_FUNCTION
+            )
+            self.server_send(
+                ExceptionResponse(
+                    fc, exception_code=code, device_id=exc.dev_id, transaction=exc.transaction_id
+                ),
+                addr,
+            )
+            # skip this frame only (its MBAP length), keep what was pipelined after it
+            frame = 6 + int.from_bytes(data[4:6], "big") if len(data) >= 6 else len(data)
+            return min(max(frame, 1), len(data))
+        if self.last_pdu:
+            self.loop.call_soon(self.handle_later)
+        return used
 
     async def handle_request(self) -> None:
         with writing_as(self.client):
