@@ -214,6 +214,8 @@ class RetainSection(_Model):
     enabled: bool = False
     path: str = "retain.json"
     interval: Annotated[float, Field(ge=0.0)] = 10.0
+    #: axes with absolute feedback: their positions are retained
+    axes: list[str] = Field(default_factory=list)
 
 
 class ModbusSection(_Model):

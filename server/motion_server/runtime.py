@@ -34,6 +34,7 @@ from .frontends.modbus import ModbusFrontend
 from .instructions import MotionSystem
 from .kernel import GroupStop
 from .kernel.group import OperatingMode
+from .safety import retain
 from .safety.access import AccessPolicy
 from .safety.audit import AuditLog
 from .safety.watchdog import Watchdog
@@ -51,10 +52,20 @@ __all__ = ["ClockMode", "Runtime"]
 
 
 class Runtime:
-    def __init__(self, site: SiteMap, system: MotionSystem | None = None) -> None:
+    def __init__(
+        self, site: SiteMap, system: MotionSystem | None = None, fresh: bool = False
+    ) -> None:
         self.site = site
         self.system = system or site.build()
         self.ctl = self.system.ctl
+        #: the retain file (``[retain]``), None when off; a bad file raises RetainError
+        self.retain_file = retain.retain_path(site) if site.retain.enabled else None
+        if self.retain_file is not None and not fresh:
+            payload = retain.load(self.retain_file, site.site.name)
+            if payload is not None:
+                for note in retain.restore(self.system, payload):
+                    log.warning("retain: %s", note)
+                log.info("retained state restored from %s", self.retain_file)
         ctl_cfg = site.controller
         self.mode = {
             "realtime": ClockMode.REALTIME,
@@ -150,10 +161,21 @@ class Runtime:
             self._stop_requested = True
             self._wake()
 
+    def save_retained(self) -> None:
+        """Write the retain file now (atomically); errors are logged, never raised."""
+        if self.retain_file is None:
+            return
+        try:
+            retain.save(self.retain_file, retain.snapshot(self.site, self.system))
+        except OSError as exc:
+            log.error("retain: cannot write %s: %s", self.retain_file, exc)
+
     # -- the loop ---------------------------------------------------------------------------
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
         next_log = loop.time() + self.status_log_interval
+        every = self.site.retain.interval
+        next_save = loop.time() + every
         deadline = loop.time()
         log.info(
             "motion-server %s: %d axes, %d groups, %d instructions, period %.1f ms, clock %s",
@@ -198,12 +220,16 @@ class Runtime:
                     self.cycle(due)
                     deadline += due * step
                 await self._sleep_until(deadline)
+            if self.retain_file is not None and every and loop.time() >= next_save:
+                next_save = loop.time() + every
+                self.save_retained()
             if self.status_log_interval and loop.time() >= next_log:
                 next_log = loop.time() + self.status_log_interval
                 log.info("%s", self.status_line())
         self._pending_cycles = 0
         self._settled.set()
         await self._programmed_stop()
+        self.save_retained()
         self._stopped.set()
 
     async def serve(self, modbus: bool | None = None) -> None:
