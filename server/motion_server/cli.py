@@ -11,6 +11,7 @@ from pathlib import Path
 
 from . import __version__, config
 from .runtime import ClockMode, Runtime
+from .safety.retain import RetainError
 from .tagmap import FORMATS, build_tagmap, export
 
 log = logging.getLogger("motion_server")
@@ -52,7 +53,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     except config.SiteMapError as exc:
         raise SystemExit(f"motion-server: {exc}") from None
     log.info("OPC UA users: %d", len(users))
-    rt = Runtime(site)
+    try:
+        rt = Runtime(site, fresh=args.fresh)
+    except RetainError as exc:
+        raise SystemExit(
+            f"motion-server: {exc}\n(fix or remove the file, or start clean with --fresh)"
+        ) from None
     if args.clock:
         rt.set_mode(ClockMode[args.clock.upper()])
     if args.scale:
@@ -110,6 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--clock",
         choices=["realtime", "scaled", "manual"],
         help="override the site map's clock mode",
+    )
+    run.add_argument(
+        "--fresh", action="store_true", help="start clean: ignore the retain file ([retain])"
     )
     run.add_argument("--scale", type=float, help="simulated seconds per real second (scaled)")
     run.add_argument("--modbus-host", help="bind address of Modbus TCP (site map: [modbus] host)")

@@ -9,6 +9,7 @@ sections can be overridden from the environment (containers, CI benches): see
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import re
 import tomllib
@@ -144,6 +145,88 @@ class InstructionsSection(_Model):
     instances: list[InstanceSection] = Field(default_factory=list)
 
 
+class WriteRule(_Model):
+    """Who may write what: clients from ``networks`` may write only the tags that
+    ``write`` names (a folder ``Instructions``, an owner ``MAJ_1``, a tag ``MAJ_1.Speed``
+    or a register range ``"5000-5999"``); an empty list makes them read-only."""
+
+    networks: list[str]
+    write: list[str] = Field(default_factory=list)
+
+    @field_validator("networks")
+    @classmethod
+    def _networks(cls, value: list[str]) -> list[str]:
+        for net in value:
+            ipaddress.ip_network(net, strict=False)  # ValueError names the bad one
+        return value
+
+    @field_validator("write")
+    @classmethod
+    def _ranges(cls, value: list[str]) -> list[str]:
+        for item in value:
+            if re.fullmatch(r"\d+\s*-\s*\d+", item):
+                lo, hi = (int(x) for x in item.split("-"))
+                if not 0 <= lo <= hi <= 65535:
+                    raise ValueError(f"bad register range {item!r}")
+        return value
+
+
+class ModbusAccessSection(_Model):
+    """Modbus access control (``[modbus.access]``): which client networks may connect
+    (``allow``; empty = everyone), read-only mode, per-network write rules (the first
+    rule whose networks hold the client decides; no rule = every writable tag),
+    connection limit and idle timeout (seconds without a request; 0 = none)."""
+
+    allow: list[str] = Field(default_factory=list)
+    read_only: bool = False
+    rules: list[WriteRule] = Field(default_factory=list)
+    max_connections: Annotated[int, Field(ge=1, le=10000)] = 64
+    idle_timeout: Annotated[float, Field(ge=0.0)] = 0.0
+
+    @field_validator("allow")
+    @classmethod
+    def _networks(cls, value: list[str]) -> list[str]:
+        for net in value:
+            ipaddress.ip_network(net, strict=False)
+        return value
+
+
+class WatchdogSection(_Model):
+    """A communication watchdog (``[[watchdogs]]``): a client must change the tag
+    ``<name>.Heartbeat`` at least every ``timeout`` seconds (simulated time), else
+    ``group`` is stopped with ``stop_mode`` (an MGS) and the fault is latched.
+    ``per_connection``: every client connection that changed the heartbeat is
+    supervised on its own (else any change by anyone counts)."""
+
+    name: str = Field(pattern=NAME_RE)
+    timeout: Annotated[float, Field(gt=0.0, le=3600.0)]
+    group: str
+    stop_mode: Literal["programmed", "fast_stop", "fast_disable"] = "programmed"
+    per_connection: bool = False
+
+
+class AuditSection(_Model):
+    """Audit log of client writes (``[audit]``): JSON lines, rotated by size. A relative
+    ``path`` is taken in the data directory."""
+
+    enabled: bool = False
+    path: str = "audit.jsonl"
+    max_bytes: Annotated[int, Field(ge=1024)] = 10_000_000
+    backups: Annotated[int, Field(ge=0, le=1000)] = 5
+
+
+class RetainSection(_Model):
+    """Retentive memory (``[retain]``): absolute axis positions, homed flags and operand
+    values survive a restart. Written at shutdown and every ``interval`` seconds (real
+    time; 0 = only at shutdown) to ``path`` (relative: in the data directory)."""
+
+    enabled: bool = False
+    path: str = "retain.json"
+    interval: Annotated[float, Field(ge=0.0)] = 10.0
+    #: axes with absolute feedback: their positions are retained
+    axes: list[str] = Field(default_factory=list)
+
+
 class ModbusSection(_Model):
     """Modbus TCP front-end. ``port = 0`` binds an ephemeral port (tests); ``unit_id = 0``
     answers every unit id. The bases place the register blocks of each kind (see
@@ -159,6 +242,9 @@ class ModbusSection(_Model):
     instruction_base: Annotated[int, Field(ge=100, le=65534, multiple_of=2)] = 5000
     #: ``every_type`` instances: block at every_type_base + 100·(type code − 1)
     every_type_base: Annotated[int, Field(ge=100, le=60000, multiple_of=2)] = 20000
+    #: watchdog blocks (``[[watchdogs]]``): safety_base + 20·k
+    safety_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] = 900
+    access: ModbusAccessSection = ModbusAccessSection()
 
 
 HASH_RE = r"^scrypt\$\d+\$\d+\$\d+\$[A-Za-z0-9+/=]+\$[A-Za-z0-9+/=]+$"
@@ -228,6 +314,11 @@ class SiteMap(_Model):
     instructions: InstructionsSection = InstructionsSection()
     modbus: ModbusSection = ModbusSection()
     opcua: OpcUaSection = OpcUaSection()
+    watchdogs: list[WatchdogSection] = Field(default_factory=list)
+    audit: AuditSection = AuditSection()
+    retain: RetainSection = RetainSection()
+    #: directory of the audit log and the retain file (relative: to the working directory)
+    data_dir: str = "."
     #: where the map came from (for messages); not a TOML field
     source: str = Field("<memory>", exclude=True)
 
@@ -284,6 +375,11 @@ class SiteMap(_Model):
             [i.name for i in self.instructions.instances], ("instructions", "instances"), "name"
         )
         out += _duplicates([u.name for u in self.opcua.users], ("opcua", "users"), "name")
+        out += _duplicates([w.name for w in self.watchdogs], ("watchdogs",), "name")
+        groups = {g.name for g in self.groups}
+        for wi, w in enumerate(self.watchdogs):
+            if w.group not in groups:
+                out.append((("watchdogs", wi, "group"), f"watchdog {w.name}: unknown group"))
         known = {a.name for a in self.axes}
         for gi, g in enumerate(self.groups):
             for name in g.axes:

@@ -35,7 +35,12 @@ from .frontends.opcua import OpcUaFrontend
 from .instructions import MotionSystem
 from .kernel import GroupStop
 from .kernel.group import OperatingMode
+from .safety import retain
+from .safety.access import AccessPolicy
+from .safety.audit import AuditLog
+from .safety.watchdog import Watchdog
 from .tagmap import ClockMode, TagImage, TagMap, build_tagmap
+from .tagmap.image import Getter, Setter
 
 log = logging.getLogger("motion_server.runtime")
 
@@ -48,10 +53,20 @@ __all__ = ["ClockMode", "Runtime"]
 
 
 class Runtime:
-    def __init__(self, site: SiteMap, system: MotionSystem | None = None) -> None:
+    def __init__(
+        self, site: SiteMap, system: MotionSystem | None = None, fresh: bool = False
+    ) -> None:
         self.site = site
         self.system = system or site.build()
         self.ctl = self.system.ctl
+        #: the retain file (``[retain]``), None when off; a bad file raises RetainError
+        self.retain_file = retain.retain_path(site) if site.retain.enabled else None
+        if self.retain_file is not None and not fresh:
+            payload = retain.load(self.retain_file, site.site.name)
+            if payload is not None:
+                for note in retain.restore(self.system, payload):
+                    log.warning("retain: %s", note)
+                log.info("retained state restored from %s", self.retain_file)
         ctl_cfg = site.controller
         self.mode = {
             "realtime": ClockMode.REALTIME,
@@ -67,7 +82,8 @@ class Runtime:
         self.dropped = 0
         self.last_cycle_time = 0.0  # seconds of CPU the last cycle took
         self.max_cycle_time = 0.0
-        #: called after every cycle (front-ends refresh their images here)
+        #: called before every cycle (the watchdogs) and after it (front-ends)
+        self.before_cycle: list[Callable[[], None]] = []
         self.after_cycle: list[Callable[[], None]] = []
         self._pending_cycles = 0
         self._settled = asyncio.Event()
@@ -77,7 +93,16 @@ class Runtime:
         self._stopped = asyncio.Event()
         self._reschedule = True
         self.tagmap: TagMap = build_tagmap(site)
-        self.image = TagImage(self.tagmap, self.system, self)
+        self.watchdogs = {w.name: Watchdog(w, self.ctl) for w in site.watchdogs}
+        bindings: dict[str, tuple[Getter, Setter | None]] = {}
+        for wd in self.watchdogs.values():
+            bindings |= wd.bindings()
+            self.before_cycle.append(wd.check)
+        self.image = TagImage(self.tagmap, self.system, self, bindings)
+        #: the audit log of client writes (``[audit]``), None when off
+        self.audit = AuditLog.from_config(site.audit, site.data_dir, lambda: self.ctl.tick)
+        if self.audit is not None:
+            self.image.observers.append(self.audit.accepted)
         self.modbus: ModbusFrontend | None = None
         self.opcua: OpcUaFrontend | None = None
         #: set once the front-ends listen (``serve``)
@@ -100,6 +125,8 @@ class Runtime:
         """Run ``count`` cycles now, whatever the clock mode (tests, manual steps)."""
         for _ in range(count):
             t0 = time.perf_counter()
+            for before in self.before_cycle:
+                before()
             self.system.cycle()
             self.heartbeat = (self.heartbeat + 1) & 0xFFFFFFFF
             for hook in self.after_cycle:
@@ -136,10 +163,21 @@ class Runtime:
             self._stop_requested = True
             self._wake()
 
+    def save_retained(self) -> None:
+        """Write the retain file now (atomically); errors are logged, never raised."""
+        if self.retain_file is None:
+            return
+        try:
+            retain.save(self.retain_file, retain.snapshot(self.site, self.system))
+        except OSError as exc:
+            log.error("retain: cannot write %s: %s", self.retain_file, exc)
+
     # -- the loop ---------------------------------------------------------------------------
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
         next_log = loop.time() + self.status_log_interval
+        every = self.site.retain.interval
+        next_save = loop.time() + every
         deadline = loop.time()
         log.info(
             "motion-server %s: %d axes, %d groups, %d instructions, period %.1f ms, clock %s",
@@ -184,12 +222,16 @@ class Runtime:
                     self.cycle(due)
                     deadline += due * step
                 await self._sleep_until(deadline)
+            if self.retain_file is not None and every and loop.time() >= next_save:
+                next_save = loop.time() + every
+                self.save_retained()
             if self.status_log_interval and loop.time() >= next_log:
                 next_log = loop.time() + self.status_log_interval
                 log.info("%s", self.status_line())
         self._pending_cycles = 0
         self._settled.set()
         await self._programmed_stop()
+        self.save_retained()
         self._stopped.set()
 
     async def serve(self, modbus: bool | None = None, opcua: bool | None = None) -> None:
@@ -200,7 +242,10 @@ class Runtime:
         cfg = self.site.modbus
         try:
             if cfg.enabled if modbus is None else modbus:
-                self.modbus = ModbusFrontend(self.image, cfg.host, cfg.port, cfg.unit_id)
+                policy = AccessPolicy(cfg.access, self.tagmap)
+                self.modbus = ModbusFrontend(
+                    self.image, cfg.host, cfg.port, cfg.unit_id, policy, self.audit
+                )
                 await self.modbus.start()
             ucfg = self.site.opcua
             if ucfg.enabled if opcua is None else opcua:
@@ -213,6 +258,8 @@ class Runtime:
                 await self.opcua.stop()
             if self.modbus is not None:
                 await self.modbus.stop()
+            if self.audit is not None:
+                self.audit.close()
 
     def _wake(self) -> None:
         """End the loop's sleep now (a request, a mode change, a stop)."""

@@ -122,6 +122,23 @@ def clock_fields(remote_clock: bool) -> tuple[FieldSpec, ...]:
     )
 
 
+#: a communication watchdog's block (``[[watchdogs]]``): ``<name>.<field>``; its values
+#: are bound by the runtime (``motion_server.safety.watchdog``)
+WATCHDOG_FIELDS: tuple[FieldSpec, ...] = (
+    FieldSpec("Fault", TagType.BOOL, description="latched: the heartbeat stopped (reset needed)"),
+    FieldSpec(
+        "State",
+        TagType.INT,
+        description="0 idle (no heartbeat yet), 1 armed, 2 stopping, 3 faulted",
+    ),
+    FieldSpec("Trips", TagType.UDINT, description="times the watchdog has tripped"),
+    FieldSpec("Age", TagType.UDINT, description="cycles since the oldest supervised beat"),
+    FieldSpec("Reset", TagType.BOOL, writable=True, description="rising edge: clear the fault"),
+    FieldSpec(
+        "Heartbeat", TagType.UDINT, writable=True, description="change it at least every timeout"
+    ),
+)
+
 UNITS_SUFFIX: dict[Quantity, str] = {
     Quantity.POSITION: "",
     Quantity.VELOCITY: "/s",

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -156,10 +156,20 @@ class TagImage:
     """Live values of ``tagmap`` on ``system``: :meth:`read`/:meth:`write` by tag,
     :meth:`read_registers`/:meth:`write_registers` by holding register."""
 
-    def __init__(self, tagmap: TagMap, system: MotionSystem, host: Host | None = None) -> None:
+    def __init__(
+        self,
+        tagmap: TagMap,
+        system: MotionSystem,
+        host: Host | None = None,
+        bindings: Mapping[str, tuple[Getter, Setter | None]] | None = None,
+    ) -> None:
         self.map = tagmap
         self.system = system
         self.host: Host = host if host is not None else StandaloneHost(system)
+        #: getter/setter by tag name for the Safety folder (watchdogs: the runtime's)
+        self._bindings = dict(bindings or {})
+        #: called after every accepted write with (tag, old value, new value): audit log
+        self.observers: list[Callable[[Tag, Value, Value], None]] = []
         self.step_cycles = 1
         self.step = False
         self._requested = 0
@@ -202,9 +212,16 @@ class TagImage:
         staged.sort(key=lambda tv: tv[0].type == TagType.BOOL)
         self.generation += 1
         self._requested = 0
+        observers = self.observers
         try:
             for tag, value in staged:
+                if not observers:
+                    self._set[tag.name](value)
+                    continue
+                old = self._get[tag.name]()
                 self._set[tag.name](value)
+                for observe in observers:
+                    observe(tag, old, value)
         finally:
             self.generation += 1  # a Clock.Step write may have run cycles
         return self._requested
@@ -316,6 +333,7 @@ class TagImage:
             Folder.GROUPS: self._bind_group,
             Folder.DIAGNOSTICS: self._bind_diagnostics,
             Folder.CLOCK: self._bind_clock,
+            Folder.SAFETY: self._bind_safety,
         }
         try:
             binders[tag.folder](tag)
@@ -340,6 +358,16 @@ class TagImage:
             if key not in outputs:
                 raise KeyError(key)
             self._get[tag.name] = lambda: outputs[key]
+
+    def _bind_safety(self, tag: Tag) -> None:
+        get, set_ = self._bindings[tag.name]
+        self._get[tag.name] = get
+        if tag.writable:
+            if set_ is None:
+                raise KeyError(tag.name)
+            self._set[tag.name] = set_
+        elif set_ is not None:
+            raise KeyError(f"{tag.name} is read-only")
 
     def _bind_axis(self, tag: Tag) -> None:
         ax = self.system.ctl.axis(tag.owner)

@@ -8,6 +8,7 @@ kind           default base               block
 Clock          0                          up to register 49
 Diagnostics    50                         up to register 99
 groups         ``[modbus] group_base``    100 + 20·k (k-th group of the site map)
+watchdogs      ``[modbus] safety_base``   900 + 20·k (k-th ``[[watchdogs]]`` entry)
 axes           ``[modbus] axis_base``     1000 + 50·k (k-th axis of the site map)
 instructions   ``[modbus] instruction_    5000 + 100·k (k-th declared instance)
                base``
@@ -44,6 +45,7 @@ from .fields import (
     DIAGNOSTICS_FIELDS,
     FEEDBACK_INPUT,
     GROUP_FIELDS,
+    WATCHDOG_FIELDS,
     FieldSpec,
     clock_fields,
     group_member,
@@ -58,6 +60,7 @@ CLOCK_BASE = 0
 DIAGNOSTICS_BASE = 50
 GROUP_STRIDE = 20
 AXIS_STRIDE = 50
+WATCHDOG_STRIDE = 20
 INSTRUCTION_STRIDE = 100
 #: owner names the server uses itself
 RESERVED_OWNERS = ("Clock", "Diagnostics")
@@ -285,6 +288,10 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
         items = _spec_items(GROUP_FIELDS)
         items += _spec_items(group_member(k + 1) for k in range(len(g.axes)))
         base = add(_place(g.name, Folder.GROUPS, base, GROUP_STRIDE, items), ("groups", gi))
+    base = mb.safety_base
+    for wi, w in enumerate(site.watchdogs):
+        items = _spec_items(WATCHDOG_FIELDS)
+        base = add(_place(w.name, Folder.SAFETY, base, WATCHDOG_STRIDE, items), ("watchdogs", wi))
     base = mb.axis_base
     configs = site.axis_configs()
     for ai, (a, cfg) in enumerate(zip(site.axes, configs, strict=True)):
@@ -375,6 +382,7 @@ def _owner_clashes(site: SiteMap) -> Problems:
         (g.name, ("groups", i, "name"), "group") for i, g in enumerate(site.groups)
     ]
     owners += [(a.name, ("axes", i, "name"), "axis") for i, a in enumerate(site.axes)]
+    owners += [(w.name, ("watchdogs", i, "name"), "watchdog") for i, w in enumerate(site.watchdogs)]
     owners += [
         (inst.name, ("instructions", "instances", i, "name"), "instance")
         for i, inst in enumerate(site.instructions.instances)

@@ -33,6 +33,7 @@ class Folder(StrEnum):
     GROUPS = "Groups"
     AXES = "Axes"
     INSTRUCTIONS = "Instructions"
+    SAFETY = "Safety"
 
 
 class RegisterAccess(IntEnum):

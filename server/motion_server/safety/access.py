@@ -1,0 +1,109 @@
+"""Modbus access control: client networks, read-only mode, write permission by range.
+
+From ``[modbus.access]`` and the tag map:
+
+- ``allow``: the networks a client may connect from (empty: any); others are closed at
+  once.
+- ``read_only``: every write is refused.
+- ``rules``: the first rule whose ``networks`` hold the client decides what it may write:
+  the registers of the tags its ``write`` entries name (a folder such as ``Instructions``,
+  an owner such as ``MAJ_1``, a tag ``MAJ_1.Speed``, or a register range ``5000-5999``).
+  A client no rule matches may write every writable tag.
+- ``max_connections``, ``idle_timeout``: enforced by the front-end.
+
+A refused write answers exception 02 (illegal data address), as a write to a read-only
+register does, and is audited with its reason.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import re
+from dataclasses import dataclass
+
+from ..config import ModbusAccessSection
+from ..tagmap import Folder, TagMap
+
+Network = ipaddress.IPv4Network | ipaddress.IPv6Network
+
+_RANGE = re.compile(r"^\s*(\d+)\s*-\s*(\d+)\s*$")
+
+
+def _address(host: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
+    try:
+        addr = ipaddress.ip_address(host.split("%")[0])
+    except ValueError:
+        return None
+    if isinstance(addr, ipaddress.IPv6Address) and addr.ipv4_mapped is not None:
+        return addr.ipv4_mapped
+    return addr
+
+
+def writable_registers(tagmap: TagMap, entries: list[str]) -> frozenset[int]:
+    """The registers ``entries`` (folders, owners, tags, ranges) let a client write."""
+    folders = {f.value for f in Folder}
+    out: set[int] = set()
+    for entry in entries:
+        m = _RANGE.match(entry)
+        if m:
+            out.update(range(int(m.group(1)), int(m.group(2)) + 1))
+            continue
+        for tag in tagmap:
+            if not tag.writable:
+                continue
+            if (
+                (entry in folders and tag.folder.value == entry)
+                or tag.owner == entry
+                or tag.name == entry
+            ):
+                out.update(range(tag.address, tag.address + tag.count))
+    return frozenset(out)
+
+
+@dataclass(frozen=True)
+class _Rule:
+    networks: tuple[Network, ...]
+    registers: frozenset[int]
+
+
+class AccessPolicy:
+    """Who may connect and write. ``AccessPolicy(section, tagmap)``."""
+
+    def __init__(self, section: ModbusAccessSection, tagmap: TagMap) -> None:
+        self.section = section
+        self.allow = tuple(ipaddress.ip_network(n, strict=False) for n in section.allow)
+        self.read_only = section.read_only
+        self.max_connections = section.max_connections
+        self.idle_timeout = section.idle_timeout
+        self.rules = tuple(
+            _Rule(
+                tuple(ipaddress.ip_network(n, strict=False) for n in r.networks),
+                writable_registers(tagmap, r.write),
+            )
+            for r in section.rules
+        )
+
+    def connection_refused(self, host: str) -> str | None:
+        """Why a client at ``host`` may not connect (None: it may)."""
+        if not self.allow:
+            return None
+        addr = _address(host)
+        if addr is None or not any(addr in net for net in self.allow):
+            return f"{host} is not in the allowed networks"
+        return None
+
+    def write_refused(self, host: str, address: int, count: int) -> str | None:
+        """Why ``host`` may not write registers ``address``..+``count`` (None: it may)."""
+        if self.read_only:
+            return "the server is read-only"
+        addr = _address(host)
+        for rule in self.rules:
+            if addr is not None and any(addr in net for net in rule.networks):
+                bad = next(
+                    (a for a in range(address, address + count) if a not in rule.registers),
+                    None,
+                )
+                if bad is not None:
+                    return f"{host} may not write register {bad}"
+                return None
+        return None

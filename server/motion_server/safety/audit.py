@@ -1,0 +1,116 @@
+"""Audit log: every accepted and every refused client write, as JSON lines.
+
+One line per event, for example::
+
+    {"time": "2025-01-31T10:00:00.123456+00:00", "cycle": 1200, "event": "write",
+     "result": "accepted", "protocol": "modbus", "address": "127.0.0.1", "port": 50412,
+     "connection": 3, "user": "", "tag": "MAJ_1.Speed", "old": 10.0, "new": 25.0}
+
+``result`` is ``accepted`` or ``refused`` (then ``reason`` says why and ``registers`` or
+``tag`` says what); ``event`` is ``write``, ``connect`` or ``disconnect`` (connections
+refused by the allowlist or the limit, idle timeouts). ``user`` is the OPC UA user name
+(the OPC UA front-end fills it; Modbus has none). No credential is ever written: values
+are those of tags, and user names only. The file rotates by size
+(``logging.handlers.RotatingFileHandler``: ``max_bytes``, ``backups``).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import logging.handlers
+import math
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from ..config import AuditSection
+from ..tagmap import Tag
+from ..tagmap.codec import Value
+from .client import ClientInfo, current_client
+
+
+def _plain(value: Any) -> Any:
+    """A JSON-safe form of a tag value (non-finite floats as strings)."""
+    if isinstance(value, bool) or value is None:
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return value if math.isfinite(value) else str(value)
+    return str(value)
+
+
+class AuditLog:
+    """Writes audit lines to ``path`` (rotated), or to ``sink`` (tests)."""
+
+    def __init__(
+        self,
+        path: str | Path | None = None,
+        max_bytes: int = 10_000_000,
+        backups: int = 5,
+        cycle: Callable[[], int] = lambda: 0,
+        sink: Callable[[str], None] | None = None,
+    ) -> None:
+        self.cycle = cycle
+        self.lines = 0
+        self._handler: logging.Handler | None = None
+        self._sink = sink
+        if path is not None:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+            handler = logging.handlers.RotatingFileHandler(
+                path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8"
+            )
+            handler.setFormatter(logging.Formatter("%(message)s"))
+            self._handler = handler
+
+    @classmethod
+    def from_config(
+        cls, section: AuditSection, data_dir: str | Path, cycle: Callable[[], int]
+    ) -> AuditLog | None:
+        if not section.enabled:
+            return None
+        path = Path(section.path)
+        if not path.is_absolute():
+            path = Path(data_dir) / path
+        return cls(path, section.max_bytes, section.backups, cycle)
+
+    def close(self) -> None:
+        if self._handler is not None:
+            self._handler.close()
+            self._handler = None
+
+    # -- events ---------------------------------------------------------------------------
+    def emit(self, client: ClientInfo, event: str, result: str, **fields: Any) -> None:
+        record = {
+            "time": datetime.now(UTC).isoformat(),
+            "cycle": self.cycle(),
+            "event": event,
+            "result": result,
+            "protocol": client.protocol,
+            "address": client.address,
+            "port": client.port,
+            "connection": client.connection,
+            "user": client.user,
+            **{k: _plain(v) for k, v in fields.items()},
+        }
+        line = json.dumps(record, separators=(",", ":"), ensure_ascii=False)
+        self.lines += 1
+        if self._sink is not None:
+            self._sink(line)
+        if self._handler is not None:
+            self._handler.emit(
+                logging.LogRecord("motion_server.audit", logging.INFO, "", 0, line, None, None)
+            )
+
+    def accepted(self, tag: Tag, old: Value, new: Value) -> None:
+        """A :class:`~motion_server.tagmap.TagImage` observer: one accepted tag write."""
+        self.emit(current_client(), "write", "accepted", tag=tag.name, old=old, new=new)
+
+    def refused(self, reason: str, **what: Any) -> None:
+        """A refused write (``registers="5000+2"`` or ``tag=...``) by the current client."""
+        self.emit(current_client(), "write", "refused", reason=reason, **what)
+
+    def connection(self, client: ClientInfo, event: str, result: str, reason: str = "") -> None:
+        self.emit(client, event, result, reason=reason)

@@ -1,0 +1,204 @@
+"""Communication watchdogs: stop a group when a client's heartbeat stops.
+
+A site map names a watchdog (``[[watchdogs]]``) with a timeout T, a group and a stop mode.
+Its tags (``<name>.Heartbeat``, ``.Reset``, ``.Fault``, ``.State``, ``.Trips``, ``.Age``)
+live in the Safety folder. Rules:
+
+- **Arming.** The watchdog is idle until the heartbeat first changes; from then on it must
+  change at least every T. ``per_connection``: every client connection that changed it is
+  supervised on its own (a second HMI cannot keep a dead one alive), and a connection that
+  closes stays supervised, so it trips T after its last beat. Otherwise any change by
+  anyone counts.
+- **Time.** T is measured in simulated time, counted in whole cycles:
+  ``ceil(T / period)``. A beat written between cycles k-1 and k is stamped with cycle k;
+  before every cycle the watchdog checks, and the cycle that starts T after the last beat
+  runs the stop. So the stop starts within T plus one cycle, deterministically with the
+  manual clock. With the realtime clock simulated time follows the wall clock; cycles the
+  loop dropped beyond its catch-up bound are not counted (the watchdog is late by them,
+  and ``Diagnostics.DroppedCycles`` shows them).
+- **Reaction.** An MGS of the group: programmed (each axis's own stop mode), fast stop or
+  fast disable. When the group has stopped, the latch: every non-feedback axis of the
+  group is faulted with :data:`WATCHDOG_FAULT` (AxisFault bit 2, drive off), and the
+  watchdog's ``Fault`` stays set.
+- **No restart by itself.** A heartbeat that comes back changes nothing. Only an explicit
+  reset clears the fault: a rising edge of ``<name>.Reset`` (fault-resets the axes), or
+  MAFR / MC_Reset on every faulted axis. Then the axes are in Axis Ready: MSO / MC_Power
+  enables them again, and the watchdog re-arms on the next beat. A reset while the group
+  is still stopping is ignored.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+
+from ..config import WatchdogSection
+from ..instructions.logix.mgs import FORCED, MGSStopMode
+from ..kernel import AxisType, Controller, GroupStop
+from ..tagmap.codec import Value
+from ..tagmap.image import Getter, Setter
+from .client import current_client
+
+#: AxisFault bit of a watchdog trip (communication loss)
+WATCHDOG_FAULT = 1 << 2
+
+
+class WatchdogState(IntEnum):
+    """``<name>.State``."""
+
+    IDLE = 0
+    ARMED = 1
+    STOPPING = 2
+    FAULTED = 3
+
+
+class WatchdogEvent(IntEnum):
+    BEAT = 0
+    EXPIRE = 1
+    STOPPED = 2
+    RESET = 3
+    CLEARED = 4
+
+
+S, E = WatchdogState, WatchdogEvent
+#: (state, event) -> next state; a pair missing here is a bug (TransitionError)
+TRANSITIONS: dict[tuple[WatchdogState, WatchdogEvent], WatchdogState] = {
+    (S.IDLE, E.BEAT): S.ARMED,
+    (S.IDLE, E.RESET): S.IDLE,
+    (S.ARMED, E.BEAT): S.ARMED,
+    (S.ARMED, E.EXPIRE): S.STOPPING,
+    (S.ARMED, E.RESET): S.ARMED,
+    (S.STOPPING, E.BEAT): S.STOPPING,
+    (S.STOPPING, E.RESET): S.STOPPING,  # ignored: the stop must finish first
+    (S.STOPPING, E.STOPPED): S.FAULTED,
+    (S.FAULTED, E.BEAT): S.FAULTED,  # the client came back: still latched
+    (S.FAULTED, E.RESET): S.IDLE,
+    (S.FAULTED, E.CLEARED): S.IDLE,
+}
+del S, E
+
+STOP_MODES = {
+    "programmed": MGSStopMode.PROGRAMMED,
+    "fast_stop": MGSStopMode.FAST_STOP,
+    "fast_disable": MGSStopMode.FAST_DISABLE,
+}
+
+
+class TransitionError(RuntimeError):
+    """An event the watchdog's state table has no transition for."""
+
+
+class Watchdog:
+    """One configured watchdog on a controller. The runtime calls :meth:`check` before
+    every cycle; the tag image binds :meth:`bindings`."""
+
+    def __init__(self, config: WatchdogSection, ctl: Controller) -> None:
+        self.config = config
+        self.name = config.name
+        self.ctl = ctl
+        self.group = ctl.group(config.group)
+        self.stop_mode = STOP_MODES[config.stop_mode]
+        self.timeout_cycles = max(1, math.ceil(config.timeout / ctl.period - 1e-9))
+        self.state = WatchdogState.IDLE
+        self.trips = 0
+        self.heartbeat = 0
+        self.reset_input = False
+        #: supervised sources: key -> (cycle of the last change, last value)
+        self.beats: dict[str, tuple[int, int]] = {}
+        self.stop: GroupStop | None = None
+
+    # -- events ---------------------------------------------------------------------------
+    def fire(self, event: WatchdogEvent) -> WatchdogState:
+        nxt = TRANSITIONS.get((self.state, event))
+        if nxt is None:
+            raise TransitionError(
+                f"watchdog {self.name}: no transition for {event.name} in {self.state.name}"
+            )
+        self.state = nxt
+        return nxt
+
+    @property
+    def fault(self) -> bool:
+        return self.state in (WatchdogState.STOPPING, WatchdogState.FAULTED)
+
+    def age(self) -> int:
+        """Cycles since the oldest supervised beat (0 when nothing is supervised)."""
+        if not self.beats:
+            return 0
+        return max(0, self.ctl.tick - min(t for t, _ in self.beats.values()))
+
+    def beat(self, value: int) -> None:
+        """A write of the heartbeat tag (by :func:`current_client`)."""
+        if self.config.per_connection:
+            key = current_client().key
+            previous = self.beats.get(key)
+            changed = previous is None or previous[1] != value
+        else:
+            key, changed = "*", value != self.heartbeat
+        self.heartbeat = value
+        if not changed:
+            return
+        # stamped with the cycle that runs next (the write lands between cycles)
+        self.beats[key] = (self.ctl.tick, value)
+        self.fire(WatchdogEvent.BEAT)
+
+    def set_reset(self, value: bool) -> None:
+        rising = value and not self.reset_input
+        self.reset_input = value
+        if rising:
+            self.reset()
+
+    def reset(self) -> None:
+        """The explicit reset: clear the latch and the axes' watchdog faults."""
+        if self.state == WatchdogState.FAULTED:
+            for ax in self.group.axes:
+                if ax.fault & WATCHDOG_FAULT:
+                    self.ctl.fault_reset(ax)
+            self.beats.clear()
+        self.fire(WatchdogEvent.RESET)
+
+    # -- the cycle ------------------------------------------------------------------------
+    def check(self) -> None:
+        """Before a cycle: trip on an expired beat, latch once stopped, notice a reset
+        done by MAFR / MC_Reset."""
+        if self.state == WatchdogState.ARMED:
+            if self.age() >= self.timeout_cycles:
+                self.trip()
+        elif self.state == WatchdogState.STOPPING:
+            assert self.stop is not None
+            if self.stop.complete:
+                for ax in self.group.axes:
+                    if ax.type != AxisType.FEEDBACK_ONLY:
+                        self.ctl.fault(ax, WATCHDOG_FAULT)
+                self.stop = None
+                self.fire(WatchdogEvent.STOPPED)
+        elif self.state == WatchdogState.FAULTED and not any(
+            ax.fault & WATCHDOG_FAULT for ax in self.group.axes
+        ):
+            self.beats.clear()
+            self.fire(WatchdogEvent.CLEARED)
+
+    def trip(self) -> None:
+        self.trips += 1
+        self.stop = self.ctl.group_stop(self.group.number, FORCED[self.stop_mode], owner=self)
+        self.fire(WatchdogEvent.EXPIRE)
+
+    # -- tags -----------------------------------------------------------------------------
+    def bindings(self) -> dict[str, tuple[Getter, Setter | None]]:
+        """Getter and setter (None: read-only) of every tag of this watchdog."""
+        n = self.name
+
+        def set_heartbeat(value: Value) -> None:
+            self.beat(int(value))
+
+        def set_reset(value: Value) -> None:
+            self.set_reset(bool(value))
+
+        return {
+            f"{n}.Fault": (lambda: self.fault, None),
+            f"{n}.State": (lambda: int(self.state), None),
+            f"{n}.Trips": (lambda: self.trips & 0xFFFFFFFF, None),
+            f"{n}.Age": (lambda: min(self.age(), 0xFFFFFFFF), None),
+            f"{n}.Reset": (lambda: self.reset_input, set_reset),
+            f"{n}.Heartbeat": (lambda: self.heartbeat, set_heartbeat),
+        }
