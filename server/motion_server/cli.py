@@ -64,7 +64,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.scale:
         rt.scale = args.scale
     log.info("site map %s", site.source)
-    asyncio.run(_serve(rt, False if args.no_modbus else None, False if args.no_opcua else None))
+    try:
+        asyncio.run(_serve(rt, False if args.no_modbus else None, False if args.no_opcua else None))
+    except OSError as exc:
+        # a port in use, an address not on this host: the front-ends were closed already
+        raise SystemExit(f"motion-server: cannot serve: {exc.strerror or exc}") from None
     log.info("stopped")
     return 0
 
@@ -154,9 +158,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    logging.basicConfig(
-        level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
-    )
+    level = args.log_level.upper()
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    if level != "DEBUG":
+        # asyncua reports every standard node it loads at INFO: thousands of lines
+        logging.getLogger("asyncua").setLevel(logging.WARNING)
+        # it also logs a bind failure with a traceback; cmd_run reports it in one line
+        logging.getLogger("asyncua.server.server").setLevel(logging.CRITICAL)
     result: int = args.func(args)
     return result
 
