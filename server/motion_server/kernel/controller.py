@@ -216,6 +216,7 @@ class Controller:
     def _compose(self, ax: Axis, dt: float) -> None:
         active = ProcessState.ACTIVE
         procs = ax.processes
+        failed_moving: list[Process] = []
         for p in procs:
             if p.state is active:
                 try:
@@ -223,6 +224,14 @@ class Controller:
                 except MotionError as exc:
                     p.state = ProcessState.ERROR
                     p.error_code = int(exc.code)
+                if p.state is ProcessState.ERROR and p.velocity != 0.0:
+                    failed_moving.append(p)
+        for p in failed_moving:
+            # a process that fails while moving hands its velocity to a stop ramp at the
+            # axis maximum deceleration: an error never makes a velocity step
+            ramp = StopRamp(dt, ax.config.max_deceleration, 0.0, p.velocity)
+            ramp.step(self, dt)
+            procs.append(ramp)
         i = ax.index
         if len(procs) == 1 and procs[0].state is active and ax.buffered is None:
             # the common case, one running process: no lists, no sums

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import TYPE_CHECKING, Any
 
-from .enums import ProcessKind, ProcessState
+from .enums import ProcessKind
 from .errors import ErrorCode, MotionError
 from .gearing import remember_direction
 from .processes import Process
@@ -226,25 +226,20 @@ class GearInPosProcess(Process):
         self.velocity = self._hold
         self._m_a = self._p_a = self._L = self._p_sync = 0.0
         self._quintic: Quintic | None = None
-        try:
-            self.plan: SyncPlan | None = plan_sync(
-                master,
-                slave,
-                numerator,
-                denominator,
-                master_sync,
-                slave_sync,
-                mode,
-                start_distance,
-                ctl.dt(slave),
-            )
-        except MotionError as exc:
-            # started later from a buffer: the inputs no longer fit the positions
-            self.plan = None
-            self.state = ProcessState.ERROR
-            self.error_code = int(exc.code)
-            self.velocity = 0.0
-            return
+        # judged against the positions when the process starts (a buffered start comes
+        # later): inconsistent inputs raise, and the kernel keeps the motion it would
+        # have replaced
+        self.plan: SyncPlan | None = plan_sync(
+            master,
+            slave,
+            numerator,
+            denominator,
+            master_sync,
+            slave_sync,
+            mode,
+            start_distance,
+            ctl.dt(slave),
+        )
         self.masters = (master.number,)
         self.warning = self.plan.excessive
         remember_direction(slave, self.direction)
