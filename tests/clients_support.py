@@ -1,0 +1,35 @@
+"""Servers for the client and example tests: a site map run in a thread on an ephemeral
+port under the manual clock, and the client-side map of it (the JSON export as a dict)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from pathlib import Path
+
+from motion_clients import ClientMap
+from motion_server import config
+from motion_server.tagmap import build_tagmap, to_dict
+from tests.modbus_support import ServerThread
+
+ROOT = Path(__file__).resolve().parent.parent
+BENCH = ROOT / "clients" / "examples" / "bench.toml"
+
+
+def manual_site(site: config.SiteMap) -> config.SiteMap:
+    """``site`` with the manual clock, an ephemeral port and no status log."""
+    ctl = site.controller.model_copy(update={"clock": "manual", "status_log_interval": 0.0})
+    modbus = site.modbus.model_copy(update={"port": 0, "host": "127.0.0.1"})
+    return site.model_copy(update={"controller": ctl, "modbus": modbus})
+
+
+def client_map(site: config.SiteMap) -> ClientMap:
+    return ClientMap(to_dict(build_tagmap(site)))
+
+
+@contextlib.contextmanager
+def serving(site: config.SiteMap) -> Iterator[tuple[ServerThread, ClientMap]]:
+    """``with serving(site) as (server, tagmap):`` — ``server.port`` is the bound port."""
+    site = manual_site(site)
+    with ServerThread(site) as srv:
+        yield srv, client_map(site)
