@@ -108,6 +108,9 @@ class MotionClient:
         self._period: float | None = None
         self._step_cycles: int | None = None
         self._modes = tagmap.tag("Clock.Mode").enum
+        #: instance -> Clock.Cycle when we lowered its trigger: a new rising edge needs a
+        #: scan with the trigger low in between, or the server sees no edge at all
+        self._lowered: dict[str, int] = {}
 
     @classmethod
     def connect(
@@ -197,6 +200,10 @@ class MotionClient:
         while (await self.cycle() - start) % 2**32 < cycles:
             await asyncio.sleep(pause)
 
+    async def _lower(self, instance: str, hs: Handshake) -> None:
+        await self.backend.write(hs.trigger, False)
+        self._lowered[instance] = await self.cycle()
+
     # -- instructions -----------------------------------------------------------------------
     async def trigger(
         self,
@@ -218,6 +225,9 @@ class MotionClient:
         if await self.backend.read([hs.trigger]) == [True]:
             await self.backend.write(hs.trigger, False)  # a rising edge needs a low scan
             await self.step(1)
+        elif instance in self._lowered and await self.cycle() == self._lowered[instance]:
+            await self.step(1)  # lowered by our last trigger, not yet scanned low
+        self._lowered.pop(instance, None)
         await self.backend.write(hs.trigger, True)
         watched = [*hs.success, *hs.failure]
         extra = [t for t in (hs.code, hs.exerr) if t is not None]
@@ -236,7 +246,7 @@ class MotionClient:
                 break
             if (manual and cycles >= limit) or (not manual and loop.time() >= deadline):
                 if not hs.level:
-                    await self.backend.write(hs.trigger, False)
+                    await self._lower(instance, hs)
                 seen = " ".join(f"{k}={int(v)}" for k, v in flags.items())
                 clock = "simulated" if manual else "real"
                 want = "/".join(t.field for t in hs.success)
@@ -247,7 +257,7 @@ class MotionClient:
             await self.step(1)
             cycles += 1
         if not hs.level:
-            await self.backend.write(hs.trigger, False)
+            await self._lower(instance, hs)
         rest = dict(zip([t.field for t in extra], values[len(watched) :], strict=True))
         code = int(rest.get(hs.code.field, 0)) if hs.code is not None else 0
         return Outcome(

@@ -1,5 +1,6 @@
-"""A PNG of a trace, laid out like the operation waveforms in the seeds: positions on top,
-velocities below, other signals (status bits, states) in a third panel when present.
+"""A PNG of a trace, laid out like the operation waveforms in the seeds: positions on top
+(as displacements from the first sample, labelled with it), velocities below, other
+signals (status bits, states) in a third panel when present.
 
 matplotlib is the ``plot`` extra; it is imported here only, with the file-only Agg backend.
 """
@@ -43,15 +44,20 @@ def plot_trace(trace: Trace, path: str | Path, title: str = "") -> Path:
     t = [x - t0 for x in time]
     fig, axes = plt.subplots(len(groups), 1, sharex=True, figsize=(9, 2.6 * len(groups) + 0.8))
     axes_list = list(axes) if len(groups) > 1 else [axes]
-    labels = {"position": "position", "velocity": "velocity", "signals": "signals"}
+    labels = {"position": "displacement", "velocity": "velocity", "signals": "signals"}
     for ax, (kind, names) in zip(axes_list, groups.items(), strict=True):
         for name in names:
             units = trace.units.get(name, "")
             label = f"{name} [{units}]" if units else name
+            values = trace.column(name)
             if kind == "signals":
-                ax.step(t, trace.column(name), where="post", label=label)
+                ax.step(t, values, where="post", label=label)
+            elif kind == "position" and values:
+                # displacement from the first sample: the motion's shape at any offset
+                p0 = values[0]
+                ax.plot(t, [v - p0 for v in values], label=f"{label} − {p0:.6g}")
             else:
-                ax.plot(t, trace.column(name), label=label)
+                ax.plot(t, values, label=label)
         ax.set_ylabel(labels[kind])
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize="small")

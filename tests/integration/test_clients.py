@@ -151,6 +151,20 @@ async def test_plcopen_trigger_waits_for_in_velocity_and_keeps_enable_high(
         assert bad.meaning == ERROR_TEXT[ErrorCode.AXIS_NOT_CONFIGURED]
 
 
+async def test_back_to_back_triggers_of_one_instance_each_get_a_rising_edge(
+    demo: tuple[ServerThread, ClientMap],
+) -> None:
+    srv, m = demo
+    async with MotionClient.connect(m, port=srv.port) as mc:
+        bad = await mc.trigger("MSO_1", Axis=9)
+        assert (bad.ok, bad.code) == (False, int(ErrorCode.AXIS_NOT_CONFIGURED))
+        # Execute was lowered after ER but not yet scanned low: the client runs that scan
+        # first, or the server would see no edge and the stale ER would answer
+        good = await mc.trigger("MSO_1", Axis=1)
+        assert (good.ok, good.flag, good.cycles) == (True, "DN", 1)
+        assert await mc.read("Axis1.AxisState") == 2
+
+
 async def test_trigger_timeout_names_what_it_waited_for(
     demo: tuple[ServerThread, ClientMap],
 ) -> None:
