@@ -39,7 +39,8 @@ class Check:
 
     def __str__(self) -> str:
         mark = "ok  " if self.ok else "FAIL"
-        return f"  {mark} {self.what}: {self.actual:.9g} (expected {self.expected:.9g} ± {self.tolerance:g})"
+        expected = f"{self.expected:.9g} ± {self.tolerance:g}"
+        return f"  {mark} {self.what}: {self.actual:.9g} (expected {expected})"
 
 
 class Scenario:
