@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint typecheck unit bench maps tools clean
+.PHONY: run test lint typecheck unit bench maps tools clean test-container
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -40,6 +40,10 @@ tools:
 # regenerate the checked-in exports of the demo map (a test compares them)
 maps: $(STAMP)
 	@for f in json csv md; do $(BIN)/motion-server map --format $$f -o maps/demo-map.$$f; done
+
+# Build the Dockerfile and smoke-test the image with buildah (as root; see container/).
+test-container: $(STAMP)
+	PYTHON=$(BIN)/python container/test-container.sh
 
 bench: $(STAMP)
 	@for b in bench/*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done

@@ -81,7 +81,16 @@ def main() -> int:
         return 0
     count = 100
     ms, ms_port = start_server(
-        ["-m", "motion_server.cli", "run", "--clock", args.clock, "--modbus-port", "0"]
+        [
+            "-m",
+            "motion_server.cli",
+            "run",
+            "--clock",
+            args.clock,
+            "--modbus-port",
+            "0",
+            "--no-opcua",
+        ]
     )
     bare, bare_port = start_server([__file__, "--bare-server"])
     names = ("motion-server", "bare pymodbus")

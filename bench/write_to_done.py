@@ -38,7 +38,16 @@ def main() -> int:
     dn, en = tagmap.tag("MSO_1.DN"), tagmap.tag("MSO_1.EN")
     execute, axis = tagmap.tag("MSO_1.Execute"), tagmap.tag("MSO_1.Axis")
     proc, port = start_server(
-        ["-m", "motion_server.cli", "run", "--clock", "realtime", "--modbus-port", "0"]
+        [
+            "-m",
+            "motion_server.cli",
+            "run",
+            "--clock",
+            "realtime",
+            "--modbus-port",
+            "0",
+            "--no-opcua",
+        ]
     )
     samples: list[float] = []
     polls = 0

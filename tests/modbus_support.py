@@ -18,6 +18,9 @@ name = "modbus_test"
 clock = "manual"
 status_log_interval = 0.0
 
+[opcua]
+enabled = false
+
 [modbus]
 port = 0
 word_order = "{word_order}"
@@ -48,7 +51,7 @@ conversion_constant = 100.0
 [instructions]
 every_type = true
 
-# MC_Power is level-controlled: on its own axis, so that it does not hold Axis1 off
+# an instance declared by hand beside the every_type ones (MC_Power_1 on Axis2)
 [[instructions.instances]]
 name = "MC_Power_1"
 type = "MC_Power"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import getpass
 import logging
 import sys
 from pathlib import Path
@@ -22,9 +23,9 @@ def _load(path: str | None) -> config.SiteMap:
         raise SystemExit(f"motion-server: site map error:\n{exc}") from None
 
 
-async def _serve(rt: Runtime, modbus: bool | None) -> None:
+async def _serve(rt: Runtime, modbus: bool | None, opcua: bool | None) -> None:
     rt.install_signal_handlers()
-    await rt.serve(modbus=modbus)
+    await rt.serve(modbus=modbus, opcua=opcua)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -38,13 +39,26 @@ def cmd_run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise SystemExit(f"motion-server: {exc}") from None
         site = site.model_copy(update={"modbus": modbus})
+    if args.opcua_port is not None:
+        try:
+            opcua = config.OpcUaSection.model_validate(
+                site.opcua.model_dump() | {"port": args.opcua_port}
+            )
+        except ValueError as exc:
+            raise SystemExit(f"motion-server: {exc}") from None
+        site = site.model_copy(update={"opcua": opcua})
+    try:
+        users = config.opcua_users(site)  # fail early on a broken users secret file
+    except config.SiteMapError as exc:
+        raise SystemExit(f"motion-server: {exc}") from None
+    log.info("OPC UA users: %d", len(users))
     rt = Runtime(site)
     if args.clock:
         rt.set_mode(ClockMode[args.clock.upper()])
     if args.scale:
         rt.scale = args.scale
     log.info("site map %s", site.source)
-    asyncio.run(_serve(rt, False if args.no_modbus else None))
+    asyncio.run(_serve(rt, False if args.no_modbus else None, False if args.no_opcua else None))
     log.info("stopped")
     return 0
 
@@ -69,6 +83,22 @@ def cmd_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_hash_password(args: argparse.Namespace) -> int:
+    """Print the hash of a password read from standard input (first line) or a prompt."""
+    from .frontends.opcua_users import hash_password
+
+    if sys.stdin.isatty():
+        password = getpass.getpass("password: ")
+        if getpass.getpass("again: ") != password:
+            raise SystemExit("motion-server: the passwords differ")
+    else:
+        password = sys.stdin.readline().rstrip("\r\n")
+    if not password:
+        raise SystemExit("motion-server: empty password")
+    print(hash_password(password))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="motion-server", description=__doc__)
     p.add_argument("--version", action="version", version=f"motion-server {__version__}")
@@ -87,12 +117,26 @@ def build_parser() -> argparse.ArgumentParser:
         "--modbus-port", type=int, help="Modbus TCP port, 0 = ephemeral (site map: [modbus] port)"
     )
     run.add_argument("--no-modbus", action="store_true", help="do not serve Modbus TCP")
+    run.add_argument(
+        "--opcua-port", type=int, help="OPC UA port, 0 = ephemeral (site map: [opcua] port)"
+    )
+    run.add_argument("--no-opcua", action="store_true", help="do not serve OPC UA")
     run.set_defaults(func=cmd_run)
     mp = sub.add_parser("map", help="export the tag map (Modbus registers, OPC UA nodes)")
     mp.add_argument("map", nargs="?", help="site map (TOML)")
-    mp.add_argument("--format", choices=FORMATS, default="json", help="json (default), csv, md")
+    mp.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="json",
+        help="json (default), csv, md, nodeset (OPC UA NodeSet2 XML)",
+    )
     mp.add_argument("-o", "--output", help="write to this file instead of standard output")
     mp.set_defaults(func=cmd_map)
+    hp = sub.add_parser(
+        "hash-password",
+        help="hash a password (standard input, else a prompt) for [[opcua.users]] password_hash",
+    )
+    hp.set_defaults(func=cmd_hash_password)
     chk = sub.add_parser("check", help="validate a site map and exit")
     chk.add_argument("map", nargs="?", help="site map (TOML)")
     chk.set_defaults(func=cmd_check)

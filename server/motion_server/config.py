@@ -2,13 +2,18 @@
 
 Validated with pydantic; every error names the file, the line and the field. The demo
 map embedded in the package (``data/demo.toml``) is what ``motion-server run`` uses when
-given none.
+given none (unless ``MOTION_SERVER_MAP`` names a file). Settings of the single-table
+sections can be overridden from the environment (containers, CI benches): see
+:func:`environment_settings`.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import tomllib
+import typing
+from collections.abc import Mapping
 from enum import Enum
 from importlib import resources
 from pathlib import Path
@@ -29,6 +34,10 @@ from .kernel import (
 from .kernel.config import MAX_PERIOD, MIN_PERIOD
 
 DEMO_MAP = "demo.toml"
+#: environment variable naming the site map file used when none is given
+MAP_ENV = "MOTION_SERVER_MAP"
+#: prefix of the per-setting overrides: MOTION_SERVER_<SECTION>_<FIELD>
+ENV_PREFIX = "MOTION_SERVER_"
 NAME_RE = r"^[A-Za-z][A-Za-z0-9_]*$"
 
 
@@ -152,6 +161,65 @@ class ModbusSection(_Model):
     every_type_base: Annotated[int, Field(ge=100, le=60000, multiple_of=2)] = 20000
 
 
+HASH_RE = r"^scrypt\$\d+\$\d+\$\d+\$[A-Za-z0-9+/=]+\$[A-Za-z0-9+/=]+$"
+#: environment variable naming the users secret file (TOML, ``[[users]]`` entries)
+USERS_FILE_ENV = "MOTION_SERVER_USERS_FILE"
+#: the users secret file used when the variable is not set and this file exists
+DEFAULT_USERS_FILE = "/run/secrets/motion_server_users"
+
+
+SecurityPolicy = Literal["Basic256Sha256_Sign", "Basic256Sha256_SignAndEncrypt"]
+
+
+class OpcUaUser(_Model):
+    """An OPC UA user: ``password_hash`` from ``motion-server hash-password``."""
+
+    name: str = Field(min_length=1, max_length=64)
+    role: Literal["viewer", "operator", "admin"] = "viewer"
+    password_hash: str = Field(pattern=HASH_RE)
+
+
+class OpcUaSection(_Model):
+    """OPC UA front-end. ``port = 0`` binds an ephemeral port (tests). The server
+    certificate and key are generated in ``data_dir`` on first start and kept there.
+    Anonymous access and the None endpoint are off unless asked for, and honoured only on
+    a loopback bind unless ``allow_insecure_remote`` is set as well."""
+
+    enabled: bool = True
+    host: str = "127.0.0.1"
+    port: Annotated[int, Field(ge=0, le=65535)] = 4840
+    data_dir: str = "opcua-data"
+    security_policies: list[SecurityPolicy] = Field(
+        default_factory=lambda: list(typing.get_args(SecurityPolicy)), min_length=1
+    )
+    allow_anonymous: bool = False
+    anonymous_role: Literal["viewer", "operator", "admin"] = "viewer"
+    allow_none_endpoint: bool = False
+    #: anonymous access and the None endpoint are honoured on a loopback bind only,
+    #: unless this is set too (the server drops both, with a warning, otherwise)
+    allow_insecure_remote: bool = False
+    users: list[OpcUaUser] = Field(default_factory=list)
+    #: how often changed values are pushed to the OPC UA nodes
+    publish_rate_hz: Annotated[float, Field(gt=0.0, le=1000.0)] = 20.0
+    #: absolute deadband of analog (REAL/LREAL) values; 0 publishes every change
+    deadband: Annotated[float, Field(ge=0.0)] = 0.0
+    #: node updates per chunk before the publisher yields to the event loop
+    chunk_size: Annotated[int, Field(ge=1, le=100000)] = 500
+    max_sessions: Annotated[int, Field(ge=1, le=10000)] = 100
+    max_subscriptions: Annotated[int, Field(ge=1, le=10000)] = 100
+    max_session_timeout_s: Annotated[float, Field(ge=5.0, le=86400.0)] = 600.0
+    #: failed logins per client address within ``login_window_s`` before a lockout
+    max_login_failures: Annotated[int, Field(ge=1, le=1000)] = 5
+    login_window_s: Annotated[float, Field(gt=0.0)] = 60.0
+    login_lockout_s: Annotated[float, Field(ge=0.0)] = 30.0
+
+
+class UsersFile(_Model):
+    """The users secret file: ``[[users]]`` entries like ``[[opcua.users]]``."""
+
+    users: list[OpcUaUser] = Field(default_factory=list)
+
+
 class SiteMap(_Model):
     site: SiteSection = SiteSection()
     controller: ControllerSection = ControllerSection()
@@ -159,6 +227,7 @@ class SiteMap(_Model):
     groups: list[GroupSection]
     instructions: InstructionsSection = InstructionsSection()
     modbus: ModbusSection = ModbusSection()
+    opcua: OpcUaSection = OpcUaSection()
     #: where the map came from (for messages); not a TOML field
     source: str = Field("<memory>", exclude=True)
 
@@ -214,6 +283,7 @@ class SiteMap(_Model):
         out += _duplicates(
             [i.name for i in self.instructions.instances], ("instructions", "instances"), "name"
         )
+        out += _duplicates([u.name for u in self.opcua.users], ("opcua", "users"), "name")
         known = {a.name for a in self.axes}
         for gi, g in enumerate(self.groups):
             for name in g.axes:
@@ -281,11 +351,18 @@ def _locate(text: str, loc: tuple[int | str, ...]) -> int:
     return line
 
 
-def parse(text: str, source: str = "<memory>") -> SiteMap:
+def parse(text: str, source: str = "<memory>", environ: Mapping[str, str] | None = None) -> SiteMap:
+    """Validate a site map text; ``environ`` settings (see :func:`environment_settings`)
+    replace the TOML values before validation, so every check sees them."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SiteMapError(f"{source}: invalid TOML: {exc}") from exc
+    overrides = environment_settings(environ or {})
+    for (section, field), (_, value) in overrides.items():
+        table = data.setdefault(section, {})
+        if isinstance(table, dict):
+            table[field] = value
     try:
         site = SiteMap.model_validate({**data, "source": source})
     except ValidationError as exc:
@@ -300,19 +377,101 @@ def parse(text: str, source: str = "<memory>") -> SiteMap:
         lines = []
         for loc, msg in found:
             field = ".".join(str(p) for p in loc) or "(top level)"
-            lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
+            var = overrides.get((str(loc[0]), str(loc[1]))) if len(loc) > 1 else None
+            if var:
+                lines.append(f"{source}: environment {var[0]}: {msg}")
+            else:
+                lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
         raise SiteMapError("\n".join(lines))
     return site
 
 
-def load(path: str | Path | None = None) -> SiteMap:
-    """Load a site map file, or the embedded demo map when ``path`` is None."""
+def environment_settings(environ: Mapping[str, str]) -> dict[tuple[str, str], tuple[str, str]]:
+    """``MOTION_SERVER_<SECTION>_<FIELD>`` variables: (section, field) -> (variable, value).
+
+    Every field of a single-table section (``[site]``, ``[controller]``, ``[modbus]``, ...)
+    can be set this way, e.g. ``MOTION_SERVER_MODBUS_HOST=0.0.0.0`` in a container or
+    ``MOTION_SERVER_CONTROLLER_CLOCK=manual`` on a test bench. The values are validated like
+    the TOML ones; an invalid one is a :class:`SiteMapError` naming the variable.
+    """
+    found: dict[tuple[str, str], tuple[str, str]] = {}
+    for section, info in SiteMap.model_fields.items():
+        model = info.annotation
+        if not (isinstance(model, type) and issubclass(model, _Model)):
+            continue
+        for field in model.model_fields:
+            var = f"{ENV_PREFIX}{section}_{field}".upper()
+            if var in environ:
+                found[(section, field)] = (var, environ[var])
+    return found
+
+
+def load(path: str | Path | None = None, environ: Mapping[str, str] | None = None) -> SiteMap:
+    """Load a site map file, or (``path`` None) the file named by ``MOTION_SERVER_MAP``,
+    else the embedded demo map, with the settings of the environment (``environ``,
+    default ``os.environ``) applied."""
+    env = os.environ if environ is None else environ
+    if path is None and env.get(MAP_ENV):
+        path = env[MAP_ENV]
     if path is None:
         text = resources.files("motion_server").joinpath("data", DEMO_MAP).read_text("utf-8")
-        return parse(text, f"<embedded {DEMO_MAP}>")
+        return parse(text, f"<embedded {DEMO_MAP}>", env)
     p = Path(path)
     try:
         text = p.read_text("utf-8")
     except OSError as exc:
         raise SiteMapError(f"{p}: cannot read site map: {exc.strerror}") from exc
-    return parse(text, str(p))
+    return parse(text, str(p), env)
+
+
+def users_file_path(environ: dict[str, str] | None = None) -> Path | None:
+    """The users secret file: ``$MOTION_SERVER_USERS_FILE``, else
+    ``/run/secrets/motion_server_users`` when it exists, else None."""
+    env = os.environ if environ is None else environ
+    named = env.get(USERS_FILE_ENV)
+    if named:
+        return Path(named)
+    default = Path(DEFAULT_USERS_FILE)
+    return default if default.is_file() else None
+
+
+def load_users_file(path: str | Path) -> list[OpcUaUser]:
+    """The ``[[users]]`` of a users secret file; :class:`SiteMapError` naming file, line
+    and field (never the hash itself) when it cannot be used."""
+    p = Path(path)
+    try:
+        text = p.read_text("utf-8")
+    except OSError as exc:
+        raise SiteMapError(f"{p}: cannot read users file: {exc.strerror}") from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SiteMapError(f"{p}: invalid TOML: {exc}") from exc
+    try:
+        parsed = UsersFile.model_validate(data)
+    except ValidationError as exc:
+        lines = []
+        for e in exc.errors():
+            loc = tuple(e["loc"])
+            msg = e["msg"].removeprefix("Value error, ")
+            if loc and loc[-1] == "password_hash":
+                msg = "not a password hash (motion-server hash-password prints one)"
+            lines.append(f"{p}:{_locate(text, loc)}: {'.'.join(map(str, loc))}: {msg}")
+        raise SiteMapError("\n".join(lines)) from None
+    problems = _duplicates([u.name for u in parsed.users], ("users",), "name")
+    if problems:
+        raise SiteMapError(
+            "\n".join(
+                f"{p}:{_locate(text, loc)}: {'.'.join(map(str, loc))}: {m}" for loc, m in problems
+            )
+        )
+    return parsed.users
+
+
+def opcua_users(site: SiteMap, environ: dict[str, str] | None = None) -> list[OpcUaUser]:
+    """The site map's OPC UA users, overridden by name by those of the users secret file."""
+    users = {u.name: u for u in site.opcua.users}
+    path = users_file_path(environ)
+    if path is not None:
+        users |= {u.name: u for u in load_users_file(path)}
+    return list(users.values())

@@ -11,9 +11,9 @@ clock:
   (a client's ``Clock.Step``); they run in chunks that yield to the loop, and
   :meth:`Runtime.settle` returns once they all ran.
 
-:meth:`Runtime.serve` runs the loop with the front-ends of the site map (Modbus TCP)
-around it. The runtime is the tag image's host: it owns the clock tags and the
-diagnostics counters.
+:meth:`Runtime.serve` runs the loop with the front-ends of the site map (Modbus TCP,
+OPC UA) around it; ``runtime.modbus`` / ``runtime.opcua`` are the running front-ends.
+The runtime is the tag image's host: it owns the clock tags and the diagnostics counters.
 
 Stopping (SIGINT/SIGTERM or :meth:`request_stop`) runs the programmed stop of every group,
 as a controller does when it leaves run mode, and returns once all axes are at rest.
@@ -29,8 +29,9 @@ import time
 from collections.abc import Callable
 
 from . import __version__
-from .config import SiteMap
+from .config import SiteMap, opcua_users
 from .frontends.modbus import ModbusFrontend
+from .frontends.opcua import OpcUaFrontend
 from .instructions import MotionSystem
 from .kernel import GroupStop
 from .kernel.group import OperatingMode
@@ -78,6 +79,7 @@ class Runtime:
         self.tagmap: TagMap = build_tagmap(site)
         self.image = TagImage(self.tagmap, self.system, self)
         self.modbus: ModbusFrontend | None = None
+        self.opcua: OpcUaFrontend | None = None
         #: set once the front-ends listen (``serve``)
         self.ready = asyncio.Event()
 
@@ -190,19 +192,25 @@ class Runtime:
         await self._programmed_stop()
         self._stopped.set()
 
-    async def serve(self, modbus: bool | None = None) -> None:
+    async def serve(self, modbus: bool | None = None, opcua: bool | None = None) -> None:
         """Run the loop with the front-ends around it; they close after the stop.
 
-        ``modbus`` overrides the site map's ``[modbus] enabled``.
+        ``modbus`` and ``opcua`` override the site map's ``enabled`` of each front-end.
         """
         cfg = self.site.modbus
-        if cfg.enabled if modbus is None else modbus:
-            self.modbus = ModbusFrontend(self.image, cfg.host, cfg.port, cfg.unit_id)
-            await self.modbus.start()
-        self.ready.set()
         try:
+            if cfg.enabled if modbus is None else modbus:
+                self.modbus = ModbusFrontend(self.image, cfg.host, cfg.port, cfg.unit_id)
+                await self.modbus.start()
+            ucfg = self.site.opcua
+            if ucfg.enabled if opcua is None else opcua:
+                self.opcua = OpcUaFrontend(self.image, ucfg, opcua_users(self.site))
+                await self.opcua.start()
+            self.ready.set()
             await self.run()
         finally:
+            if self.opcua is not None:
+                await self.opcua.stop()
             if self.modbus is not None:
                 await self.modbus.stop()
 

@@ -308,3 +308,44 @@ async def test_unit_id_0_answers_every_unit_id() -> None:
         client.close()
         rt.request_stop()
         await asyncio.wait_for(task, 10.0)
+
+
+async def test_gear_a_slave_with_mag_over_modbus(server: Server) -> None:
+    """MAG 1:3 as a fraction of counts (both axes 1000 counts/mm), command reference, no
+    clutch. An incremental MAM of 3 mm on the master (v = 10 mm/s, a = 100 mm/s²: lasts
+    d/v + v/a = 0.4 s = 200 cycles) moves the slave floor(3000 / 3) = 1000 counts = 1 mm,
+    exactly."""
+    tags = server.tags
+    for axis in (1, 2):
+        await tags.trigger("MSO_1", Axis=axis)
+        await tags.step(1)
+        assert await tags.read(f"Axis{axis}.AxisState") == 2
+        await tags.write("MSO_1.Execute", False)  # the rung goes false for a scan
+        await tags.step(1)
+    await tags.trigger(
+        "MAG_1", SlaveAxis=2, MasterAxis=1, RatioFormat=1, SlaveCounts=1, MasterCounts=3,
+        MasterReference=1, Clutch=1,
+    )  # fmt: skip
+    await tags.step(1)
+    status = server.runtime.tagmap.tag("MAG_1.DN")
+    rr = await server.client.read_holding_registers(status.address, count=1, device_id=1)
+    bits = {t.field: bool(rr.registers[0] >> (t.bit or 0) & 1)
+            for t in server.runtime.tagmap.at(status.address)}  # fmt: skip
+    assert bits["DN"] and bits["IP"] and not bits["ER"]  # DN and IP in the same scan
+    assert int(await tags.read("Axis2.MotionStatus")) & (1 << 4)  # GearingStatus
+
+    await tags.trigger(
+        "MAM_1", Axis=1, MoveType=1, Position=3.0, Speed=10.0, AccelRate=100.0, DecelRate=100.0
+    )
+    await tags.step(100)  # half way: the slave follows at a third, to within one count
+    master = float(await tags.read("Axis1.CommandPosition"))
+    slave = float(await tags.read("Axis2.CommandPosition"))
+    assert 0.5 < master < 2.5
+    assert abs(slave - master / 3.0) <= 0.001
+    await tags.step(150)  # past the 200 cycles of the move
+    assert await tags.read("MAM_1.PC") is True
+    assert await tags.read("Axis1.CommandPosition") == 3.0
+    assert await tags.read("Axis2.CommandPosition") == 1.0
+    await tags.step(500)  # the slave's drive settles on its command
+    assert await tags.read("Axis2.ActualPosition") == pytest.approx(1.0, abs=0.001)
+    assert await tags.read("MAG_1.IP") is True  # gearing stays in process

@@ -24,6 +24,7 @@ def test_run_serves_modbus_and_stops_on_sigint() -> None:
         "manual",
         "--modbus-port",
         "0",
+        "--no-opcua",
     ]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     try:

@@ -190,6 +190,8 @@ class LogixInstruction(Instruction):
 
     def scan(self) -> None:
         rung = bool(self.inputs[self.TRIGGER])
+        if not rung and not self._last_trigger and not self.outputs["EN"]:
+            return  # rung false and EN already cleared: the table has nothing to do
         event = RUNG_EVENTS[(self._last_trigger, rung)]
         self._last_trigger = rung
         if event == RungEvent.RISING:
@@ -209,7 +211,8 @@ class LogixInstruction(Instruction):
             self.set_bits(EN=False)
 
     def update(self) -> None:
-        if self.bit("IP") or self.bit("AC"):
+        out = self.outputs
+        if out["IP"] or out["AC"]:
             self.poll()
 
 
@@ -282,6 +285,8 @@ class PLCopenBlock(Instruction):
 
     def scan(self) -> None:
         ex = bool(self.inputs[self.TRIGGER])
+        if not ex and not self._last_trigger and self.state == BlockState.IDLE:
+            return  # idle with Execute low: nothing can change, outputs already published
         rising = ex and not self._last_trigger
         self._last_trigger = ex
         if rising:
@@ -300,6 +305,8 @@ class PLCopenBlock(Instruction):
         self._publish()
 
     def update(self) -> None:
+        if self.state == BlockState.IDLE:
+            return  # published when it became idle
         if self.state == BlockState.BUSY:
             self.poll()
         if self.state in _TERMINAL:
@@ -314,16 +321,16 @@ class PLCopenBlock(Instruction):
 
     def _publish(self) -> None:
         s = self.state
-        common = {
-            "Busy": s == BlockState.BUSY,
-            "Active": s == BlockState.BUSY and self.active,
-            "Done": s == BlockState.DONE,
-            "CommandAborted": s == BlockState.ABORTED,
-            "Error": s == BlockState.ERROR,
-        }
-        for name, value in common.items():
-            if name in self.outputs:  # a block may lack some (MC_Reset has no Active)
-                self.outputs[name] = value
+        out = self.outputs
+        busy = s == BlockState.BUSY
+        out["Busy"] = busy
+        out["Done"] = s == BlockState.DONE
+        out["Error"] = s == BlockState.ERROR
+        # a block may lack these (MC_Reset has no Active or CommandAborted)
+        if "Active" in out:
+            out["Active"] = busy and self.active
+        if "CommandAborted" in out:
+            out["CommandAborted"] = s == BlockState.ABORTED
         self.publish_extra()
 
     def publish_extra(self) -> None:

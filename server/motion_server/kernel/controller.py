@@ -82,6 +82,10 @@ class Controller:
         #: interpolates linearly from it to the new command across one cycle)
         self.drv_cmd = np.zeros(n)
         self.drive_on = np.zeros(n, dtype=bool)
+        #: bumped whenever a drive switches on or off; the per-group on/off index
+        #: partitions below are recomputed only then (fancy indexing costs on small groups)
+        self._drive_version = 0
+        self._partitions: dict[int, tuple[int, np.ndarray, np.ndarray, np.ndarray]] = {}
         self.omega = np.array([2.0 * math.pi * max(a.drive_bandwidth, 1e-3) for a in axes])
         self.cpu = np.array([a.counts_per_unit for a in axes])
         self.coast = np.array([max(a.coast_deceleration, 0.0) for a in axes])
@@ -210,16 +214,27 @@ class Controller:
         return bool(abs(self.act_vel[i]) * dt * self.cpu[i] < 1.0)
 
     def _compose(self, ax: Axis, dt: float) -> None:
-        keep: list[Process] = []
-        landing: float | None = None
-        for p in ax.processes:
-            if p.active:
+        active = ProcessState.ACTIVE
+        procs = ax.processes
+        for p in procs:
+            if p.state is active:
                 try:
                     p.step(self, dt)
                 except MotionError as exc:
-                    p.state = p.state.ERROR
+                    p.state = ProcessState.ERROR
                     p.error_code = int(exc.code)
-            if p.active:
+        i = ax.index
+        if len(procs) == 1 and procs[0].state is active and ax.buffered is None:
+            # the common case, one running process: no lists, no sums
+            p = procs[0]
+            self.cmd_pos[i] = ax.base + p.position
+            self.cmd_vel[i] = p.velocity
+            self.cmd_acc[i] = p.acceleration
+            return
+        keep: list[Process] = []
+        landing: float | None = None
+        for p in procs:
+            if p.state is active:
                 keep.append(p)
             else:
                 ax.base += p.position
@@ -228,10 +243,14 @@ class Controller:
         ax.processes = keep
         if landing is not None and not keep and _rounding_apart(ax.base, landing):
             ax.base = landing  # an absolute move ends exactly on its target
-        i = ax.index
-        self.cmd_pos[i] = ax.base + sum(p.position for p in keep)
-        self.cmd_vel[i] = sum(p.velocity for p in keep)
-        self.cmd_acc[i] = sum(p.acceleration for p in keep)
+        pos = vel = acc = 0.0
+        for p in keep:
+            pos += p.position
+            vel += p.velocity
+            acc += p.acceleration
+        self.cmd_pos[i] = ax.base + pos
+        self.cmd_vel[i] = vel
+        self.cmd_acc[i] = acc
         pend = ax.buffered
         if pend is not None and all(p.reached for p in keep):
             ax.buffered = None
@@ -266,12 +285,20 @@ class Controller:
         self.cmd_pos[i] = q
         self.cmd_vel[i] = self.act_vel[i]
 
+    def _partition(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(drive on, drive off, drive on with a following-error limit) among ``idx``."""
+        cached = self._partitions.get(id(idx))
+        if cached is None or cached[0] != self._drive_version:
+            on = self.drive_on[idx]
+            on_idx = idx[on]
+            cached = (self._drive_version, on_idx, idx[~on], on_idx[self.fe_limit[on_idx] > 0.0])
+            self._partitions[id(idx)] = cached
+        return cached[1], cached[2], cached[3]
+
     def _drives(self, idx: np.ndarray, dt: float, servo: bool) -> None:
         if idx.size == 0:
             return
-        on = self.drive_on[idx]
-        on_idx = idx[on]
-        off_idx = idx[~on]
+        on_idx, off_idx, _ = self._partition(idx)
         if on_idx.size:
             if servo:
                 # x'' + 2w x' + w^2 x = w^2 c(t), c(t) the command ramp from the last
@@ -317,9 +344,11 @@ class Controller:
     def _check_following_error(self, idx: np.ndarray) -> None:
         if idx.size == 0:
             return
-        lim = self.fe_limit[idx]
-        err = np.abs(self.cmd_pos[idx] - self.act_pos[idx])
-        bad = idx[self.drive_on[idx] & (lim > 0.0) & (err > lim)]
+        watched = self._partition(idx)[2]
+        if watched.size == 0:
+            return
+        err = np.abs(self.cmd_pos[watched] - self.act_pos[watched])
+        bad = watched[err > self.fe_limit[watched]]
         for i in bad:
             self.fault(self.axes[int(i)], AxisFault.POSITION_ERROR)
 
@@ -379,6 +408,8 @@ class Controller:
             self.drv_cmd[i] = ax.base
             self.cmd_vel[i] = 0.0
             self.cmd_acc[i] = 0.0
+        if bool(self.drive_on[i]) != on:
+            self._drive_version += 1
         self.drive_on[i] = on
 
     def servo_on(self, ax: Axis) -> None:

@@ -9,6 +9,7 @@ calls back into instructions.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 from .enums import AbortReason, ProcessKind, ProcessState
@@ -227,6 +228,22 @@ class StopRamp(ProfiledProcess):
 
     def _retarget(self) -> None:
         self.profile.to_velocity(0.0, self.limits)
+
+    def step(self, ctl: Controller, dt: float) -> None:
+        if not math.isinf(self.limits.ruckig_jerk):
+            super().step(ctl, dt)  # jerk-limited: ruckig plans it
+            return
+        # Trapezoidal (every MGS stop, MAS without jerk): the velocity drops by exactly
+        # deceleration x dt per cycle and reaches rest in ceil(|v| / (d dt)) cycles. Done
+        # here rather than through ruckig, whose time rounding can add a cycle.
+        v0 = self.velocity
+        dv = self.limits.deceleration * dt
+        v1 = 0.0 if abs(v0) <= dv * (1.0 + 1e-9) else v0 - math.copysign(dv, v0)
+        self.position += 0.5 * (v0 + v1) * dt
+        self.velocity = v1
+        self.acceleration = (v1 - v0) / dt
+        if v1 == 0.0:
+            self.finish()
 
     def _after_step(self) -> None:
         if self.profile.finished:

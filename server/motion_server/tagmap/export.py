@@ -15,7 +15,7 @@ from typing import Any
 from ..kernel.errors import ERROR_TEXT
 from .model import MAP_FORMAT, Block, Tag, TagMap
 
-FORMATS = ("json", "csv", "md")
+FORMATS = ("json", "csv", "md", "nodeset")
 SCHEMA_FILE = "map.schema.json"
 
 #: function codes the Modbus front-end serves, and the exceptions it answers
@@ -196,8 +196,10 @@ def to_markdown(tagmap: TagMap) -> str:
 
 
 def export(tagmap: TagMap, fmt: str) -> str:
-    """The export of ``tagmap`` in ``fmt`` (json, csv or md)."""
-    writers = {"json": to_json, "csv": to_csv, "md": to_markdown}
+    """The export of ``tagmap`` in ``fmt`` (json, csv, md or nodeset)."""
+    from .nodeset import to_nodeset  # NodeSet2 XML of the OPC UA namespace
+
+    writers = {"json": to_json, "csv": to_csv, "md": to_markdown, "nodeset": to_nodeset}
     try:
         return writers[fmt](tagmap)
     except KeyError:

@@ -1,0 +1,202 @@
+"""Read the controller heartbeat of a motion-server over Modbus TCP; exit 0 when healthy.
+
+The container HEALTHCHECK, the compose bench client and `make test-container` use it.
+The heartbeat (the ``Diagnostics.Heartbeat`` tag, incremented every cycle) and its
+register address come from the tag map's JSON export
+(``motion-server map --format json``, contract "motion-server-map/1"), never from a
+constant here. Healthy: the heartbeat can be read twice and has increased in between —
+or stood still while the server's clock is in manual mode (``Clock.Mode`` = 1), where
+cycles only run when a client asks for them.
+
+Without ``--map-json`` the export is produced by running ``motion-server map`` with this
+interpreter, which sees the same site map and environment as the server (in the
+container: ``MOTION_SERVER_MAP`` and the ``MOTION_SERVER_<SECTION>_<FIELD>`` variables).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import struct
+import subprocess
+import sys
+import time
+from typing import Any
+
+MAP_FORMAT = "motion-server-map/1"
+#: the heartbeat tag: the first of these names the map has (``--tag`` picks another)
+HEARTBEAT_TAGS = ("Diagnostics.Heartbeat", "Controller.Heartbeat")
+CLOCK_MODE_TAG = "Clock.Mode"
+
+#: tag type -> (struct code, registers)
+TYPES: dict[str, tuple[str, int]] = {
+    "BOOL": ("H", 1),
+    "SINT": ("h", 1),
+    "INT": ("h", 1),
+    "UINT": ("H", 1),
+    "DINT": ("i", 2),
+    "UDINT": ("I", 2),
+    "REAL": ("f", 2),
+    "LREAL": ("d", 4),
+}
+
+
+class Unhealthy(Exception):
+    """The server could not be reached or does not look alive."""
+
+
+def load_map(path: str | None) -> dict[str, Any]:
+    """The JSON tag map: from a file, or from this interpreter's ``motion-server map``."""
+    if path:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    else:
+        cmd = [sys.executable, "-m", "motion_server.cli", "map", "--format", "json"]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=60, check=False)
+        if done.returncode != 0:
+            raise Unhealthy(f"motion-server map failed: {done.stderr.strip()}")
+        text = done.stdout
+    data: dict[str, Any] = json.loads(text)
+    if data.get("format") != MAP_FORMAT:
+        raise Unhealthy(f"tag map format {data.get('format')!r}, expected {MAP_FORMAT!r}")
+    return data
+
+
+def find_tag(tag_map: dict[str, Any], name: str) -> dict[str, Any] | None:
+    for tag in tag_map["tags"]:
+        if tag["name"] == name:
+            found: dict[str, Any] = tag
+            return found
+    return None
+
+
+def decode(registers: list[int], tag_type: str, word_order: str) -> int | float:
+    """A tag value from its holding registers (big-endian words, word order as mapped)."""
+    code, count = TYPES[tag_type]
+    words = list(registers[:count])
+    if word_order == "little":
+        words.reverse()
+    raw = b"".join(w.to_bytes(2, "big") for w in words)
+    value: int | float = struct.unpack(">" + code, raw)[0]
+    return value
+
+
+def encode(value: float, tag_type: str, word_order: str) -> list[int]:
+    """Holding registers of a tag value: the inverse of :func:`decode`."""
+    code, count = TYPES[tag_type]
+    raw = struct.pack(">" + code, int(value) if code not in "fd" else float(value))
+    words = [int.from_bytes(raw[i : i + 2], "big") for i in range(0, 2 * count, 2)]
+    if word_order == "little":
+        words.reverse()
+    return words
+
+
+def default_port() -> int:
+    """The Modbus port of the site map this interpreter sees (with the environment)."""
+    from motion_server import config
+
+    return int(config.load().modbus.port)
+
+
+class Reader:
+    """Reads tags of one tag map from one server."""
+
+    def __init__(self, tag_map: dict[str, Any], host: str, port: int, timeout: float) -> None:
+        from pymodbus.client import ModbusTcpClient
+
+        self.map = tag_map
+        self.unit = int(tag_map["modbus"].get("unit_id", 1))
+        self.word_order = str(tag_map["modbus"].get("word_order", "big"))
+        self.where = f"{host}:{port}"
+        self.client = ModbusTcpClient(host, port=port, timeout=timeout, retries=1)
+
+    def __enter__(self) -> Reader:
+        if not self.client.connect():
+            raise Unhealthy(f"cannot connect to Modbus server at {self.where}")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.client.close()
+
+    def tag(self, name: str) -> dict[str, Any]:
+        found = find_tag(self.map, name)
+        if found is None:
+            raise Unhealthy(f"the tag map has no {name}")
+        return found
+
+    def write(self, name: str, value: float) -> None:
+        """Write a whole tag (a BOOL as its register with only its bit set)."""
+        tag = self.tag(name)
+        bit = tag["modbus"].get("bit")
+        value = (int(bool(value)) << int(bit)) if bit is not None else value
+        words = encode(value, tag["type"], self.word_order)
+        address = int(tag["modbus"]["address"])
+        reply = self.client.write_registers(address, words, device_id=self.unit)
+        if reply.isError():
+            raise Unhealthy(f"writing {name} at register {address}: {reply}")
+
+    def read(self, tag: dict[str, Any]) -> int | float:
+        address, count = int(tag["modbus"]["address"]), int(tag["modbus"]["count"])
+        reply = self.client.read_holding_registers(address, count=count, device_id=self.unit)
+        if reply.isError():
+            raise Unhealthy(f"reading {tag['name']} at register {address}: {reply}")
+        value = decode(list(reply.registers), tag["type"], self.word_order)
+        bit = tag["modbus"].get("bit")
+        if bit is not None:
+            return (int(value) >> int(bit)) & 1
+        return value
+
+
+def check(
+    reader: Reader, interval: float, require_increase: bool, names: tuple[str, ...] = HEARTBEAT_TAGS
+) -> str:
+    """Read the heartbeat twice ``interval`` apart; a message when healthy, else raise."""
+    heartbeat = next((tag for n in names if (tag := find_tag(reader.map, n))), None)
+    if heartbeat is None:
+        raise Unhealthy(f"the tag map has no {' or '.join(names)}")
+    name = heartbeat["name"]
+    first = reader.read(heartbeat)
+    time.sleep(interval)
+    second = reader.read(heartbeat)
+    if second > first:
+        return f"{name} {first} -> {second} at {reader.where}"
+    mode_tag = find_tag(reader.map, CLOCK_MODE_TAG)
+    manual = False
+    if mode_tag is not None:
+        manual = reader.read(mode_tag) == mode_tag.get("enum", {}).get("MANUAL", 1)
+    if manual and not require_increase:
+        return f"{name} {second} at {reader.where} (manual clock)"
+    raise Unhealthy(f"{name} did not increase: {first} -> {second} at {reader.where}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--host", default="127.0.0.1", help="server address (default 127.0.0.1)")
+    p.add_argument("--port", type=int, help="Modbus port (default: the site map's)")
+    p.add_argument("--map-json", help="tag map JSON export (default: run motion-server map)")
+    p.add_argument("--interval", type=float, default=0.5, help="seconds between the reads")
+    p.add_argument("--timeout", type=float, default=3.0, help="Modbus request timeout (s)")
+    p.add_argument(
+        "--require-increase",
+        action="store_true",
+        help="fail when the heartbeat stands still, even in manual clock mode",
+    )
+    p.add_argument("--tag", help=f"heartbeat tag (default: {' or '.join(HEARTBEAT_TAGS)})")
+    p.add_argument("--quiet", action="store_true", help="print nothing when healthy")
+    args = p.parse_args(argv)
+    try:
+        tag_map = load_map(args.map_json)
+        port = args.port if args.port is not None else default_port()
+        with Reader(tag_map, args.host, port, args.timeout) as reader:
+            names = (args.tag,) if args.tag else HEARTBEAT_TAGS
+            message = check(reader, args.interval, args.require_increase, names)
+    except Exception as exc:  # a health check reports, it never shows a traceback
+        print(f"unhealthy: {exc}", file=sys.stderr)
+        return 1
+    if not args.quiet:
+        print(f"healthy: {message}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

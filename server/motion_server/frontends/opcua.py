@@ -1,0 +1,431 @@
+"""OPC UA front-end (asyncua): the tag map as nodes, client writes into the tag image,
+changed values published at a fixed rate.
+
+Public surface::
+
+    from motion_server.frontends.opcua import OpcUaFrontend
+
+    ua_fe = OpcUaFrontend(runtime.image, site.opcua, users)   # users: config.opcua_users(site)
+    await ua_fe.start()      # certificate in data_dir (generated on first start), bind, publish
+    ua_fe.port               # the bound TCP port (``port = 0`` in the site map: ephemeral)
+    ua_fe.endpoint           # opc.tcp://host:port/
+    ua_fe.namespace_index    # of the site's namespace URI (tagmap.namespace_uri)
+    await ua_fe.publish()    # push changed values now (the runtime does this at the rate)
+    await ua_fe.stop()
+
+``Runtime.serve()`` does all of this from the site map's ``[opcua]`` section.
+
+Nodes: see :mod:`motion_server.tagmap.nodeset` (string NodeIds = ``tag.node_id`` in the
+site's namespace, e.g. ``ns=<i>;s=Instructions.MAG_1.Ratio``).
+
+Writes go through :meth:`TagImage.write`, the path Modbus writes take: operands land in
+the instance's inputs and the instance fires on the rising edge of ``Execute`` at the next
+cycle. Each item of a Write gets its own status:
+
+- ``BadUserAccessDenied``: the session's role may not write this tag (viewer: nothing;
+  operator: instruction inputs and hand-wheel inputs; admin: also ``Clock``), or an
+  attribute other than Value;
+- ``BadNotWritable``: a status (read-only) variable;
+- ``BadTypeMismatch``: a Variant of another type than the node's DataType;
+- ``BadOutOfRange``: a value the tag refuses (an unknown ``Clock.Mode``, a non-finite
+  hand-wheel input).
+
+A write to ``Clock.Step`` (manual clock) is answered once its cycles ran and their values
+are published, so a client that reads after it sees the new cycle.
+
+Security: Basic256Sha256 Sign and SignAndEncrypt endpoints (the site map's
+``security_policies``), a self-signed server certificate and key generated in
+``data_dir`` on first start and reused after; user name and password checked against
+scrypt hashes (:mod:`.opcua_users`); anonymous sessions and the None endpoint only when
+the site map sets ``allow_anonymous`` / ``allow_none_endpoint``. Client application
+certificates are accepted without a trust list (a simulator's choice; see README).
+
+Publishing: every ``1/publish_rate_hz`` seconds the tags whose value changed (analog
+values: by more than ``deadband``) are written to their nodes with
+``server.write_attribute_value``, ``chunk_size`` nodes at a time with a yield to the event
+loop between chunks, between motion cycles, never inside one. Monitored items created
+with queue size 0 get a queue of one (latest value), as the specification asks.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import logging
+import socket
+from collections.abc import Iterable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from asyncua import Server, ua
+from asyncua.crypto.cert_gen import setup_self_signed_certificate
+from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
+from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
+from asyncua.server.internal_session import InternalSession
+from cryptography.x509.oid import ExtendedKeyUsageOID
+
+from ..config import OpcUaSection, OpcUaUser
+from ..tagmap import BadValueError, Folder, ReadOnlyError, Tag, TagImage
+from ..tagmap.nodeset import enum_text
+from .opcua_space import VARIANT_TYPES, build_space, variant
+from .opcua_users import Account, Directory, LoginLimiter, PeerSession, Role
+
+log = logging.getLogger("motion_server.opcua")
+
+CERT_FILE = "server-cert.der"
+KEY_FILE = "server-key.pem"
+_POLICIES = {
+    "Basic256Sha256_Sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
+    "Basic256Sha256_SignAndEncrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
+}
+_ROLES = {"viewer": Role.VIEWER, "operator": Role.OPERATOR, "admin": Role.ADMIN}
+
+
+def required_role(tag: Tag) -> Role:
+    """The lowest role that may write ``tag`` (Clock control is for admins)."""
+    return Role.ADMIN if tag.folder == Folder.CLOCK else Role.OPERATOR
+
+
+@dataclass
+class _Published:
+    """One tag the publisher watches: its node, its last published value."""
+
+    tag: Tag
+    node_id: ua.NodeId
+    vtype: ua.VariantType
+    is_float: bool
+    last: Any
+    text_node: ua.NodeId | None = None  # ValueAsText of an enumerated value
+
+
+def _is_loopback(host: str) -> bool:
+    """True for a loopback address or the name localhost."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class OpcUaFrontend:
+    """An OPC UA server for one tag image (see the module docstring)."""
+
+    def __init__(
+        self,
+        image: TagImage,
+        config: OpcUaSection | None = None,
+        users: Iterable[OpcUaUser] | None = None,
+    ) -> None:
+        self.image = image
+        cfg = config or OpcUaSection()
+        if (cfg.allow_anonymous or cfg.allow_none_endpoint) and not (
+            cfg.allow_insecure_remote or _is_loopback(cfg.host)
+        ):
+            log.warning(
+                "OPC UA: bound to %s, not loopback: anonymous access and the None endpoint are "
+                "refused (set allow_insecure_remote to allow them off loopback)",
+                cfg.host,
+            )
+            cfg = cfg.model_copy(update={"allow_anonymous": False, "allow_none_endpoint": False})
+        self.config = cfg
+        accounts = [
+            Account(u.name, _ROLES[u.role], u.password_hash)
+            for u in (cfg.users if users is None else users)
+        ]
+        self.directory = Directory(
+            accounts,
+            allow_anonymous=cfg.allow_anonymous,
+            anonymous_role=_ROLES[cfg.anonymous_role],
+            limiter=LoginLimiter(cfg.max_login_failures, cfg.login_window_s, cfg.login_lockout_s),
+        )
+        self.server: Server | None = None  # set once listening
+        self._server: Server | None = None
+        self.namespace_index = 0
+        self.port = 0
+        self._published: list[_Published] = []
+        self._standard_write: Any = None
+        self._by_node: dict[str, _Published] = {}
+        self._task: asyncio.Task[None] | None = None
+        self._lock = asyncio.Lock()
+        #: counters (diagnostics, benches)
+        self.writes = 0
+        self.refused = 0
+        self.updates = 0
+        self.passes = 0
+
+    # -- lifecycle ------------------------------------------------------------------------
+    @property
+    def endpoint(self) -> str:
+        return f"opc.tcp://{self.config.host}:{self.port}/"
+
+    async def start(self) -> None:
+        cfg = self.config
+        server = Server(user_manager=self.directory)
+        self._server = server
+        await server.init()
+        iserver = server.iserver
+        iserver.max_connections = cfg.max_sessions
+        iserver.max_subscriptions = cfg.max_subscriptions
+        iserver.max_session_timeout_ms = cfg.max_session_timeout_s * 1000.0
+        iserver.create_session = self._create_session
+        server.set_server_name(f"motion-server {self.image.map.site}")
+        uri = self.image.map.namespace_uri
+        await server.set_application_uri(f"{uri}:server")
+        policies = [_POLICIES[p] for p in cfg.security_policies]
+        if cfg.allow_none_endpoint:
+            policies.insert(0, ua.SecurityPolicyType.NoSecurity)
+            log.warning("OPC UA: the None endpoint is enabled (no signing, no encryption)")
+        server.set_security_policy(policies)
+        tokens: list[type] = [ua.UserNameIdentityToken]
+        if cfg.allow_anonymous:
+            tokens.insert(0, ua.AnonymousIdentityToken)
+            log.warning("OPC UA: anonymous sessions are enabled (role %s)", cfg.anonymous_role)
+        server.set_identity_tokens(tokens)
+        if not cfg.allow_none_endpoint:
+            # asyncua accepts an unsecured channel even without a None endpoint (clients
+            # need one for GetEndpoints); let such a channel do discovery and nothing else
+            server._policies.append(
+                SecurityPolicyFactory(
+                    SecurityPolicyNone,
+                    ua.MessageSecurityMode.None_,
+                    permission_ruleset=_DiscoveryOnly(),
+                )
+            )
+        await self._certificate(server, f"{uri}:server")
+        port = cfg.port or _free_port(cfg.host)
+        server.set_endpoint(f"opc.tcp://{cfg.host}:{port}/")
+        self.namespace_index = await server.register_namespace(uri)
+        space = await build_space(server, self.namespace_index, self.image)
+        self._watch(space)
+        self._standard_write = iserver.attribute_service.write
+        iserver.attribute_service.write = self._write
+        self._patch_queue_size(server)
+        await server.start()
+        self.server = server
+        self.port = port
+        self._task = asyncio.create_task(self._publish_loop(), name="opcua-publisher")
+        log.info(
+            "OPC UA on %s (%s), namespace %s, %d users",
+            self.endpoint,
+            ", ".join(p.name for p in policies),
+            uri,
+            len(self.directory.accounts),
+        )
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+        if self.server is not None:
+            await self.server.stop()
+            self.server = None
+
+    async def _certificate(self, server: Server, app_uri: str) -> None:
+        data = Path(self.config.data_dir)
+        data.mkdir(parents=True, exist_ok=True)
+        cert, key = data / CERT_FILE, data / KEY_FILE
+        if not cert.exists():
+            log.info("OPC UA: generating the server certificate in %s", data)
+        await setup_self_signed_certificate(
+            key,
+            cert,
+            app_uri,
+            socket.gethostname(),
+            [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH],
+            {"commonName": f"motion-server {self.image.map.site}"},
+        )
+        with contextlib.suppress(OSError):
+            key.chmod(0o600)
+        await server.load_certificate(str(cert))
+        await server.load_private_key(str(key))
+
+    def _create_session(
+        self, name: str, user: User | None = None, external: bool = False
+    ) -> InternalSession:
+        assert self._server is not None
+        iserver = self._server.iserver
+        user = user if user is not None else User(role=UserRole.Anonymous)
+        return PeerSession(
+            iserver,
+            iserver.aspace,
+            iserver.subscription_service,
+            name,
+            user=user,
+            external=external,
+        )
+
+    def _patch_queue_size(self, server: Server) -> None:
+        """Queue size 0 means a queue of one (latest value), not asyncua's unbounded."""
+        service = server.iserver.subscription_service
+        create = service.create_subscription
+
+        async def create_subscription(*args: Any, **kwargs: Any) -> ua.CreateSubscriptionResult:
+            result = await create(*args, **kwargs)
+            isub = service.subscriptions[result.SubscriptionId]
+            mis = isub.monitored_item_srv
+            cap = isub.max_queue_size
+            mis._revise_queue_size = lambda requested: min(max(int(requested), 1), cap)
+            enqueue = isub.enqueue_datachange_event
+
+            async def enqueue_datachange_event(mid: int, event: Any, maxsize: int) -> None:
+                await enqueue(mid, event, maxsize or 1)
+
+            isub.enqueue_datachange_event = enqueue_datachange_event
+            return result
+
+        service.create_subscription = create_subscription
+
+    # -- writes ---------------------------------------------------------------------------
+    async def _write(
+        self, params: ua.WriteParameters, user: User | None = None
+    ) -> list[ua.StatusCode]:
+        user = user if user is not None else User(role=UserRole.Admin)
+        results: list[ua.StatusCode] = []
+        for wv in params.NodesToWrite:
+            nid = wv.NodeId
+            pub = (
+                self._by_node.get(nid.Identifier)
+                if nid.NamespaceIndex == self.namespace_index and isinstance(nid.Identifier, str)
+                else None
+            )
+            if pub is None:  # another namespace, or a property: asyncua's own rules
+                single = ua.WriteParameters(NodesToWrite=[wv])
+                results += await self._standard_write(single, user=user)
+                continue
+            code = await self._write_tag(pub, wv, user)
+            if not code.is_good():
+                self.refused += 1
+            results.append(code)
+        return results
+
+    async def _write_tag(self, pub: _Published, wv: ua.WriteValue, user: User) -> ua.StatusCode:
+        tag = pub.tag
+        internal = user.role == UserRole.Admin and user.name is None
+        if wv.AttributeId != ua.AttributeIds.Value or wv.IndexRange:
+            return ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
+        if not tag.writable:
+            return ua.StatusCode(ua.StatusCodes.BadNotWritable)
+        if not internal:
+            role = self.directory.role_of(user)
+            if role is None or role < required_role(tag):
+                who = user.name or "anonymous"
+                log.info("OPC UA: write of %s by %s refused (role)", tag.name, who)
+                return ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
+        var = wv.Value.Value if wv.Value is not None else None
+        if var is None or var.VariantType != pub.vtype or var.is_array or var.Value is None:
+            return ua.StatusCode(ua.StatusCodes.BadTypeMismatch)
+        try:
+            requested = self.image.write(tag, var.Value)
+        except ReadOnlyError:
+            return ua.StatusCode(ua.StatusCodes.BadNotWritable)
+        except BadValueError as exc:
+            log.info("OPC UA: write of %s refused: %s", tag.name, exc)
+            return ua.StatusCode(ua.StatusCodes.BadOutOfRange)
+        except Exception:  # never let one item take the request (or the server) down
+            log.exception("OPC UA: write of %s failed", tag.name)
+            return ua.StatusCode(ua.StatusCodes.BadInternalError)
+        self.writes += 1
+        await self._set(pub, self.image.read(tag), _now())
+        if requested:
+            await self.image.settle()  # a Clock.Step: answer once its cycles ran
+            await self.publish()
+        return ua.StatusCode()
+
+    # -- publishing -----------------------------------------------------------------------
+    def _watch(self, space: dict[str, Any]) -> None:
+        ns = self.namespace_index
+        for tag in self.image.map:
+            text = f"{tag.node_id}.ValueAsText" if tag.enum is not None else None
+            pub = _Published(
+                tag,
+                ua.NodeId(tag.node_id, ns),
+                VARIANT_TYPES[tag.type],
+                tag.type.is_float,
+                self.image.read(tag),
+                ua.NodeId(text, ns) if text in space else None,
+            )
+            self._published.append(pub)
+            self._by_node[tag.node_id] = pub
+
+    async def _set(self, pub: _Published, value: Any, now: datetime) -> None:
+        assert self._server is not None
+        pub.last = value
+        dv = ua.DataValue(variant(pub.tag, value), SourceTimestamp=now, ServerTimestamp=now)
+        await self._server.write_attribute_value(pub.node_id, dv)
+        self.updates += 1
+        if pub.text_node is not None:
+            text = ua.Variant(
+                ua.LocalizedText(enum_text(pub.tag, value)), ua.VariantType.LocalizedText
+            )
+            await self._server.write_attribute_value(pub.text_node, ua.DataValue(text))
+
+    async def publish(self) -> int:
+        """Push the values that changed since they were last published; returns how many."""
+        async with self._lock:
+            return await self._publish_pass()
+
+    async def _publish_pass(self) -> int:
+        read = self.image.read
+        deadband = self.config.deadband
+        chunk = self.config.chunk_size
+        now = _now()
+        changed = 0
+        budget = chunk
+        for pub in self._published:
+            value = read(pub.tag)
+            last = pub.last
+            if value == last:
+                continue
+            if pub.is_float and deadband and abs(value - last) <= deadband:
+                continue
+            await self._set(pub, value, now)
+            changed += 1
+            budget -= 1
+            if budget <= 0:
+                budget = chunk
+                await asyncio.sleep(0)
+        self.passes += 1
+        return changed
+
+    async def _publish_loop(self) -> None:
+        period = 1.0 / self.config.publish_rate_hz
+        loop = asyncio.get_running_loop()
+        deadline = loop.time()
+        while True:
+            deadline += period
+            try:
+                await self.publish()
+            except Exception:  # keep publishing whatever one pass hit
+                log.exception("OPC UA: publish pass failed")
+            now = loop.time()
+            if deadline < now:  # a slow pass: do not try to catch up
+                deadline = now
+            await asyncio.sleep(deadline - now)
+
+
+class _DiscoveryOnly(PermissionRuleset):
+    """Refuses every service a session uses (discovery and session set-up are never checked)."""
+
+    def check_validity(self, user: Any, action_type_id: Any, body: Any) -> bool:
+        return False
+
+
+def _now() -> datetime:
+    return datetime.now(UTC)
+
+
+def _free_port(host: str) -> int:
+    """An ephemeral TCP port on ``host`` (the endpoint URL must carry the real port)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+__all__ = ["OpcUaFrontend", "Role", "required_role"]

@@ -1,0 +1,238 @@
+"""OPC UA users: password hashes, roles, the user manager and the failed-login limiter.
+
+Password hashes are strings of the form (``motion-server hash-password`` prints one)::
+
+    scrypt$<n>$<r>$<p>$<salt, base64>$<key, base64>
+
+scrypt from :mod:`hashlib` with a random 16-byte salt and a 32-byte key; the default cost
+is n = 2**14, r = 8, p = 1. Verification compares in constant time.
+
+Roles (an :class:`Role` per user, from the site map's ``[[opcua.users]]`` or the users
+secret file):
+
+- ``viewer``: read, browse, subscribe; no writes;
+- ``operator``: also write instruction operands and triggers (``Execute``) and hand-wheel
+  inputs;
+- ``admin``: also the ``Clock`` tags (mode, step).
+
+Anonymous sessions (only when the site map sets ``allow_anonymous``) get the role
+``anonymous_role`` of the site map (viewer by default).
+
+Failed logins are counted per client address: after ``max_failures`` failures within
+``window`` seconds, that address is refused for ``lockout`` seconds (even with the right
+password). Failures are logged with the user name and address, never the password.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import hmac
+import logging
+import secrets
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Any
+
+from asyncua import ua
+from asyncua.crypto.permission_rules import User, UserRole
+from asyncua.server.internal_session import InternalSession
+from asyncua.server.user_managers import UserManager
+
+log = logging.getLogger("motion_server.opcua")
+
+SCRYPT_N = 2**14
+SCRYPT_R = 8
+SCRYPT_P = 1
+SALT_BYTES = 16
+KEY_BYTES = 32
+#: scrypt cost bounds accepted when verifying (a hash outside them is refused, not run)
+MAX_SCRYPT_N = 2**20
+
+
+class Role(IntEnum):
+    """What an OPC UA user may write (each role includes the ones below it)."""
+
+    VIEWER = 0
+    OPERATOR = 1
+    ADMIN = 2
+
+
+def hash_password(password: str, n: int = SCRYPT_N, r: int = SCRYPT_R, p: int = SCRYPT_P) -> str:
+    """A salted scrypt hash of ``password`` in the documented string format."""
+    salt = secrets.token_bytes(SALT_BYTES)
+    key = _scrypt(password, salt, n, r, p)
+    return "$".join(["scrypt", str(n), str(r), str(p), _b64(salt), _b64(key)])
+
+
+def parse_hash(text: str) -> tuple[int, int, int, bytes, bytes]:
+    """(n, r, p, salt, key) of a hash string; ValueError naming what is wrong."""
+    parts = text.split("$")
+    if len(parts) != 6 or parts[0] != "scrypt":
+        raise ValueError("expected scrypt$<n>$<r>$<p>$<salt>$<key> (motion-server hash-password)")
+    try:
+        n, r, p = (int(x) for x in parts[1:4])
+        salt = base64.b64decode(parts[4], validate=True)
+        key = base64.b64decode(parts[5], validate=True)
+    except ValueError:
+        raise ValueError("the cost fields must be integers and salt/key base64") from None
+    if n < 2 or n > MAX_SCRYPT_N or n & (n - 1) or not 1 <= r <= 32 or not 1 <= p <= 16:
+        raise ValueError(f"scrypt cost n={n} r={r} p={p} out of range")
+    if len(salt) < 8 or len(key) < 16:
+        raise ValueError("salt or key too short")
+    return n, r, p, salt, key
+
+
+def verify_password(password: str, hashed: str) -> bool:
+    """True when ``password`` matches ``hashed`` (False for a malformed hash)."""
+    try:
+        n, r, p, salt, key = parse_hash(hashed)
+    except ValueError:
+        return False
+    return hmac.compare_digest(_scrypt(password, salt, n, r, p, len(key)), key)
+
+
+def _scrypt(password: str, salt: bytes, n: int, r: int, p: int, size: int = KEY_BYTES) -> bytes:
+    return hashlib.scrypt(
+        password.encode("utf-8"), salt=salt, n=n, r=r, p=p, maxmem=256 * n * r + 2**20, dklen=size
+    )
+
+
+def _b64(data: bytes) -> str:
+    return base64.b64encode(data).decode("ascii")
+
+
+@dataclass(frozen=True)
+class Account:
+    """One user: name, role and password hash."""
+
+    name: str
+    role: Role
+    password_hash: str
+
+
+@dataclass
+class LoginLimiter:
+    """Failed logins per client address: ``max_failures`` within ``window`` seconds lock
+    the address out for ``lockout`` seconds. ``clock`` is injectable for tests."""
+
+    max_failures: int = 5
+    window: float = 60.0
+    lockout: float = 30.0
+    clock: Callable[[], float] = time.monotonic
+    _failures: dict[str, list[float]] = field(default_factory=dict)
+    _locked_until: dict[str, float] = field(default_factory=dict)
+
+    def locked(self, address: str) -> bool:
+        until = self._locked_until.get(address)
+        if until is None:
+            return False
+        if self.clock() >= until:
+            del self._locked_until[address]
+            self._failures.pop(address, None)
+            return False
+        return True
+
+    def failed(self, address: str) -> None:
+        now = self.clock()
+        recent = [t for t in self._failures.get(address, []) if now - t < self.window]
+        recent.append(now)
+        self._failures[address] = recent
+        if len(recent) >= self.max_failures:
+            self._locked_until[address] = now + self.lockout
+            log.warning(
+                "OPC UA: %d failed logins from %s: refused for %.0f s",
+                len(recent),
+                address,
+                self.lockout,
+            )
+
+    def succeeded(self, address: str) -> None:
+        self._failures.pop(address, None)
+
+
+#: the asyncua role our roles map to: never Admin, so no client may add or delete nodes
+_UA_ROLE = UserRole.User
+
+
+class Directory(UserManager):
+    """The asyncua user manager: checks user name and password against the accounts, and
+    answers anonymous sessions only when allowed. ``role_of(user)`` gives the role of a
+    session's user."""
+
+    def __init__(
+        self,
+        accounts: Iterable[Account],
+        allow_anonymous: bool = False,
+        anonymous_role: Role = Role.VIEWER,
+        limiter: LoginLimiter | None = None,
+    ) -> None:
+        self.accounts = {a.name: a for a in accounts}
+        self.allow_anonymous = allow_anonymous
+        self.anonymous_role = anonymous_role
+        self.limiter = limiter or LoginLimiter()
+        #: the address of the session being activated (set by :class:`PeerSession`)
+        self.peer = "?"
+        # a hash to verify against for unknown names, so their timing matches a known one
+        self._dummy = hash_password(secrets.token_hex(8))
+
+    def get_user(
+        self,
+        iserver: Any,
+        username: str | None = None,
+        password: str | None = None,
+        certificate: Any = None,
+    ) -> User | None:
+        peer = self.peer
+        if username is None:
+            if certificate is not None or not self.allow_anonymous:
+                log.info("OPC UA: anonymous login from %s refused", peer)
+                return None
+            # asyncua's Anonymous role may not even read: anonymous sessions get the User
+            # role without a name, and our own role from ``anonymous_role``
+            return User(role=_UA_ROLE, name=None)
+        if self.limiter.locked(peer):
+            log.warning("OPC UA: login of %r from %s refused: too many failures", username, peer)
+            return None
+        account = self.accounts.get(username)
+        ok = verify_password(password or "", account.password_hash if account else self._dummy)
+        if account is None or not ok:
+            self.limiter.failed(peer)
+            log.warning("OPC UA: failed login of %r from %s", username, peer)
+            return None
+        self.limiter.succeeded(peer)
+        log.info("OPC UA: %s (%s) logged in from %s", username, account.role.name.lower(), peer)
+        return User(role=_UA_ROLE, name=username)
+
+    def role_of(self, user: User | None) -> Role | None:
+        """The role of a session's user (None: no role, may not write)."""
+        if user is None:
+            return None
+        if user.role != _UA_ROLE:
+            return None  # asyncua's internal session (Admin), or a session not activated
+        if user.name is None:
+            return self.anonymous_role if self.allow_anonymous else None
+        account = self.accounts.get(user.name or "")
+        return account.role if account is not None else Role.VIEWER
+
+
+class PeerSession(InternalSession):
+    """An asyncua session that tells the :class:`Directory` which client address is
+    logging in (asyncua names external sessions after the peer address)."""
+
+    def activate_session(
+        self, params: ua.ActivateSessionParameters, peer_certificate: bytes | None
+    ) -> ua.ActivateSessionResult:
+        manager = self.iserver.user_manager
+        if isinstance(manager, Directory):
+            manager.peer = _host(self.name)
+        return super().activate_session(params, peer_certificate)
+
+
+def _host(name: Any) -> str:
+    """The client host of asyncua's session name (the peer address tuple)."""
+    if isinstance(name, tuple) and name:
+        return str(name[0])
+    return str(name)
