@@ -16,11 +16,15 @@ ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "clients" / "examples" / "bench.toml"
 
 
-def manual_site(site: config.SiteMap) -> config.SiteMap:
-    """``site`` with the manual clock, an ephemeral port and no status log."""
+def manual_site(site: config.SiteMap, opcua: dict[str, object] | None = None) -> config.SiteMap:
+    """``site`` with the manual clock, an ephemeral Modbus port and no status log; OPC UA
+    off unless ``opcua`` gives its settings (then on an ephemeral port too)."""
     ctl = site.controller.model_copy(update={"clock": "manual", "status_log_interval": 0.0})
     modbus = site.modbus.model_copy(update={"port": 0, "host": "127.0.0.1"})
-    return site.model_copy(update={"controller": ctl, "modbus": modbus})
+    ua = site.opcua.model_copy(
+        update={"enabled": False} if opcua is None else {"port": 0, "enabled": True, **opcua}
+    )
+    return site.model_copy(update={"controller": ctl, "modbus": modbus, "opcua": ua})
 
 
 def client_map(site: config.SiteMap) -> ClientMap:

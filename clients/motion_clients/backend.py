@@ -137,13 +137,17 @@ class ModbusBackend(Backend):
             raise ClientError(f"write {tag.name} = {value!r} refused by the server: {rr}")
 
 
-#: back-ends by protocol name (OPC UA joins when the server serves it)
+#: back-ends by protocol name (``opcua`` is added by :mod:`.opcua` on import)
 BACKENDS: dict[str, type[Backend]] = {"modbus": ModbusBackend}
 
 
 def make_backend(
     protocol: str, tagmap: ClientMap, host: str = "127.0.0.1", port: int | None = None, **opts: Any
 ) -> Backend:
+    if protocol == "opcua" and protocol not in BACKENDS:
+        from .opcua import OpcUaBackend
+
+        BACKENDS["opcua"] = OpcUaBackend
     try:
         cls = BACKENDS[protocol]
     except KeyError:

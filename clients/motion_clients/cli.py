@@ -124,9 +124,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"motion-client {__version__}")
     p.add_argument("--map", help="tag map: JSON export, or site map TOML (default: demo)")
-    p.add_argument("--protocol", choices=sorted(BACKENDS), default="modbus")
+    p.add_argument("--protocol", choices=sorted({*BACKENDS, "opcua"}), default="modbus")
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--port", type=int, help="server port (default: the protocol's)")
+    p.add_argument("--user", help="OPC UA user name")
+    p.add_argument("--password", help="OPC UA password")
+    p.add_argument("--security", default="Basic256Sha256", help="OPC UA: Basic256Sha256 or None")
+    p.add_argument("--cert-dir", help="OPC UA: folder of the client certificate")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("read", help="read tags (an owner name reads all its tags)")
     r.add_argument("tags", nargs="+")
@@ -156,7 +160,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 async def _run(args: argparse.Namespace, tagmap: ClientMap) -> int:
-    async with MotionClient.connect(tagmap, args.protocol, args.host, args.port) as mc:
+    opts = {"user": args.user, "password": args.password, "security": args.security}
+    opts["cert_dir"] = args.cert_dir
+    async with MotionClient.connect(tagmap, args.protocol, args.host, args.port, **opts) as mc:
         return await COMMANDS[args.command](args, mc)
 
 

@@ -106,14 +106,29 @@ def parser(name: str, doc: str) -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, help="server port (default: the protocol's)")
     p.add_argument("--protocol", default="modbus")
     p.add_argument("--map", help="JSON map export or site map TOML (default: bench.toml)")
+    p.add_argument("--user", help="OPC UA user name")
+    p.add_argument("--password", help="OPC UA password")
+    p.add_argument("--security", default="Basic256Sha256", help="OPC UA: Basic256Sha256 or None")
+    p.add_argument("--cert-dir", help="OPC UA: folder of the client certificate")
     return p
+
+
+def options(args: argparse.Namespace) -> dict[str, object]:
+    """Back-end options from the command line (OPC UA's; Modbus ignores them)."""
+    return {
+        "user": args.user,
+        "password": args.password,
+        "security": args.security,
+        "cert_dir": args.cert_dir,
+    }
 
 
 async def _run(
     args: argparse.Namespace, name: str, tags: Sequence[str], body: Body, every: int, out: Path
 ) -> int:
     tagmap = ClientMap.load(args.map)
-    async with MotionClient.connect(tagmap, args.protocol, args.host, args.port) as mc:
+    mc_ = MotionClient.connect(tagmap, args.protocol, args.host, args.port, **options(args))
+    async with mc_ as mc:
         previous = await mc.clock_mode()
         await mc.set_manual()
         sc = Scenario(name, mc, tags, every)
@@ -137,10 +152,14 @@ def run_example(
     body: Body,
     argv: Sequence[str] | None = None,
     every: int = 5,
+    defaults: dict[str, object] | None = None,
 ) -> int:
-    """Run one example script: ``file`` is its ``__file__`` (its name names the outputs)."""
+    """Run one example script: ``file`` is its ``__file__`` (its name names the outputs);
+    ``defaults`` sets argument defaults (example 10: OPC UA and the bench user)."""
     name = Path(file).stem
-    args = parser(name, doc).parse_args(argv)
+    p = parser(name, doc)
+    p.set_defaults(**(defaults or {}))
+    args = p.parse_args(argv)
     if args.map is None:
         args.map = str(Path(file).with_name("bench.toml"))
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix=f"{name}-"))

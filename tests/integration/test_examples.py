@@ -36,22 +36,28 @@ def load_main(path: Path) -> Callable[[list[str]], int]:
     return main
 
 
-def run(name: str, tmp_path: Path) -> Trace:
+def run(name: str, tmp_path: Path, opcua: bool = False) -> Trace:
     """Run example ``name`` against a fresh bench server; its trace."""
     path = next(p for p in EXAMPLES if p.stem == name)
-    site = manual_site(config.load(BENCH))
+    ua = {"data_dir": str(tmp_path / "opcua-data")} if opcua else None
+    site = manual_site(config.load(BENCH), opcua=ua)
     map_file = tmp_path / "bench-map.json"
     map_file.write_text(json.dumps(to_dict(build_tagmap(site))), "utf-8")
     with ServerThread(site) as srv:
-        rc = load_main(path)(["--port", str(srv.port), "--map", str(map_file), str(tmp_path)])
+        argv = ["--port", str(srv.port), "--map", str(map_file), str(tmp_path)]
+        if opcua:
+            assert srv.runtime is not None and srv.runtime.opcua is not None
+            argv[1] = str(srv.runtime.opcua.port)
+            argv += ["--cert-dir", str(tmp_path / "client")]
+        rc = load_main(path)(argv)
     assert rc == 0, f"{name}: its own checks failed (see its output)"
     png = tmp_path / f"{name}.png"
     assert is_png(png) and png.stat().st_size > 5000
     return Trace.read_csv(tmp_path / f"{name}.csv")
 
 
-def test_examples_01_to_09_are_all_here() -> None:
-    assert [p.stem[:2] for p in EXAMPLES][:9] == [f"{i:02d}" for i in range(1, 10)]
+def test_examples_01_to_10_are_all_here() -> None:
+    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 11)]
 
 
 def test_01_power_and_jog(tmp_path: Path) -> None:
@@ -202,3 +208,20 @@ def test_09_mdac_changes_the_master_at_the_next_motion_instruction(tmp_path: Pat
     dv = [abs(b - a) for a, b in itertools.pairwise(v[switch - 1 :])]
     assert max(dv) <= 0.05 * 80.0 * 0.01 * 80.0 + 1e-6
     assert math.isfinite(sum(v))
+
+
+def test_10_opcua_scada_subscription(tmp_path: Path) -> None:
+    """Over OPC UA (Basic256Sha256, the bench user); the example itself checks what the
+    subscription delivered. The trace: the slave geared at 0.5 · 100 = 50 mm/s."""
+    t = run("10_opcua_scada_subscription", tmp_path, opcua=True)
+    ip = t.column("MAG_1.IP")
+    vm, v = t.column("Master.CommandVelocity"), t.column("Slave.CommandVelocity")
+    geared = ip.index(1.0)
+    for a, b in zip(vm[geared:], v[geared:], strict=True):
+        assert b == pytest.approx(0.5 * a, abs=1e-9)  # no clutch: locked at once
+    k = next(i for i in range(geared, len(t)) if vm[i] == pytest.approx(100.0, abs=1e-9))
+    assert v[-1] == pytest.approx(50.0, abs=1e-9)
+    p = t.column("Slave.CommandPosition")
+    # 5 cycles of 2 ms at 50 mm/s between samples: 0.5 mm
+    for a, b in itertools.pairwise(p[k:]):
+        assert b - a == pytest.approx(0.5, abs=1e-9)
