@@ -16,6 +16,19 @@ ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "clients" / "examples" / "bench.toml"
 
 
+class BenchServer(ServerThread):
+    """A :class:`ServerThread` that waits longer for its start: the OPC UA front-end
+    builds a large address space (and a certificate on first start) on a busy machine."""
+
+    START_TIMEOUT = 60.0
+
+    def __enter__(self) -> BenchServer:
+        self._thread.start()
+        if not self._ready.wait(self.START_TIMEOUT) or self._error is not None:
+            raise RuntimeError(f"server did not start: {self._error!r}")
+        return self
+
+
 def manual_site(site: config.SiteMap, opcua: dict[str, object] | None = None) -> config.SiteMap:
     """``site`` with the manual clock, an ephemeral Modbus port and no status log; OPC UA
     off unless ``opcua`` gives its settings (then on an ephemeral port too)."""
@@ -35,5 +48,5 @@ def client_map(site: config.SiteMap) -> ClientMap:
 def serving(site: config.SiteMap) -> Iterator[tuple[ServerThread, ClientMap]]:
     """``with serving(site) as (server, tagmap):`` — ``server.port`` is the bound port."""
     site = manual_site(site)
-    with ServerThread(site) as srv:
+    with BenchServer(site) as srv:
         yield srv, client_map(site)

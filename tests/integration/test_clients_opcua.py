@@ -15,15 +15,14 @@ import pytest
 from motion_clients import ClientError, ClientMap, MotionClient
 from motion_server import config
 from motion_server.kernel.errors import ERROR_TEXT, ErrorCode
-from tests.clients_support import BENCH, client_map, manual_site
-from tests.modbus_support import ServerThread
+from tests.clients_support import BENCH, BenchServer, client_map, manual_site
 
 
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[int, ClientMap, Path]]:
     tmp = tmp_path_factory.mktemp("opcua")
     site = manual_site(config.load(BENCH), opcua={"data_dir": str(tmp / "data")})
-    with ServerThread(site) as srv:
+    with BenchServer(site) as srv:
         assert srv.runtime is not None and srv.runtime.opcua is not None
         yield srv.runtime.opcua.port, client_map(site), tmp / "client"
 

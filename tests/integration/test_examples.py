@@ -20,8 +20,7 @@ from motion_clients.plot import is_png
 from motion_clients.trace import Trace
 from motion_server import config
 from motion_server.tagmap import build_tagmap, to_dict
-from tests.clients_support import BENCH, ROOT, manual_site
-from tests.modbus_support import ServerThread
+from tests.clients_support import BENCH, ROOT, BenchServer, manual_site
 
 EXAMPLES = sorted((ROOT / "clients" / "examples").glob("[0-9][0-9]_*.py"))
 DT = 0.002
@@ -43,7 +42,7 @@ def run(name: str, tmp_path: Path, opcua: bool = False) -> Trace:
     site = manual_site(config.load(BENCH), opcua=ua)
     map_file = tmp_path / "bench-map.json"
     map_file.write_text(json.dumps(to_dict(build_tagmap(site))), "utf-8")
-    with ServerThread(site) as srv:
+    with BenchServer(site) as srv:
         argv = ["--port", str(srv.port), "--map", str(map_file), str(tmp_path)]
         if opcua:
             assert srv.runtime is not None and srv.runtime.opcua is not None
