@@ -12,6 +12,7 @@ import json
 from importlib import resources
 from typing import Any
 
+from ..kernel.errors import ERROR_TEXT
 from .model import MAP_FORMAT, Block, Tag, TagMap
 
 FORMATS = ("json", "csv", "md", "nodeset")
@@ -71,6 +72,8 @@ def to_dict(tagmap: TagMap) -> dict[str, Any]:
         },
         "opcua": {"namespace_uri": tagmap.namespace_uri},
         "tags": [tag_record(t) for t in tagmap],
+        # the meaning of ERR / ErrorID values, so that clients can explain an outcome
+        "errors": {str(int(code)): text for code, text in ERROR_TEXT.items()},
     }
 
 

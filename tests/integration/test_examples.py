@@ -1,0 +1,226 @@
+"""Every example against its own fresh server (bench.toml, manual clock, ephemeral port).
+
+Each example must exit 0 (its own checks held) and leave a trace CSV and a valid PNG; the
+tests below then check the trace independently, with numbers from the seeds and from
+first principles (2 ms cycles, samples every 5 cycles).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from motion_clients.plot import is_png
+from motion_clients.trace import Trace
+from motion_server import config
+from motion_server.tagmap import build_tagmap, to_dict
+from tests.clients_support import BENCH, ROOT, BenchServer, manual_site
+
+EXAMPLES = sorted((ROOT / "clients" / "examples").glob("[0-9][0-9]_*.py"))
+DT = 0.002
+
+
+def load_main(path: Path) -> Callable[[list[str]], int]:
+    spec = importlib.util.spec_from_file_location(f"example_{path.stem}", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    main: Callable[[list[str]], int] = module.main
+    return main
+
+
+def run(name: str, tmp_path: Path, opcua: bool = False) -> Trace:
+    """Run example ``name`` against a fresh bench server; its trace."""
+    path = next(p for p in EXAMPLES if p.stem == name)
+    ua = {"data_dir": str(tmp_path / "opcua-data")} if opcua else None
+    site = manual_site(config.load(BENCH), opcua=ua)
+    map_file = tmp_path / "bench-map.json"
+    map_file.write_text(json.dumps(to_dict(build_tagmap(site))), "utf-8")
+    with BenchServer(site) as srv:
+        argv = ["--port", str(srv.port), "--map", str(map_file), str(tmp_path)]
+        if opcua:
+            assert srv.runtime is not None and srv.runtime.opcua is not None
+            argv[1] = str(srv.runtime.opcua.port)
+            argv += ["--cert-dir", str(tmp_path / "client")]
+        rc = load_main(path)(argv)
+    assert rc == 0, f"{name}: its own checks failed (see its output)"
+    png = tmp_path / f"{name}.png"
+    assert is_png(png) and png.stat().st_size > 5000
+    return Trace.read_csv(tmp_path / f"{name}.csv")
+
+
+def test_examples_01_to_10_are_all_here() -> None:
+    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 11)]
+
+
+def test_01_power_and_jog(tmp_path: Path) -> None:
+    t = run("01_power_and_jog", tmp_path)
+    ip = t.column("MAJ_1.IP")
+    cycles = t.column("cycle")
+    pos = t.column("Slave.CommandPosition")
+    first = ip.index(1.0)  # sampled right after the jog's first cycle
+    c0 = cycles[first] - 1
+    # trapezoidal jog, v = 100 mm/s, a = 1000 mm/s²: x(t) = 500 t² up to 0.1 s, then
+    # 5 + 100 (t - 0.1); the first sample is one cycle in: x = 500 · 0.002² = 0.002 mm
+    p0 = pos[first] - 500.0 * DT**2
+    for k in range(first, len(t)):
+        if not ip[k]:
+            break
+        tt = (cycles[k] - c0) * DT
+        expect = 500.0 * tt * tt if tt <= 0.1 else 5.0 + 100.0 * (tt - 0.1)
+        assert pos[k] - p0 == pytest.approx(expect, abs=1e-9)
+    # at the end: at rest, the stop covered v²/2d = 5 mm after 25 mm of jog
+    assert pos[-1] - p0 == pytest.approx(30.0, abs=1e-9)
+    assert t.column("Slave.ActualPosition")[-1] == pytest.approx(pos[-1], abs=1e-3)
+    # the actual trails the command while moving (a real drive lag)
+    lag = [c - a for c, a in zip(pos, t.column("Slave.ActualPosition"), strict=True)]
+    assert max(lag) > 0.1
+
+
+def test_02_mag_fraction_ratio_is_exact_in_counts(tmp_path: Path) -> None:
+    t = run("02_mag_fraction_ratio", tmp_path)
+    master = [round(p * 1000) for p in t.column("Master.CommandPosition")]
+    slave = [round(p * 1000) for p in t.column("Slave.CommandPosition")]
+    moving = [k for k in range(len(t)) if master[k] != master[0]]
+    k0 = moving[0] - 1
+    for k in moving:
+        assert slave[k] - slave[k0] == (master[k] - master[k0]) // 3
+    assert master[-1] - master[k0] > 90_000  # about a second at 100 mm/s
+    assert t.column("Slave.CommandVelocity")[-1] == pytest.approx(100.0 / 3.0, abs=1e-6)
+
+
+def test_03_mag_clutch_ramps_at_accel_rate_and_reverses(tmp_path: Path) -> None:
+    t = run("03_mag_clutch_and_reverse", tmp_path)
+    v = t.column("Slave.CommandVelocity")
+    dv = [b - a for a, b in itertools.pairwise(v)]
+    # 5 cycles between samples: at most 500 mm/s² · 0.01 s = 5 mm/s per sample
+    assert max(abs(d) for d in dv) <= 5.0 + 1e-9
+    assert 50.0 in [round(x, 9) for x in v] and v[-1] == pytest.approx(-50.0, abs=1e-9)
+    # the reversal from +50 to -50 takes 100 / 500 = 0.2 s: 20 samples of 5 cycles
+    last_plus = max(k for k, x in enumerate(v) if x == pytest.approx(50.0, abs=1e-9))
+    first_minus = min(k for k, x in enumerate(v) if x == pytest.approx(-50.0, abs=1e-9))
+    span = t.column("cycle")[first_minus] - t.column("cycle")[last_plus]
+    assert 100 <= span <= 105  # 100 cycles of ramp, plus the sample spacing
+
+
+def test_04_gear_in_follows_the_hand_wheel_one_to_one(tmp_path: Path) -> None:
+    t = run("04_mc_gearin_handwheel", tmp_path)
+    wheel = t.column("HandWheel.ActualPosition")
+    slave = t.column("PSlave.CommandPosition")
+    start = t.column("GearIn_1.InGear").index(1.0)
+    for k in range(start, len(t)):
+        assert slave[k] - slave[start] == pytest.approx(wheel[k] - wheel[start], abs=1e-9)
+    assert max(wheel) - wheel[start] == pytest.approx(20.0, abs=1e-9)
+    assert wheel[-1] - wheel[start] == pytest.approx(5.0, abs=1e-9)
+
+
+def test_05_gear_out_keeps_the_velocity_until_mc_stop(tmp_path: Path) -> None:
+    t = run("05_mc_gearout_keeps_velocity", tmp_path)
+    state = t.column("PSlave.PLCopenState")
+    v = t.column("PSlave.CommandVelocity")
+    master = t.column("PMaster.CommandVelocity")
+    free = [k for k, s in enumerate(state) if s == 7]  # ContinuousMotion after GearOut
+    assert free and all(v[k] == pytest.approx(200.0, abs=1e-9) for k in free)
+    assert min(master[k] for k in free) == pytest.approx(20.0, abs=1e-9)  # master slowed
+    assert 8.0 in state[: free[0]]  # SynchronizedMotion before
+    assert state[-1] == 2.0 and v[-1] == 0.0
+
+
+def test_06_gear_in_pos_rotary_seed_example(tmp_path: Path) -> None:
+    t = run("06_mc_gearinpos_rotary", tmp_path)
+    m = t.column("RotMaster.CommandPosition")
+    s = t.column("RotSlave.CommandPosition")
+    start = t.column("GearInPos_1.StartSync").index(1.0)
+    sync = t.column("GearInPos_1.InSync").index(1.0)
+    # the slave waits at 45° until the master passes 270° (360° - 90° start distance);
+    # the block sees the master's actual position at the cycle start, 0.36° behind
+    assert all(x == pytest.approx(45.0, abs=1e-9) for x in s[start - 5 : start])
+    assert m[start - 1] - 0.36 < 270.0 <= m[start] - 0.36 + 1e-9
+    # locked on once the master wrapped past 360°: 90° ahead of the master's actual
+    # position sampled at the cycle start (one cycle, 0.36°, behind its command)
+    assert m[sync] < 90.0
+    for k in range(sync, len(t)):
+        assert s[k] == pytest.approx((m[k] - 0.36 + 90.0) % 360.0, abs=1e-6)
+
+
+def test_07_combine_axes_adds_then_subtracts(tmp_path: Path) -> None:
+    t = run("07_mc_combineaxes_add_sub", tmp_path)
+    v1, v2 = t.column("PMaster.CommandVelocity"), t.column("PMaster2.CommandVelocity")
+    vs = t.column("PSlave.CommandVelocity")
+    added = [k for k in range(len(t)) if vs[k] == pytest.approx(130.0, abs=1e-9)]
+    subtracted = [k for k in range(len(t)) if vs[k] == pytest.approx(70.0, abs=1e-9)]
+    assert added and subtracted and added[-1] < subtracted[0]
+    for k in added:
+        assert vs[k] == pytest.approx(v1[k] + v2[k], abs=1e-9)
+    for k in subtracted:
+        assert vs[k] == pytest.approx(v1[k] - v2[k], abs=1e-9)
+    # in sync, each slave increment is the masters' increments combined
+    p1, p2 = t.column("PMaster.CommandPosition"), t.column("PMaster2.CommandPosition")
+    ps = t.column("PSlave.CommandPosition")
+    for k in subtracted[1:]:
+        d = (p1[k] - p1[k - 1]) - (p2[k] - p2[k - 1])
+        assert ps[k] - ps[k - 1] == pytest.approx(d, abs=1e-9)
+
+
+def test_08_mgs_programmed_stop_modes(tmp_path: Path) -> None:
+    t = run("08_mgs_programmed_modes", tmp_path)
+    ip = t.column("MGS_1.IP")
+    pc = t.column("MGS_1.PC")
+    k0 = ip.index(1.0)  # the sample right after the MGS scan
+    final = {"FastStop": 2, "FastDisable": 0, "HardDisable": 0, "FastShutdown": 4}
+    final["HardShutdown"] = 4
+    for name, state in final.items():
+        assert t.column(f"{name}.AxisState")[-1] == state
+        assert t.column(f"{name}.ActualVelocity")[-1] == pytest.approx(0.0, abs=1e-9)
+    # hard modes: the drive is off at the first scan (Axis Ready / Shutdown at once)
+    assert t.column("HardDisable.AxisState")[k0] == 0
+    assert t.column("HardShutdown.AxisState")[k0] == 4
+    # fast stop: at rest after V/D = 25 cycles, 2.5 mm on (sampled 1 cycle after the scan)
+    pos = t.column("FastStop.CommandPosition")
+    cycles = t.column("cycle")
+    rest = next(k for k in range(k0, len(t)) if pos[k] == pos[-1])
+    assert cycles[rest] - cycles[k0] + 1 <= 25 + 4
+    assert cycles[rest - 1] - cycles[k0] + 1 < 25
+    # coasting at C = 500 mm/s² from 100 mm/s takes up to 0.2 s: PC within 100 cycles + 5
+    done = pc.index(1.0)
+    assert 25 < cycles[done] - cycles[k0] + 1 <= 105
+    assert not any(ip[done:])
+
+
+def test_09_mdac_changes_the_master_at_the_next_motion_instruction(tmp_path: Path) -> None:
+    t = run("09_mdac_change_master", tmp_path)
+    v = t.column("Slave.CommandVelocity")
+    ac1, ac2 = t.column("MDAC_1.AC"), t.column("MDAC_2.AC")
+    switch = ac2.index(1.0)
+    assert all(a == 0.0 for a in ac1[switch:])
+    # before the switch the slave tracks A at 0.5 · 100, after it B at 1.0 · 80
+    assert v[switch - 1] == pytest.approx(50.0, abs=1e-9)
+    assert v[-1] == pytest.approx(80.0, abs=1e-9)
+    assert t.column("MAJ_2.TrackingMaster")[-1] == 1.0
+    # no jump at the switch: at most 0.05 mm/mm per master mm (80 mm/s · 0.01 s) per sample
+    dv = [abs(b - a) for a, b in itertools.pairwise(v[switch - 1 :])]
+    assert max(dv) <= 0.05 * 80.0 * 0.01 * 80.0 + 1e-6
+    assert math.isfinite(sum(v))
+
+
+def test_10_opcua_scada_subscription(tmp_path: Path) -> None:
+    """Over OPC UA (Basic256Sha256, the bench user); the example itself checks what the
+    subscription delivered. The trace: the slave geared at 0.5 · 100 = 50 mm/s."""
+    t = run("10_opcua_scada_subscription", tmp_path, opcua=True)
+    ip = t.column("MAG_1.IP")
+    vm, v = t.column("Master.CommandVelocity"), t.column("Slave.CommandVelocity")
+    geared = ip.index(1.0)
+    for a, b in zip(vm[geared:], v[geared:], strict=True):
+        assert b == pytest.approx(0.5 * a, abs=1e-9)  # no clutch: locked at once
+    k = next(i for i in range(geared, len(t)) if vm[i] == pytest.approx(100.0, abs=1e-9))
+    assert v[-1] == pytest.approx(50.0, abs=1e-9)
+    p = t.column("Slave.CommandPosition")
+    # 5 cycles of 2 ms at 50 mm/s between samples: 0.5 mm
+    for a, b in itertools.pairwise(p[k:]):
+        assert b - a == pytest.approx(0.5, abs=1e-9)
