@@ -1,13 +1,25 @@
-"""Shared fixtures."""
+"""Shared fixtures, and the hypothesis profiles.
+
+Property tests explore new random examples on every local run; under CI (``CI`` set, as
+`.ci/run` runs) they are derandomised, so a landing is judged on reproducible examples.
+A failure found locally prints the example to add as a regression test.
+"""
 
 from __future__ import annotations
 
+import os
+
 import pytest
+from hypothesis import settings
 
 from motion_server.instructions import MotionSystem
 from motion_server.kernel import AxisConfig, AxisType
 
 from .support import make_system
+
+settings.register_profile("ci", derandomize=True, print_blob=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 
 
 @pytest.fixture
