@@ -5,7 +5,7 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import ClassVar
 
-from ..kernel import Axis, ErrorCode, MotionError, Pending, ProcessState
+from ..kernel import Axis, ErrorCode, Limits, MotionError, Pending, ProcessState
 from ..kernel.controller import ProcessFactory
 from ..kernel.processes import Process
 from .base import BlockEvent, PLCopenBlock
@@ -60,6 +60,16 @@ class MotionBlock(PLCopenBlock):
                 ErrorCode.NOT_ALLOWED_WHILE_STOPPING,
                 f"{ax.name} is stopping: motion commands are refused",
             )
+
+    def limits(self, velocity: float | None = None) -> Limits:
+        """Velocity (or ``velocity``), Acceleration, Deceleration and Jerk as validated
+        profile limits."""
+        return Limits(
+            float(self.op["Velocity"]) if velocity is None else velocity,
+            float(self.op["Acceleration"]),
+            float(self.op["Deceleration"]),
+            float(self.op["Jerk"]),
+        ).validated()
 
     def begin(self, ax: Axis, make: ProcessFactory) -> None:
         mode = int(self.op.get("BufferMode", BufferMode.ABORTING))

@@ -10,7 +10,6 @@ import math
 
 from ...kernel import MoveProcess
 from ...kernel.processes import Process
-from ...kernel.profiles import Limits
 from ..operands import AXIS, plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, MCDirection, MotionBlock
 from ..registry import register
@@ -37,12 +36,7 @@ class MC_MoveAbsolute(MotionBlock):
         if rollover > 0.0 and not 0.0 <= target < rollover:
             raise self.out_of_range("Position", f"rotary target must be in [0, {rollover})")
         direction = MCDirection(int(self.op["Direction"]))
-        limits = Limits(
-            float(self.op["Velocity"]),
-            float(self.op["Acceleration"]),
-            float(self.op["Deceleration"]),
-            float(self.op["Jerk"]),
-        ).validated()
+        limits = self.limits()
         dt = self.ctl.dt(ax)
 
         def make(v: float, a: float) -> Process:

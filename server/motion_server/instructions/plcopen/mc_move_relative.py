@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from ...kernel import MoveProcess
 from ...kernel.processes import Process
-from ...kernel.profiles import Limits
 from ..operands import AXIS, plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, MotionBlock
 from ..registry import register
@@ -30,12 +29,7 @@ class MC_MoveRelative(MotionBlock):
         ax = self.axis()
         self.check_axis(ax)
         distance = float(self.op["Distance"])
-        limits = Limits(
-            float(self.op["Velocity"]),
-            float(self.op["Acceleration"]),
-            float(self.op["Deceleration"]),
-            float(self.op["Jerk"]),
-        ).validated()
+        limits = self.limits()
         dt = self.ctl.dt(ax)
 
         def make(v: float, a: float) -> Process:

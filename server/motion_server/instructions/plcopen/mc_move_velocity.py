@@ -16,7 +16,6 @@ from typing import Any
 
 from ...kernel import Controller, JogProcess
 from ...kernel.processes import Process
-from ...kernel.profiles import Limits
 from ..operands import AXIS, plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, MotionBlock
 from ..registry import register
@@ -66,12 +65,7 @@ class MC_MoveVelocity(MotionBlock):
         self.check_axis(ax)
         speed = float(self.op["Velocity"])
         direction = VelocityDirection(int(self.op["Direction"]))
-        limits = Limits(
-            speed or ax.config.max_velocity,
-            float(self.op["Acceleration"]),
-            float(self.op["Deceleration"]),
-            float(self.op["Jerk"]),
-        ).validated()
+        limits = self.limits(speed or ax.config.max_velocity)
         dt = self.ctl.dt(ax)
 
         def make(v: float, a: float) -> Process:
