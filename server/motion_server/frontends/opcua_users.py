@@ -242,6 +242,13 @@ class PeerSession(InternalSession):
         with writing_as(self.client_info()):
             return await super().write(params)
 
+    async def close_session(self, delete_subs: bool = True) -> None:
+        """Close, and always delete the session's subscriptions: a CloseSession with
+        DeleteSubscriptions false would leave them publishing for their whole lifetime
+        (minutes) and counting against ``max_subscriptions``, so a client could exhaust
+        them. (asyncua deletes them on a lost connection too; no transfer after close.)"""
+        await super().close_session(True)
+
     def activate_session(
         self, params: ua.ActivateSessionParameters, peer_certificate: bytes | None
     ) -> ua.ActivateSessionResult:
