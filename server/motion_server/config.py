@@ -292,6 +292,11 @@ class OpcUaSection(_Model):
     #: node updates per chunk before the publisher yields to the event loop
     chunk_size: Annotated[int, Field(ge=1, le=100000)] = 500
     max_sessions: Annotated[int, Field(ge=1, le=10000)] = 100
+    #: transport limits (asyncua's defaults allow 100 MB messages): the largest chunk
+    #: (OPC UA's minimum is 8192 bytes), chunks per message and message size we accept
+    max_chunk_size: Annotated[int, Field(ge=8192, le=1 << 24)] = 65535
+    max_chunk_count: Annotated[int, Field(ge=1, le=100000)] = 64
+    max_message_size: Annotated[int, Field(ge=8192, le=100 << 20)] = 4 << 20
     max_subscriptions: Annotated[int, Field(ge=1, le=10000)] = 100
     max_session_timeout_s: Annotated[float, Field(ge=5.0, le=86400.0)] = 600.0
     #: failed logins per client address within ``login_window_s`` before a lockout

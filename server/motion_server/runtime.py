@@ -23,10 +23,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import logging
 import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from . import __version__
 from .config import SiteMap, opcua_users
@@ -249,10 +250,13 @@ class Runtime:
                 await self.modbus.start()
             ucfg = self.site.opcua
             if ucfg.enabled if opcua is None else opcua:
-                self.opcua = OpcUaFrontend(self.image, ucfg, opcua_users(self.site))
+                self.opcua = OpcUaFrontend(
+                    self.image, ucfg, opcua_users(self.site), audit=self.audit
+                )
                 await self.opcua.start()
             self.ready.set()
-            await self.run()
+            with frozen_heap():
+                await self.run()
         finally:
             if self.opcua is not None:
                 await self.opcua.stop()
@@ -313,6 +317,30 @@ class Runtime:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, self.request_stop)
+
+
+_frozen_by = 0
+
+
+@contextlib.contextmanager
+def frozen_heap() -> Iterator[None]:
+    """Keep the start-up heap out of the garbage collector while the loop runs.
+
+    A served site holds several hundred thousand tracked objects (asyncua's address space
+    alone is most of them); a full collection scans them all and stops the loop for
+    hundreds of milliseconds, far past the catch-up bound, so cycles would be dropped
+    whenever one ran. Frozen objects are never scanned; what the server allocates later is
+    still collected. Nested uses (several runtimes in one process) unfreeze with the last.
+    """
+    global _frozen_by
+    _frozen_by += 1
+    gc.freeze()
+    try:
+        yield
+    finally:
+        _frozen_by -= 1
+        if not _frozen_by:
+            gc.unfreeze()
 
 
 def _resolve(fut: asyncio.Future[None]) -> None:

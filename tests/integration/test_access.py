@@ -140,8 +140,9 @@ async def test_an_idle_connection_is_closed_after_the_timeout(serve) -> None:  #
     rt, _, _ = await serve("\n[modbus.access]\nidle_timeout = 0.3\n")
     assert rt.modbus is not None
     loop = asyncio.get_running_loop()
-    reader, writer = await asyncio.open_connection("127.0.0.1", rt.modbus.port)
+    # the server starts the idle clock when it accepts, before open_connection returns
     t0 = loop.time()
+    reader, writer = await asyncio.open_connection("127.0.0.1", rt.modbus.port)
     assert await asyncio.wait_for(reader.read(10), 5.0) == b""  # EOF: the server closed
     waited = loop.time() - t0
     assert 0.3 <= waited < 2.0

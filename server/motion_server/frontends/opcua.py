@@ -61,13 +61,16 @@ from pathlib import Path
 from typing import Any
 
 from asyncua import Server, ua
+from asyncua.common.connection import TransportLimits
 from asyncua.crypto.cert_gen import setup_self_signed_certificate
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
 from asyncua.server.internal_session import InternalSession
+from asyncua.ua import status_codes
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from ..config import OpcUaSection, OpcUaUser
+from ..safety.audit import AuditLog
 from ..tagmap import BadValueError, Folder, ReadOnlyError, Tag, TagImage
 from ..tagmap.nodeset import enum_text
 from .opcua_space import VARIANT_TYPES, build_space, variant
@@ -119,8 +122,11 @@ class OpcUaFrontend:
         image: TagImage,
         config: OpcUaSection | None = None,
         users: Iterable[OpcUaUser] | None = None,
+        audit: AuditLog | None = None,
     ) -> None:
         self.image = image
+        #: refused writes are audited here (accepted ones through the image's observers)
+        self.audit = audit
         cfg = config or OpcUaSection()
         if (cfg.allow_anonymous or cfg.allow_none_endpoint) and not (
             cfg.allow_insecure_remote or _is_loopback(cfg.host)
@@ -166,6 +172,13 @@ class OpcUaFrontend:
         cfg = self.config
         server = Server(user_manager=self.directory)
         self._server = server
+        # far below asyncua's 100 MB: a hostile peer cannot make us buffer much
+        server.limits = TransportLimits(
+            max_recv_buffer=cfg.max_chunk_size,
+            max_send_buffer=cfg.max_chunk_size,
+            max_chunk_count=cfg.max_chunk_count,
+            max_message_size=cfg.max_message_size,
+        )
         await server.init()
         iserver = server.iserver
         iserver.max_connections = cfg.max_sessions
@@ -301,6 +314,9 @@ class OpcUaFrontend:
             code = await self._write_tag(pub, wv, user)
             if not code.is_good():
                 self.refused += 1
+                if self.audit is not None:
+                    reason = status_codes.get_name_and_doc(code.value)[0]
+                    self.audit.refused(reason, tag=pub.tag.name)
             results.append(code)
         return results
 

@@ -26,8 +26,10 @@ password). Failures are logged with the user name and address, never the passwor
 from __future__ import annotations
 
 import base64
+import dataclasses
 import hashlib
 import hmac
+import itertools
 import logging
 import secrets
 import time
@@ -40,6 +42,8 @@ from asyncua import ua
 from asyncua.crypto.permission_rules import User, UserRole
 from asyncua.server.internal_session import InternalSession
 from asyncua.server.user_managers import UserManager
+
+from ..safety.client import ClientInfo, writing_as
 
 log = logging.getLogger("motion_server.opcua")
 
@@ -220,7 +224,30 @@ class Directory(UserManager):
 
 class PeerSession(InternalSession):
     """An asyncua session that tells the :class:`Directory` which client address is
-    logging in (asyncua names external sessions after the peer address)."""
+    logging in (asyncua names external sessions after the peer address), and serves its
+    writes :func:`writing_as` its client, so the audit log and the per-connection
+    watchdogs know who wrote. Each session is one connection (a fresh number)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        host, port = _peer(self.name)
+        self.client = ClientInfo("opcua", host, port, next(_connection_numbers))
+
+    def client_info(self) -> ClientInfo:
+        """The session's client with the user logged in (``anonymous`` without a name)."""
+        user = self.user.name if self.user is not None else None
+        return dataclasses.replace(self.client, user=user or "anonymous")
+
+    async def write(self, params: ua.WriteParameters) -> list[ua.StatusCode]:
+        with writing_as(self.client_info()):
+            return await super().write(params)
+
+    async def close_session(self, delete_subs: bool = True) -> None:
+        """Close, and always delete the session's subscriptions: a CloseSession with
+        DeleteSubscriptions false would leave them publishing for their whole lifetime
+        (minutes) and counting against ``max_subscriptions``, so a client could exhaust
+        them. (asyncua deletes them on a lost connection too; no transfer after close.)"""
+        await super().close_session(True)
 
     def activate_session(
         self, params: ua.ActivateSessionParameters, peer_certificate: bytes | None
@@ -233,6 +260,16 @@ class PeerSession(InternalSession):
 
 def _host(name: Any) -> str:
     """The client host of asyncua's session name (the peer address tuple)."""
+    return _peer(name)[0]
+
+
+def _peer(name: Any) -> tuple[str, int]:
+    """Host and port of asyncua's session name (the peer address tuple)."""
     if isinstance(name, tuple) and name:
-        return str(name[0])
-    return str(name)
+        port = name[1] if len(name) > 1 and isinstance(name[1], int) else 0
+        return str(name[0]), port
+    return str(name), 0
+
+
+#: OPC UA connection numbers (sessions), unique for the server's life
+_connection_numbers = itertools.count(1)

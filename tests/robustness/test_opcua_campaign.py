@@ -1,0 +1,371 @@
+"""Malformed and abusive OPC UA traffic against a running server (loopback only).
+
+Batches of one kind of abuse each, reproducible from a seed (``MOTION_FUZZ_SEED``, default
+20250131), at least 2,000 messages per run (``MOTION_FUZZ_LONG=1``: ten times as many).
+The server runs the realtime clock with transport limits far below asyncua's 100 MB
+default (8 KiB chunks, 8 chunks, 32 KiB messages) and a session limit. After every batch
+a proper client (Basic256Sha256 SignAndEncrypt, user name) that stayed connected reads
+``Diagnostics.DroppedCycles`` within 1 s and finds 0 (no cycle was late beyond the
+catch-up bound), and a fresh secure client can still connect and log in. Counts and
+checks are printed (``pytest -s`` shows them).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import random
+import struct
+import threading
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
+from pathlib import Path
+
+import pytest
+import pytest_asyncio
+from asyncua import Client, ua
+from asyncua.crypto.security_policies import SecurityPolicyNone
+
+from motion_server import config
+from motion_server.runtime import Runtime
+from tests.opcua_support import SITE, USERS, secure_client, user_hashes
+
+pytestmark = pytest.mark.asyncio(loop_scope="module")
+
+SEED = int(os.environ.get("MOTION_FUZZ_SEED", "20250131"))
+SCALE = 10 if os.environ.get("MOTION_FUZZ_LONG") else 1
+MIN_MESSAGES = 2_000 * SCALE
+MAX_SESSIONS = 12
+CHUNK = 8192
+CHUNKS = 8
+MESSAGE = 32768
+
+
+def campaign_site(data_dir: Path) -> config.SiteMap:
+    users = "\n".join(
+        f'[[opcua.users]]\nname = "{name}"\nrole = "{USERS[name][0]}"\npassword_hash = "{h}"\n'
+        for name, h in user_hashes().items()
+    )
+    text = SITE.format(
+        data_dir=data_dir, anonymous="false", none_endpoint="false", lockout=0.0, users=users
+    )
+    text = text.replace('clock = "manual"', 'clock = "realtime"')
+    limits = (
+        f"max_sessions = {MAX_SESSIONS}\nmax_chunk_size = {CHUNK}\n"
+        f"max_chunk_count = {CHUNKS}\nmax_message_size = {MESSAGE}\n"
+    )
+    text = text.replace("[opcua]\n", "[opcua]\n" + limits, 1)
+    return config.parse(text, "opcua-campaign.toml")
+
+
+class ServerThread:
+    """The runtime and its OPC UA front-end in a thread with its own event loop."""
+
+    def __init__(self, site: config.SiteMap) -> None:
+        self.site = site
+        self.runtime: Runtime | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._ready = threading.Event()
+        self._thread = threading.Thread(target=lambda: asyncio.run(self._main()), daemon=True)
+
+    async def _main(self) -> None:
+        rt = Runtime(self.site)
+        self.runtime, self._loop = rt, asyncio.get_running_loop()
+        task = asyncio.create_task(rt.serve())
+        await rt.ready.wait()
+        self._ready.set()
+        await task
+
+    def start(self) -> Runtime:
+        self._thread.start()
+        assert self._ready.wait(30.0), "server did not start"
+        assert self.runtime is not None
+        return self.runtime
+
+    def stop(self) -> None:
+        if self._loop is not None and self.runtime is not None:
+            self._loop.call_soon_threadsafe(self.runtime.request_stop)
+        self._thread.join(20.0)
+        assert not self._thread.is_alive()
+
+
+# -- raw messages ------------------------------------------------------------------------------
+def header(kind: bytes, size: int) -> bytes:
+    return kind + struct.pack("<I", size)
+
+
+def hello(url: str, recv: int = 65535, max_msg: int = 0, chunks: int = 0) -> bytes:
+    raw = url.encode()
+    body = struct.pack("<IIIII", 0, recv, recv, max_msg, chunks) + struct.pack("<i", len(raw))
+    return header(b"HELF", 8 + len(body) + len(raw)) + body + raw
+
+
+def zero_size(r: random.Random, url: str) -> list[bytes]:
+    kind = r.choice([b"HELF", b"OPNF", b"MSGF", b"MSGC", b"CLOF", b"ERRF"])
+    return [header(kind, 0) + r.randbytes(r.randrange(0, 16))]
+
+
+def lying_header(r: random.Random, url: str) -> list[bytes]:
+    good = hello(url)
+    claim = r.choice([1, 7, 9, len(good) - 1, len(good) + 1, 2000, 0x7FFFFFFF, 0xFFFFFFFF])
+    return [good[:4] + struct.pack("<I", claim) + good[8:]]
+
+
+def unknown_type(r: random.Random, url: str) -> list[bytes]:
+    kind = bytes(r.choice(b"ABCDXYZ") for _ in range(3)) + r.choice([b"F", b"C", b"A", b"Q"])
+    body = r.randbytes(r.randrange(0, 64))
+    return [header(kind, 8 + len(body)) + body]
+
+
+def oversize_chunk(r: random.Random, url: str) -> list[bytes]:
+    size = r.choice([CHUNK + 1, 65536, 1 << 20, 100 << 20])
+    return [hello(url), header(b"MSGF", size) + r.randbytes(512)]
+
+
+def garbage(r: random.Random, url: str) -> list[bytes]:
+    return [r.randbytes(r.randrange(1, 400))]
+
+
+def bad_hello(r: random.Random, url: str) -> list[bytes]:
+    """Hello with limits below the minimum, absurd URLs, or a second Hello."""
+    variants = [
+        hello(url, recv=r.randrange(0, 8192)),
+        hello("opc.tcp://" + "x" * r.randrange(4096, 9000)),
+        hello(url) + hello(url),
+        hello(url)[:-3],
+    ]
+    return [r.choice(variants)]
+
+
+RAW: dict[str, Callable[[random.Random, str], list[bytes]]] = {
+    "zero-size header": zero_size,
+    "lying chunk header": lying_header,
+    "unknown message type": unknown_type,
+    "oversize chunk": oversize_chunk,
+    "bad hello": bad_hello,
+    "garbage": garbage,
+}
+
+
+async def send_raw(port: int, messages: list[bytes]) -> None:
+    """One connection: send, read what comes back for a moment, close."""
+    reader, writer = await asyncio.wait_for(asyncio.open_connection("127.0.0.1", port), 5)
+    try:
+        for m in messages:
+            writer.write(m)
+        with contextlib.suppress(OSError, ConnectionError):
+            await writer.drain()
+        with contextlib.suppress(asyncio.TimeoutError, OSError, ConnectionError):
+            await asyncio.wait_for(reader.read(4096), 0.05)
+    finally:
+        writer.close()
+        with contextlib.suppress(OSError, ConnectionError):
+            await writer.wait_closed()
+
+
+async def raw_batch(port: int, url: str, gen: Callable[..., list[bytes]], n: int) -> int:
+    r = random.Random(f"{SEED}:{gen.__name__}:{n}")
+    sent = 0
+    parallel = 10
+    for start in range(0, n, parallel):
+        batch = [gen(r, url) for _ in range(min(parallel, n - start))]
+        await asyncio.gather(*(send_raw(port, m) for m in batch))
+        sent += sum(len(m) for m in batch)
+    return sent  # messages
+
+
+async def open_channel(rt: Runtime) -> Client:
+    """A client with a secure channel (None policy: discovery only) and no session."""
+    assert rt.opcua is not None
+    client = Client(rt.opcua.endpoint, timeout=5)
+    client.security_policy = SecurityPolicyNone()
+    await client.connect_socket()
+    await client.send_hello()
+    await client.open_secure_channel()
+    return client
+
+
+async def too_many_chunks(rt: Runtime, r: random.Random, n: int) -> int:
+    """Intermediate chunks past max_chunk_count (and past max_message_size) on an open
+    channel; the server must drop the message (and the channel), not buffer it."""
+    sent = 0
+    while sent < n:
+        client = await open_channel(rt)
+        proto = client.uaclient.protocol
+        assert proto is not None and proto.transport is not None
+        token = proto._connection.security_token
+        count = r.randrange(CHUNKS + 1, 4 * CHUNKS)
+        first = proto._connection._sequence_number + 1  # the channel's next sequence number
+        for seq in range(first, first + count):
+            body = r.randbytes(CHUNK - 24)
+            chunk = header(b"MSGC", 24 + len(body)) + struct.pack(
+                "<IIII", token.ChannelId, token.TokenId, seq, 77
+            )
+            proto.transport.write(chunk + body)
+            sent += 1
+        deadline = time.monotonic() + 2
+        while proto.transport is not None and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        assert proto.transport is None, "the server kept a channel past max_chunk_count"
+    return sent
+
+
+async def before_activate(rt: Runtime, r: random.Random, n: int) -> int:
+    """Read and Write on a session that was created but never activated: refused."""
+    sent = 0
+    while sent < n:
+        client = await open_channel(rt)
+        try:
+            params = ua.CreateSessionParameters(
+                ClientDescription=ua.ApplicationDescription(
+                    ApplicationUri="urn:campaign", ApplicationType=ua.ApplicationType.Client
+                ),
+                EndpointUrl=rt.opcua.endpoint,  # type: ignore[union-attr]
+                SessionName="never activated",
+                ClientNonce=r.randbytes(32),
+                RequestedSessionTimeout=10_000,
+            )
+            await client.uaclient.create_session(params)  # not Client's: it wants a policy
+            node = client.get_node(ua.NodeId("Clock.Cycle", rt.opcua.namespace_index))  # type: ignore[union-attr]
+            for _ in range(10):
+                with pytest.raises(ua.UaError):
+                    if r.random() < 0.5:
+                        await node.read_value()
+                    else:
+                        await node.write_value(ua.DataValue(ua.Variant(1, ua.VariantType.UInt32)))
+                sent += 1
+        finally:
+            with contextlib.suppress(Exception):
+                client.disconnect_socket()
+    return sent
+
+
+async def subscriptions_left_behind(rt: Runtime, client_dir: Path, n: int) -> int:
+    """Sessions that subscribe, then close without deleting their subscriptions."""
+    assert rt.opcua is not None and rt.opcua.server is not None
+    service = rt.opcua.server.iserver.subscription_service
+    before = len(service.subscriptions)
+    sent = 0
+    while sent < n:
+        client = await secure_client(rt, client_dir, "viewer")
+        await client.connect()
+        ns = rt.opcua.namespace_index
+        for _ in range(3):
+            sub = await client.create_subscription(50, None)
+            nodes = [client.get_node(ua.NodeId(f"Clock.{f}", ns)) for f in ("Cycle", "Time")]
+            await sub.subscribe_data_change(nodes)
+            sent += 2
+        await client.uaclient.close_session(delete_subscriptions=False)
+        sent += 1
+        with contextlib.suppress(Exception):
+            await client.close_secure_channel()
+        client.disconnect_socket()
+    deadline = time.monotonic() + 5
+    while len(service.subscriptions) > before and time.monotonic() < deadline:
+        await asyncio.sleep(0.05)
+    assert len(service.subscriptions) == before, "subscriptions outlived their sessions"
+    return sent
+
+
+async def session_flood(rt: Runtime, n: int) -> int:
+    """Connections past max_sessions: the extra ones are refused, the rest still served."""
+    assert rt.opcua is not None
+    url = rt.opcua.endpoint
+    sent = 0
+    while sent < n:
+        conns = []
+        for _ in range(MAX_SESSIONS * 3):
+            with contextlib.suppress(OSError):
+                r, w = await asyncio.open_connection("127.0.0.1", rt.opcua.port)
+                w.write(hello(url))
+                conns.append((r, w))
+                sent += 1
+        acks = 0
+        for r, _ in conns:
+            with contextlib.suppress(asyncio.TimeoutError, OSError, ConnectionError):
+                if (await asyncio.wait_for(r.read(8), 2.0)).startswith(b"ACK"):
+                    acks += 1
+        # the checking client holds one connection: at most MAX_SESSIONS - 1 more accepted
+        assert acks <= MAX_SESSIONS - 1, f"{acks} connections accepted past the limit"
+        for _, w in conns:
+            w.close()
+        await asyncio.sleep(0.05)
+    return sent
+
+
+# -- the campaign --------------------------------------------------------------------------------
+@pytest_asyncio.fixture(loop_scope="module", scope="module")
+async def server(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[Runtime]:
+    srv = ServerThread(campaign_site(tmp_path_factory.mktemp("opcua-campaign")))
+    rt = await asyncio.to_thread(srv.start)
+    try:
+        yield rt
+    finally:
+        await asyncio.to_thread(srv.stop)
+
+
+class Checker:
+    """The proper client that stays connected, and the post-batch checks."""
+
+    def __init__(self, rt: Runtime, client_dir: Path) -> None:
+        self.rt, self.client_dir = rt, client_dir
+        self.client: Client | None = None
+
+    async def __aenter__(self) -> Checker:
+        self.client = await secure_client(self.rt, self.client_dir, "operator")
+        await self.client.connect()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        if self.client is not None:
+            await self.client.disconnect()
+
+    async def check(self, label: str) -> tuple[float, int]:
+        assert self.client is not None and self.rt.opcua is not None
+        ns = self.rt.opcua.namespace_index
+        dropped = self.client.get_node(ua.NodeId("Diagnostics.DroppedCycles", ns))
+        t0 = time.perf_counter()
+        value = await asyncio.wait_for(dropped.read_value(), 1.0)
+        elapsed = time.perf_counter() - t0
+        assert elapsed < 1.0, f"{label}: read answered after {elapsed:.3f} s"
+        assert value == 0, f"{label}: {value} cycles dropped (late beyond catch-up)"
+        fresh = await secure_client(self.rt, self.client_dir, "viewer")  # new clients too
+        await asyncio.wait_for(fresh.connect(), 10.0)
+        cycle = await fresh.get_node(ua.NodeId("Clock.Cycle", ns)).read_value()
+        await fresh.disconnect()
+        return elapsed, cycle
+
+
+async def test_malformed_message_campaign(server: Runtime, tmp_path: Path) -> None:
+    rt = server
+    assert rt.opcua is not None
+    url, port = rt.opcua.endpoint, rt.opcua.port
+    r = random.Random(SEED)
+    per_batch = 250 * SCALE
+    kinds: list[tuple[str, Callable[[], Awaitable[int]]]] = [
+        (name, lambda gen=gen: raw_batch(port, url, gen, per_batch)) for name, gen in RAW.items()
+    ]
+    kinds += [
+        ("too many chunks", lambda: too_many_chunks(rt, r, per_batch)),
+        ("before activate", lambda: before_activate(rt, r, per_batch // 5)),
+        ("subscriptions left", lambda: subscriptions_left_behind(rt, tmp_path, 21 * SCALE)),
+        ("session flood", lambda: session_flood(rt, MAX_SESSIONS * 3 * SCALE)),
+    ]
+    print(f"\nOPC UA campaign, seed {SEED}, at least {MIN_MESSAGES} messages")
+    total = batches = 0
+    async with Checker(rt, tmp_path) as checker:
+        while total < MIN_MESSAGES:
+            for name, run in kinds:
+                result = await run()
+                n = result
+                total += n
+                batches += 1
+                elapsed, cycle = await checker.check(name)
+                print(
+                    f"batch {batches:3d} {name:20s} {n:5d} messages; valid read in "
+                    f"{elapsed * 1000:6.1f} ms; cycle {cycle}; overruns {rt.overruns}, "
+                    f"dropped {rt.dropped}"
+                )
+    print(f"total {total} malformed or abusive messages in {batches} batches")
+    assert total >= MIN_MESSAGES
