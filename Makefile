@@ -54,6 +54,7 @@ $(NODE_STAMP): $(NODE_PROJECT)/package-lock.json
 # regenerate the checked-in exports of the demo map (a test compares them)
 maps: $(STAMP)
 	@for f in json csv md; do $(BIN)/motion-server map --format $$f -o maps/demo-map.$$f; done
+	@$(BIN)/motion-server map --format nodeset -o maps/demo-nodeset.xml
 
 # Build the Dockerfile and smoke-test the image with buildah (as root; see container/).
 test-container: $(STAMP)
