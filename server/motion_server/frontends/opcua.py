@@ -69,6 +69,7 @@ from asyncua.crypto.cert_gen import setup_self_signed_certificate
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
 from asyncua.server.internal_session import InternalSession
+from asyncua.server.monitored_item_service import MonitoredItemValues
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from ..config import OpcUaSection, OpcUaUser
@@ -272,7 +273,8 @@ class OpcUaFrontend:
         )
 
     def _patch_queue_size(self, server: Server) -> None:
-        """Queue size 0 means a queue of one (latest value), not asyncua's unbounded."""
+        """Queue size 0 means a queue of one (latest value), not asyncua's unbounded; and
+        monitored items keep the published DataValue instead of a deep copy of it."""
         service = server.iserver.subscription_service
         create = service.create_subscription
 
@@ -282,6 +284,14 @@ class OpcUaFrontend:
             mis = isub.monitored_item_srv
             cap = isub.max_queue_size
             mis._revise_queue_size = lambda requested: min(max(int(requested), 1), cap)
+            make_common = mis._make_monitored_item_common
+
+            def make_monitored_item(params: ua.MonitoredItemCreateRequest) -> Any:
+                result, mdata = make_common(params)
+                mdata.mvalue = _SharedValues()
+                return result, mdata
+
+            mis._make_monitored_item_common = make_monitored_item
             enqueue = isub.enqueue_datachange_event
 
             async def enqueue_datachange_event(mid: int, event: Any, maxsize: int) -> None:
@@ -440,6 +450,16 @@ class OpcUaFrontend:
             if deadline < now:  # a slow pass: do not try to catch up
                 deadline = now
             await asyncio.sleep(deadline - now)
+
+
+class _SharedValues(MonitoredItemValues):
+    """A monitored item's last values without asyncua's defensive deep copy, which was
+    most of the cost of a published change: neither the publisher nor asyncua's write
+    path changes a DataValue after writing it (each write makes a new one)."""
+
+    def set_current_datavalue(self, cur_val: ua.DataValue) -> None:
+        self.old_dvalue = self.get_current_datavalue()
+        self.current_dvalue = cur_val
 
 
 class _DiscoveryOnly(PermissionRuleset):
