@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint typecheck unit bench maps tools clean test-container
+.PHONY: run test lint typecheck unit bench maps tools node-tools clean test-container
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -27,7 +27,7 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-test: lint typecheck tools
+test: lint typecheck tools node-tools
 	$(BIN)/pytest -q
 
 # mbpoll: the Modbus client that is not Python, for the interop tests (Debian package;
@@ -37,9 +37,24 @@ tools:
 		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll) \
 		>/dev/null 2>&1 || echo "note: mbpoll not installed; its interop test will be skipped"; }
 
+# node-opcua: the OPC UA client that is not Python, for the interop test. `npm ci` from the
+# lock file when node_modules is missing or older than the lock (quiet; when it cannot run,
+# the test is skipped and says why)
+NODE_PROJECT := tests/interop/node_opcua
+NODE_STAMP   := $(NODE_PROJECT)/node_modules/.package-lock.json
+
+node-tools: $(NODE_STAMP)
+	@true
+
+$(NODE_STAMP): $(NODE_PROJECT)/package-lock.json
+	@command -v npm >/dev/null 2>&1 && (cd $(NODE_PROJECT) && npm ci --no-audit --no-fund \
+		--loglevel=error >/dev/null 2>&1) && touch $@ \
+		|| echo "note: npm ci failed in $(NODE_PROJECT); the node-opcua interop test will be skipped"
+
 # regenerate the checked-in exports of the demo map (a test compares them)
 maps: $(STAMP)
 	@for f in json csv md; do $(BIN)/motion-server map --format $$f -o maps/demo-map.$$f; done
+	@$(BIN)/motion-server map --format nodeset -o maps/demo-nodeset.xml
 
 # Build the Dockerfile and smoke-test the image with buildah (as root; see container/).
 test-container: $(STAMP)
@@ -49,4 +64,4 @@ bench: $(STAMP)
 	@for b in bench/*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache $(NODE_PROJECT)/node_modules

@@ -257,10 +257,16 @@ async def test_viewer_reads_but_cannot_write(rt: Runtime, client_dir: Path) -> N
     client = await connect(rt, client_dir, "viewer")
     try:
         tags = Tags(client, await client.get_namespace_index(NS_URI))
-        assert isinstance(await tags.read("Clock.Cycle"), int)
+        assert await tags.read("Clock.Cycle") == rt.ctl.tick
+        maj = rt.system["MAJ_1"]
+        speed, execute = maj.inputs["Speed"], maj.inputs["Execute"]
+        assert await tags.read("Instructions.MAJ_1.Speed") == speed
         with pytest.raises(ua.uaerrors.BadUserAccessDenied):
-            await tags.write("Instructions.MAJ_1.Execute", True, B)
-        assert await tags.read("Instructions.MAJ_1.Speed") == 42.5  # the operator's write
+            await tags.write("Instructions.MAJ_1.Execute", not execute, B)
+        with pytest.raises(ua.uaerrors.BadUserAccessDenied):
+            await tags.write("Instructions.MAJ_1.Speed", speed + 1.0, F)
+        assert (maj.inputs["Speed"], maj.inputs["Execute"]) == (speed, execute)
+        assert await tags.read("Instructions.MAJ_1.Speed") == speed
     finally:
         await client.disconnect()
 

@@ -85,11 +85,19 @@ def test_little_word_order_is_exported() -> None:
     assert exported["modbus"]["word_order"] == "little"
 
 
-@pytest.mark.parametrize("fmt", ["json", "csv", "md"])
-def test_checked_in_demo_exports_equal_a_fresh_export(fmt: str) -> None:
+@pytest.mark.parametrize(
+    ("fmt", "name"),
+    [
+        ("json", "demo-map.json"),
+        ("csv", "demo-map.csv"),
+        ("md", "demo-map.md"),
+        ("nodeset", "demo-nodeset.xml"),
+    ],
+)
+def test_checked_in_demo_exports_equal_a_fresh_export(fmt: str, name: str) -> None:
     fresh = export(build_tagmap(config.load()), fmt)
-    stored = (MAPS / f"demo-map.{fmt}").read_text("utf-8")
-    assert stored == fresh, f"maps/demo-map.{fmt} is stale: run `make maps`"
+    stored = (MAPS / name).read_text("utf-8")
+    assert stored == fresh, f"maps/{name} is stale: run `make maps`"
 
 
 def test_csv_columns() -> None:

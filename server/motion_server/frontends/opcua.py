@@ -45,6 +45,10 @@ values: by more than ``deadband``) are written to their nodes with
 ``server.write_attribute_value``, ``chunk_size`` nodes at a time with a yield to the event
 loop between chunks, between motion cycles, never inside one. Monitored items created
 with queue size 0 get a queue of one (latest value), as the specification asks.
+
+A client's write of an instruction's BOOL input (``Execute``, ``Enable``) in realtime or
+scaled time also publishes that instance's tags right after the next cycle, so its
+EN/DN/ER are readable within a cycle or two instead of waiting for the next pass.
 """
 
 from __future__ import annotations
@@ -66,12 +70,13 @@ from asyncua.crypto.cert_gen import setup_self_signed_certificate
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
 from asyncua.server.internal_session import InternalSession
+from asyncua.server.monitored_item_service import MonitoredItemValues
 from asyncua.ua import status_codes
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from ..config import OpcUaSection, OpcUaUser
 from ..safety.audit import AuditLog
-from ..tagmap import BadValueError, Folder, ReadOnlyError, Tag, TagImage
+from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagImage, TagType
 from ..tagmap.nodeset import enum_text
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, Role
@@ -85,6 +90,9 @@ _POLICIES = {
     "Basic256Sha256_SignAndEncrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
 }
 _ROLES = {"viewer": Role.VIEWER, "operator": Role.OPERATOR, "admin": Role.ADMIN}
+#: after a trigger write: how often to look for the next cycle, and for how long
+FOLLOW_POLL_S = 0.0005
+FOLLOW_LIMIT_S = 0.5
 
 
 def required_role(tag: Tag) -> Role:
@@ -155,6 +163,8 @@ class OpcUaFrontend:
         self._published: list[_Published] = []
         self._standard_write: Any = None
         self._by_node: dict[str, _Published] = {}
+        self._by_owner: dict[str, list[_Published]] = {}
+        self._following: dict[str, asyncio.Task[None]] = {}
         self._task: asyncio.Task[None] | None = None
         self._lock = asyncio.Lock()
         #: counters (diagnostics, benches)
@@ -235,6 +245,8 @@ class OpcUaFrontend:
             with contextlib.suppress(asyncio.CancelledError):
                 await self._task
             self._task = None
+        for task in list(self._following.values()):
+            task.cancel()
         if self.server is not None:
             await self.server.stop()
             self.server = None
@@ -274,7 +286,8 @@ class OpcUaFrontend:
         )
 
     def _patch_queue_size(self, server: Server) -> None:
-        """Queue size 0 means a queue of one (latest value), not asyncua's unbounded."""
+        """Queue size 0 means a queue of one (latest value), not asyncua's unbounded; and
+        monitored items keep the published DataValue instead of a deep copy of it."""
         service = server.iserver.subscription_service
         create = service.create_subscription
 
@@ -284,6 +297,14 @@ class OpcUaFrontend:
             mis = isub.monitored_item_srv
             cap = isub.max_queue_size
             mis._revise_queue_size = lambda requested: min(max(int(requested), 1), cap)
+            make_common = mis._make_monitored_item_common
+
+            def make_monitored_item(params: ua.MonitoredItemCreateRequest) -> Any:
+                result, mdata = make_common(params)
+                mdata.mvalue = _SharedValues()
+                return result, mdata
+
+            mis._make_monitored_item_common = make_monitored_item
             enqueue = isub.enqueue_datachange_event
 
             async def enqueue_datachange_event(mid: int, event: Any, maxsize: int) -> None:
@@ -351,7 +372,28 @@ class OpcUaFrontend:
         if requested:
             await self.image.settle()  # a Clock.Step: answer once its cycles ran
             await self.publish()
+        elif tag.folder == Folder.INSTRUCTIONS and tag.type == TagType.BOOL:
+            self._follow(tag.owner)
         return ua.StatusCode()
+
+    def _follow(self, owner: str) -> None:
+        """Publish ``owner``'s tags once the next cycle ran (clock running)."""
+        if owner in self._following or self.image.host.mode == ClockMode.MANUAL:
+            return
+        task = asyncio.create_task(self._publish_owner(owner, self.image.host.heartbeat))
+        self._following[owner] = task
+        task.add_done_callback(lambda _: self._following.pop(owner, None))
+
+    async def _publish_owner(self, owner: str, heartbeat: int) -> None:
+        loop = asyncio.get_running_loop()
+        give_up = loop.time() + FOLLOW_LIMIT_S
+        while self.image.host.heartbeat == heartbeat and loop.time() < give_up:
+            await asyncio.sleep(FOLLOW_POLL_S)
+        now = _now()
+        for pub in self._by_owner.get(owner, []):
+            value = self.image.read(pub.tag)
+            if value != pub.last:
+                await self._set(pub, value, now)
 
     # -- publishing -----------------------------------------------------------------------
     def _watch(self, space: dict[str, Any]) -> None:
@@ -368,6 +410,7 @@ class OpcUaFrontend:
             )
             self._published.append(pub)
             self._by_node[tag.node_id] = pub
+            self._by_owner.setdefault(tag.owner, []).append(pub)
 
     async def _set(self, pub: _Published, value: Any, now: datetime) -> None:
         assert self._server is not None
@@ -423,6 +466,16 @@ class OpcUaFrontend:
             if deadline < now:  # a slow pass: do not try to catch up
                 deadline = now
             await asyncio.sleep(deadline - now)
+
+
+class _SharedValues(MonitoredItemValues):
+    """A monitored item's last values without asyncua's defensive deep copy, which was
+    most of the cost of a published change: neither the publisher nor asyncua's write
+    path changes a DataValue after writing it (each write makes a new one)."""
+
+    def set_current_datavalue(self, cur_val: ua.DataValue) -> None:
+        self.old_dvalue = self.get_current_datavalue()
+        self.current_dvalue = cur_val
 
 
 class _DiscoveryOnly(PermissionRuleset):

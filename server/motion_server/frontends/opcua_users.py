@@ -191,7 +191,9 @@ class Directory(UserManager):
     ) -> User | None:
         peer = self.peer
         if username is None:
-            if certificate is not None or not self.allow_anonymous:
+            # ``certificate`` is the channel's client certificate (b"" on the None
+            # endpoint), not an identity: X509 identity tokens are not offered at all
+            if not self.allow_anonymous:
                 log.info("OPC UA: anonymous login from %s refused", peer)
                 return None
             # asyncua's Anonymous role may not even read: anonymous sessions get the User

@@ -356,7 +356,10 @@ def _xml_node(spec: NodeSpec, organized_by: list[str]) -> list[str]:
         out.append(f'      <Reference ReferenceType="Organizes">{_nid(target)}</Reference>')
     out.append("    </References>")
     if spec.kind == NodeKind.PROPERTY:
-        out.append(f"    <Value>{_xml_value(spec)}</Value>")
+        # one element a line: importers such as asyncua's read an element without text
+        # before its first child as an empty value
+        value = _xml_value(spec).replace("><uax:", ">\n      <uax:")
+        out.append(f"    <Value>\n      {value}\n    </Value>")
     out.append(f"  </{element}>")
     return out
 

@@ -1,0 +1,443 @@
+"""OPC UA publishing under load: motion-server vs a bare asyncua server, side by side.
+
+- **motion-server**: a generated site map of ``--axes`` (default 334) servo axes, all
+  jogging at 123.4567 mm/s (started one by one by retriggering one MSO and one MAJ
+  instance with another Axis operand), at a 2 ms cycle in realtime. At a constant speed
+  three analog tags of every axis change at every publishing pass (CommandPosition,
+  ActualPosition, PositionError: the drive's quantised following error); the velocities
+  do not, so the subscriber watches those three: 1,000 tags. Published at the default
+  20 Hz. (Per-axis instances, or ramping jogs that change the velocities too, cost the
+  kernel 1.0-1.6 ms of the 2 ms cycle for 200 axes on this machine: that would measure
+  the kernel, not the publisher.)
+- **bare asyncua**: 1,000 Double variables that a loop rewrites with ``Node.write_value``
+  at the same 20 Hz (the naive pattern), plus Execute/EN/DN variables that the loop
+  handles like an MSO: it reads Execute each pass and sets EN and DN on its rising edge.
+
+Each server runs in its own process; both on the None endpoint with anonymous sessions
+(loopback), so the comparison is about publishing, not cryptography. While one
+subscriber process (its own process too) counts the notifications of 1,000 monitored
+items (queue size 1) at a 100 ms publishing interval, this process measures the latency
+from writing ``Execute`` = true to reading EN and DN both true (after having read EN
+false once Execute was written false), with a random phase before each write.
+
+It prints, per server: notifications/s delivered, write → DN p50/p99/max, server CPU;
+for motion-server also Diagnostics.Overruns and DroppedCycles during the window (the
+runtime's catch-up runs at most ``max_catch_up`` = 50 late cycles back to back; dropped
+cycles are those beyond it). Targets: ratio of notifications/s >= 1.5, write → DN p99 <=
+50 ms, 0 dropped cycles.
+
+Usage: ``python bench/opcua_publish.py [--axes 334] [--seconds 20] [--rounds 1]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import random
+import re
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from modbus_client import cpu_seconds, percentile
+
+#: the analog tags of a jogging axis that change at every pass (constant speed)
+ANALOG = ("CommandPosition", "ActualPosition", "PositionError")
+TAGS = 1000
+SPEED = 123.4567
+NS_URI = "urn:motion-server:bench-opcua"
+PUBLISHING_INTERVAL_MS = 100.0
+#: asyncua clients disconnect when a server-state read takes longer than this (default
+#: 1 s): the naive server, busy rewriting its variables, misses that under this load
+WATCHDOG_S = 60.0
+
+
+# -- the site map ---------------------------------------------------------------------------
+def site_map(axes: int, data_dir: Path, publish_hz: float = 20.0, chunk: int = 500) -> str:
+    """A site map with ``axes`` servo axes, MSO_1 and MAJ_1 to start them, and MSO_LAT (on
+    Axis1, already on: MSO on an enabled axis does nothing but set DN) for the latency."""
+    out = [
+        f'[site]\nname = "bench_opcua"\nnamespace_uri = "{NS_URI}"\n',
+        '[controller]\nclock = "realtime"\nstatus_log_interval = 0.0\n',
+        "[modbus]\nenabled = false\naxis_base = 1000\ninstruction_base = 40000\n",
+        f'[opcua]\nport = 0\ndata_dir = "{data_dir}"\nallow_anonymous = true\n'
+        'anonymous_role = "operator"\nallow_none_endpoint = true\n'
+        f"publish_rate_hz = {publish_hz}\nchunk_size = {chunk}\n",
+        '[[groups]]\nname = "Group1"\ncoarse_update_period_ms = 2.0\naxes = ['
+        + ", ".join(f'"Axis{k}"' for k in range(1, axes + 1))
+        + "]\n",
+    ]
+    for k in range(1, axes + 1):
+        out.append(
+            f'[[axes]]\nname = "Axis{k}"\ntype = "servo"\nmax_velocity = 2000.0\n'
+            "max_acceleration = 10000.0\nmax_deceleration = 10000.0\n"
+        )
+    out.append("[instructions]\nevery_type = false\n")
+    out.append('[[instructions.instances]]\nname = "MSO_1"\ntype = "MSO"\n')
+    out.append(
+        '[[instructions.instances]]\nname = "MAJ_1"\ntype = "MAJ"\n'
+        f"operands = {{ Speed = {SPEED}, AccelRate = 10000.0, DecelRate = 10000.0 }}\n"
+    )
+    out.append(
+        '[[instructions.instances]]\nname = "MSO_LAT"\ntype = "MSO"\noperands = { Axis = 1 }\n'
+    )
+    return "\n".join(out)
+
+
+# -- the bare asyncua server (its own process) ----------------------------------------------
+def bare_server(port: int, count: int, publish_hz: float) -> None:
+    """asyncua with ``count`` Double variables rewritten naively at ``publish_hz``."""
+    import logging
+
+    from asyncua import Server, ua
+
+    logging.basicConfig(level=logging.WARNING)
+
+    async def main() -> None:
+        server = Server()
+        await server.init()
+        server.set_endpoint(f"opc.tcp://127.0.0.1:{port}/")
+        server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        ns = await server.register_namespace(NS_URI)
+        folder = await server.nodes.objects.add_folder(ua.NodeId("Bare", ns), "Bare")
+        nodes = [
+            await folder.add_variable(ua.NodeId(f"Bare.V{i}", ns), f"V{i}", 0.0)
+            for i in range(count)
+        ]
+        execute = await folder.add_variable(ua.NodeId("Bare.Execute", ns), "Execute", False)
+        await execute.set_writable()
+        en = await folder.add_variable(ua.NodeId("Bare.EN", ns), "EN", False)
+        dn = await folder.add_variable(ua.NodeId("Bare.DN", ns), "DN", False)
+        async with server:
+            print(f"BARE on opc.tcp://127.0.0.1:{port}/", file=sys.stderr, flush=True)
+            period = 1.0 / publish_hz
+            loop = asyncio.get_running_loop()
+            deadline = loop.time()
+            last = False
+            n = 0
+            while True:
+                rung = bool(await execute.read_value())
+                if rung and not last:
+                    await en.write_value(True)
+                    await dn.write_value(True)
+                elif not rung and last:
+                    await en.write_value(False)
+                last = rung
+                n += 1
+                for i, node in enumerate(nodes):
+                    await node.write_value(float(n * 1000 + i))
+                deadline += period
+                now = loop.time()
+                if deadline < now:
+                    deadline = now  # behind: run back to back, never catch up
+                await asyncio.sleep(deadline - now)
+
+    asyncio.run(main())
+
+
+# -- the subscriber (its own process) -------------------------------------------------------
+def subscriber(endpoint: str, node_ids: list[str], warmup: float, seconds: float) -> None:
+    """Subscribe to ``node_ids`` (queue size 1, PUBLISHING_INTERVAL_MS); print one JSON
+    line with the notifications counted during ``seconds`` after ``warmup``."""
+    from asyncua import Client, ua
+
+    class Count:
+        def __init__(self) -> None:
+            self.n = 0
+
+        def datachange_notification(self, node: Any, val: Any, data: Any) -> None:
+            self.n += 1
+
+        def status_change_notification(self, status: Any) -> None:
+            print(f"subscription status: {status}", file=sys.stderr, flush=True)
+
+    async def main() -> None:
+        client = Client(endpoint, timeout=30, watchdog_intervall=WATCHDOG_S)
+        async with client:
+            ns = await client.get_namespace_index(NS_URI)
+            count = Count()
+            sub = await client.create_subscription(PUBLISHING_INTERVAL_MS, count)
+            nodes = [client.get_node(ua.NodeId(n, ns)) for n in node_ids]
+            await sub.subscribe_data_change(nodes, queuesize=1)
+            print("READY", flush=True)
+            await asyncio.sleep(warmup)
+            n0, t0 = count.n, time.perf_counter()
+            await asyncio.sleep(seconds)
+            n1, t1 = count.n, time.perf_counter()
+            print(json.dumps({"notifications": n1 - n0, "seconds": t1 - t0}), flush=True)
+            await sub.delete()
+
+    asyncio.run(main())
+
+
+# -- the orchestrator -----------------------------------------------------------------------
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def start(args: list[str], log: Path, pattern: str) -> tuple[subprocess.Popen[bytes], str]:
+    """Start a server process (stderr to ``log``) and return it with its endpoint."""
+    f = log.open("wb")
+    proc = subprocess.Popen([sys.executable, *args], stderr=f, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        m = re.search(pattern, log.read_text(errors="replace"))
+        if m:
+            return proc, m.group(1)
+        if proc.poll() is not None:
+            break
+        time.sleep(0.2)
+    proc.kill()
+    raise RuntimeError(f"the server did not report its endpoint:\n{log.read_text()[-2000:]}")
+
+
+def stop(proc: subprocess.Popen[bytes]) -> None:
+    proc.terminate()
+    try:
+        proc.wait(30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+async def probe_latency(
+    endpoint: str, prefix: str, seconds: float, start_after: float
+) -> list[float]:
+    """Write → EN and DN latencies (s) of the instance at ``prefix`` during ``seconds``."""
+    from asyncua import Client, ua
+
+    async with Client(endpoint, timeout=30, watchdog_intervall=WATCHDOG_S) as client:
+        ns = await client.get_namespace_index(NS_URI)
+        execute = client.get_node(ua.NodeId(f"{prefix}.Execute", ns))
+        bits = [ua.NodeId(f"{prefix}.EN", ns), ua.NodeId(f"{prefix}.DN", ns)]
+
+        async def read_bits() -> tuple[bool, bool]:
+            params = ua.ReadParameters()
+            for nid in bits:
+                rv = ua.ReadValueId()
+                rv.NodeId = nid
+                rv.AttributeId = ua.AttributeIds.Value
+                params.NodesToRead.append(rv)
+            values = await client.uaclient.read(params)
+            return bool(values[0].Value.Value), bool(values[1].Value.Value)
+
+        async def write(value: bool) -> None:
+            await execute.write_value(ua.DataValue(ua.Variant(value, ua.VariantType.Boolean)))
+
+        await asyncio.sleep(start_after)
+        samples: list[float] = []
+        end = time.perf_counter() + seconds
+        while time.perf_counter() < end:
+            await write(False)
+            while (await read_bits())[0]:
+                await asyncio.sleep(0.001)
+            await asyncio.sleep(random.uniform(0.0, 0.05))  # a random phase
+            t0 = time.perf_counter()
+            await write(True)
+            while (await read_bits()) != (True, True):
+                await asyncio.sleep(0.001)
+            samples.append(time.perf_counter() - t0)
+        return samples
+
+
+async def read_values(endpoint: str, node_ids: list[str]) -> list[Any]:
+    from asyncua import Client, ua
+
+    async with Client(endpoint, timeout=30, watchdog_intervall=WATCHDOG_S) as client:
+        ns = await client.get_namespace_index(NS_URI)
+        return [await client.get_node(ua.NodeId(n, ns)).read_value() for n in node_ids]
+
+
+async def start_jogs(endpoint: str, axes: int) -> None:
+    """MSO_1 then MAJ_1 on every axis in turn (a few cycles between the levels of
+    Execute); then check that every axis jogs, and retry those that do not."""
+    from asyncua import Client, ua
+
+    async with Client(endpoint, timeout=30, watchdog_intervall=WATCHDOG_S) as client:
+        ns = await client.get_namespace_index(NS_URI)
+
+        async def write(*items: tuple[str, Any, ua.VariantType]) -> None:
+            params = ua.WriteParameters()
+            for name, value, vt in items:
+                wv = ua.WriteValue()
+                wv.NodeId = ua.NodeId(name, ns)
+                wv.AttributeId = ua.AttributeIds.Value
+                wv.Value = ua.DataValue(ua.Variant(value, vt))
+                params.NodesToWrite.append(wv)
+            codes = await client.uaclient.write(params)
+            assert all(c.is_good() for c in codes), codes
+
+        i32, b = ua.VariantType.Int32, ua.VariantType.Boolean
+        todo = list(range(1, axes + 1))
+        for _ in range(5):
+            for k in todo:
+                await write(
+                    ("Instructions.MSO_1.Axis", k, i32),
+                    ("Instructions.MAJ_1.Axis", k, i32),
+                    ("Instructions.MSO_1.Execute", False, b),
+                    ("Instructions.MAJ_1.Execute", False, b),
+                )
+                await asyncio.sleep(0.006)
+                await write(("Instructions.MSO_1.Execute", True, b))
+                await asyncio.sleep(0.006)
+                await write(("Instructions.MAJ_1.Execute", True, b))
+                await asyncio.sleep(0.006)
+            await asyncio.sleep(0.2)  # a publishing pass
+            speeds = [
+                await client.get_node(ua.NodeId(f"Axes.Axis{k}.CommandVelocity", ns)).read_value()
+                for k in todo
+            ]
+            todo = [k for k, v in zip(todo, speeds, strict=True) if abs(v - SPEED) > 1e-3]
+            if not todo:
+                return
+        raise RuntimeError(f"axes {todo[:10]} do not jog")
+
+
+def run_subscriber(
+    endpoint: str, node_ids: list[str], warmup: float, seconds: float, tmp: Path
+) -> subprocess.Popen[str]:
+    ids = tmp / "node_ids.json"
+    ids.write_text(json.dumps(node_ids))
+    return subprocess.Popen(
+        [sys.executable, __file__, "--subscriber", endpoint, str(ids), str(warmup), str(seconds)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+
+
+def measure(
+    name: str,
+    endpoint: str,
+    pid: int,
+    node_ids: list[str],
+    prefix: str,
+    seconds: float,
+    tmp: Path,
+) -> dict[str, Any]:
+    warmup = 3.0
+    sub = run_subscriber(endpoint, node_ids, warmup, seconds, tmp)
+    assert sub.stdout is not None
+    if sub.stdout.readline().strip() != "READY":
+        raise RuntimeError(f"{name}: the subscriber did not start")
+    cpu0, t0 = cpu_seconds(pid), time.perf_counter()
+    lat = asyncio.run(probe_latency(endpoint, prefix, seconds, warmup))
+    out, _ = sub.communicate(timeout=120)
+    cpu = (cpu_seconds(pid) - cpu0) / (time.perf_counter() - t0)
+    counted = json.loads(out.strip().splitlines()[-1])
+    return {
+        "server": name,
+        "notif_per_s": counted["notifications"] / counted["seconds"],
+        "samples": len(lat),
+        "p50_ms": percentile(lat, 0.50) * 1000,
+        "p99_ms": percentile(lat, 0.99) * 1000,
+        "max_ms": max(lat) * 1000,
+        "cpu": cpu,
+    }
+
+
+def bench_motion_server(args: argparse.Namespace, tmp: Path) -> dict[str, Any]:
+    axes, seconds = args.axes, args.seconds
+    site = tmp / "bench-opcua.toml"
+    site.write_text(site_map(axes, tmp / "opcua-data", args.publish_hz, args.chunk))
+    proc, endpoint = start(
+        ["-m", "motion_server.cli", "run", str(site), "--no-modbus"],
+        tmp / "motion-server.log",
+        r"OPC UA on (opc\.tcp://[\d.]+:\d+/)",
+    )
+    try:
+        t = time.perf_counter()
+        asyncio.run(start_jogs(endpoint, axes))
+        print(f"{axes} axes jogging after {time.perf_counter() - t:.1f} s", flush=True)
+        diag = ["Diagnostics.Overruns", "Diagnostics.DroppedCycles", "Clock.Cycle"]
+        before = asyncio.run(read_values(endpoint, diag))
+        nodes = [f"Axes.Axis{k}.{f}" for k in range(1, axes + 1) for f in ANALOG][:TAGS]
+        result = measure(
+            "motion-server", endpoint, proc.pid, nodes, "Instructions.MSO_LAT", seconds, tmp
+        )
+        after = asyncio.run(read_values(endpoint, diag))
+        result["overruns"] = after[0] - before[0]
+        result["dropped"] = after[1] - before[1]
+        result["cycles"] = after[2] - before[2]
+        return result
+    finally:
+        stop(proc)
+
+
+def bench_bare(args: argparse.Namespace, tmp: Path) -> dict[str, Any]:
+    seconds = args.seconds
+    count = min(args.axes * len(ANALOG), TAGS)
+    port = _free_port()
+    proc, endpoint = start(
+        [__file__, "--bare", str(port), str(count), str(args.publish_hz)],
+        tmp / "bare.log",
+        r"BARE on (opc\.tcp://[\d.]+:\d+/)",
+    )
+    try:
+        nodes = [f"Bare.V{i}" for i in range(count)]
+        return measure("bare asyncua", endpoint, proc.pid, nodes, "Bare", seconds, tmp)
+    finally:
+        stop(proc)
+
+
+def main() -> None:
+    if len(sys.argv) > 1 and sys.argv[1] == "--bare":
+        bare_server(int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]))
+        return
+    if len(sys.argv) > 1 and sys.argv[1] == "--subscriber":
+        ids = json.loads(Path(sys.argv[3]).read_text())
+        subscriber(sys.argv[2], ids, float(sys.argv[4]), float(sys.argv[5]))
+        return
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--axes", type=int, default=334, help="jogging axes (3 analog tags each)")
+    p.add_argument("--seconds", type=float, default=20.0, help="measured window per server")
+    p.add_argument("--rounds", type=int, default=1, help="alternating rounds")
+    p.add_argument(
+        "--publish-hz", type=float, default=20.0, help="server update rate (both servers)"
+    )
+    p.add_argument("--chunk", type=int, default=500, help="motion-server's [opcua] chunk_size")
+    args = p.parse_args()
+    count = min(args.axes * len(ANALOG), TAGS)
+    print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    results: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="bench-opcua-") as d:
+        tmp = Path(d)
+        for _ in range(args.rounds):
+            for bench in (bench_motion_server, bench_bare):
+                results.append(bench(args, tmp))
+                print(json.dumps(results[-1]), flush=True)
+    print(
+        f"{count} analog tags changing, servers updating at {args.publish_hz:g} Hz "
+        f"(motion-server chunk {args.chunk}), subscriber "
+        f"at {PUBLISHING_INTERVAL_MS:.0f} ms (queue 1): at most "
+        f"{count * 1000 / PUBLISHING_INTERVAL_MS:.0f} notifications/s"
+    )
+    for r in results:
+        extra = (
+            f"  overruns {r['overruns']}, dropped {r['dropped']} in {r['cycles']} cycles"
+            if "overruns" in r
+            else ""
+        )
+        print(
+            f"{r['server']:>14}: {r['notif_per_s']:8.0f} notif/s; write -> DN p50 "
+            f"{r['p50_ms']:6.1f} ms, p99 {r['p99_ms']:6.1f} ms, max {r['max_ms']:6.1f} ms "
+            f"({r['samples']} samples); server CPU {r['cpu'] * 100:.0f} %{extra}"
+        )
+    ours = [r for r in results if r["server"] == "motion-server"]
+    bare = [r for r in results if r["server"] != "motion-server"]
+    ratio = sum(r["notif_per_s"] for r in ours) / max(sum(r["notif_per_s"] for r in bare), 1.0)
+    print(f"notifications/s ratio motion-server / bare: {ratio:.2f} (target >= 1.5)")
+    print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
