@@ -57,8 +57,7 @@ ENV PATH=/opt/motion-server/bin:$PATH \
 # at /maps/site.toml (-v ./maps:/maps:ro -e MOTION_SERVER_MAP=/maps/site.toml), or baked
 # into a derived image (COPY site.toml /maps/site.toml + ENV MOTION_SERVER_MAP=...).
 # OPC UA users: MOTION_SERVER_USERS_FILE names a users file (a mounted secret, by default
-# /run/secrets/motion_server_users when present) or MOTION_SERVER_USERS holds it inline;
-# see README.md. Generated state (the OPC UA certificate) goes to /var/lib/motion-server.
+# /run/secrets/motion_server_users when present); see README.md. Generated state (the OPC UA certificate) goes to /var/lib/motion-server.
 WORKDIR /maps
 USER motion
 EXPOSE 5020 4840

@@ -290,7 +290,7 @@ class OpcUaSection(_Model):
     #: absolute deadband of analog (REAL/LREAL) values; 0 publishes every change
     deadband: Annotated[float, Field(ge=0.0)] = 0.0
     #: node updates per chunk before the publisher yields to the event loop
-    chunk_size: Annotated[int, Field(ge=1, le=100000)] = 500
+    chunk_size: Annotated[int, Field(ge=1, le=100000)] = 100
     max_sessions: Annotated[int, Field(ge=1, le=10000)] = 100
     #: transport limits (asyncua's defaults allow 100 MB messages): the largest chunk
     #: (OPC UA's minimum is 8192 bytes), chunks per message and message size we accept
