@@ -13,7 +13,8 @@
 The trigger handshake is the one an HMI uses: write the operands, raise the trigger
 (``Execute``, or ``Enable`` for MC_Power), wait for the success output (DN for Logix;
 Done, InGear, InSync or InVelocity for PLCopen, whichever the block has) or a failure
-(ER, Error, CommandAborted), then lower the trigger (not MC_Power's Enable: it is a level).
+(ER, Error, CommandAborted), then lower the trigger (not MC_Power's Enable: its falling
+edge would switch the drive off).
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ class Handshake:
 
     @property
     def level(self) -> bool:
-        """MC_Power's Enable is level-controlled: it stays high after the trigger."""
+        """MC_Power's Enable stays high after the trigger: its falling edge disables."""
         return self.trigger.field == "Enable"
 
 
