@@ -359,6 +359,8 @@ class MasterDrivenControl:
 
     def update(self) -> None:
         """Once per controller step: a fault on a slave or a master breaks its links."""
+        if not self._links and not self._pending:
+            return  # no MDAC link anywhere: nothing a fault could break
         for ax in self._ctl.axes:
             if ax.state == AxisState.AXIS_FAULTED and (
                 ax.number in self._links or self._is_master(ax.number)
