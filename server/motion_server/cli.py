@@ -68,7 +68,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         asyncio.run(_serve(rt, False if args.no_modbus else None, False if args.no_opcua else None))
     except OSError as exc:
         # a port in use, an address not on this host: the front-ends were closed already
-        raise SystemExit(f"motion-server: cannot serve: {exc.strerror or exc}") from None
+        where = f": {exc.filename}" if exc.filename else ""
+        raise SystemExit(f"motion-server: cannot serve: {exc.strerror or exc}{where}") from None
     log.info("stopped")
     return 0
 
