@@ -12,6 +12,9 @@ own coarse update period. Within a group step:
    off; actual positions are quantised to encoder counts;
 4. following error is checked, and after-stop actions (disable, shutdown) are applied
    once the axis has come to rest.
+
+Axes in a steady state (a jog at speed, a locked real-ratio gear) are composed as arrays
+in step 2 (:mod:`.lanes`); whatever touches an axis's motion first calls :meth:`settle`.
 ``Controller.mdsc`` holds the MDAC links (:mod:`.mdac_links`, :mod:`.master_driven`).
 """
 
@@ -37,6 +40,7 @@ from .enums import (
 )
 from .errors import ErrorCode, MotionError
 from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode
+from .lanes import GroupLanes
 from .mdac_links import MasterDrivenControl
 from .processes import Process, StopRamp
 
@@ -65,7 +69,11 @@ class Pending:
 
 
 class Controller:
-    def __init__(self, axes: Sequence[AxisConfig], groups: Sequence[GroupConfig]) -> None:
+    def __init__(
+        self, axes: Sequence[AxisConfig], groups: Sequence[GroupConfig], lanes: bool = True
+    ) -> None:
+        """``lanes=False`` composes every axis in Python (the reference the fast lanes
+        are tested against)."""
         if not groups:
             raise ConfigError("at least one motion group is required")
         self._check_unique([a.number for a in axes], "axis number")
@@ -126,6 +134,8 @@ class Controller:
         if orphans:
             raise ConfigError(f"axes not in any motion group: {', '.join(orphans)}")
         self._groups_by_number = {g.number: g for g in self.groups}
+        self.lanes_enabled = lanes
+        self._lanes = {g.number: GroupLanes(g) for g in self.groups}
         self.tick = 0
         self._order_dirty = True
         self.mode = OperatingMode.RUN
@@ -183,26 +193,41 @@ class Controller:
         g.cycles += 1
         for ax in g.feedback_axes:
             self._sample_feedback(ax, g, dt)
-        for ax in g.order:
+        lanes = self._lanes[g.number]
+        if lanes.dirty:
+            lanes.rebuild(self)
+        lanes.step(self, dt)
+        fast = self.lanes_enabled
+        for ax in lanes.python_order:
             if ax.processes or ax.buffered is not None:
                 self._compose(ax, dt)
+                procs = ax.processes
+                if fast and len(procs) == 1 and ax.buffered is None and procs[0].active:
+                    lanes.offer(ax)
         self._drives(g.servo_idx, dt, servo=True)
         self._drives(g.virtual_idx, dt, servo=False)
         self._check_following_error(g.servo_idx)
-        for ax in g.axes:
-            if (
-                ax.after_stop != AfterStop.NOTHING
-                and not any(p.active for p in ax.processes)
-                and self._at_standstill(ax, dt)
-            ):
-                action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
-                if action == AfterStop.DISABLE:
-                    self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
-                else:
-                    self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
+        if g.after_stops:
+            self._after_stops(g, dt)
         for s in g.stops:
             s.update()
         g.stops = [s for s in g.stops if not s.complete]
+
+    def _after_stops(self, g: MotionGroup, dt: float) -> None:
+        """Apply the after-stop actions (disable, shutdown) of axes that came to rest."""
+        pending = False
+        for ax in g.axes:
+            if ax.after_stop == AfterStop.NOTHING:
+                continue
+            if any(p.active for p in ax.processes) or not self._at_standstill(ax, dt):
+                pending = True
+                continue
+            action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
+            if action == AfterStop.DISABLE:
+                self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
+            else:
+                self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
+        g.after_stops = pending
 
     def _at_standstill(self, ax: Axis, dt: float) -> bool:
         """The drive has settled: it moves less than one count per coarse update (a
@@ -368,6 +393,8 @@ class Controller:
             for ax in g.axes:
                 self._visit(ax, g.number, order, ())
             g.order = order
+            lanes = self._lanes[g.number]
+            lanes.dirty = True
         self._order_dirty = False
 
     def _visit(self, ax: Axis, group: int, order: list[Axis], path: tuple[int, ...]) -> None:
@@ -379,6 +406,14 @@ class Controller:
                 if master is not None and master.group == group:
                     self._visit(master, group, order, (*path, ax.number))
         order.append(ax)
+
+    def settle(self, ax: Axis) -> None:
+        """Bring ``ax``'s processes up to date and take it out of the fast lanes: call
+        before reading or changing its processes outside :meth:`step`. It rejoins a lane
+        once it is steady again."""
+        for p in ax.processes:
+            if p.lane is not None:
+                p.lane.evict(p)
 
     def coupling_changed(self) -> None:
         """Call after adding or removing a process that has masters."""
@@ -496,6 +531,7 @@ class Controller:
         hit = [p for p in processes if p.active and p in ax.processes]
         if not hit:
             return
+        self.settle(ax)
         v = sum(p.velocity for p in hit)
         for p in hit:
             p.abort(reason)
@@ -538,6 +574,7 @@ class Controller:
     ) -> tuple[float, float]:
         """Abort matching processes, fold them into ``base``; return their velocity and
         acceleration so that a successor can inherit them."""
+        self.settle(ax)
         v = a = 0.0
         keep: list[Process] = []
         for p in ax.processes:
@@ -565,6 +602,10 @@ class Controller:
         them, the PLCopen aborting mode and Logix merge); the new process is built by
         ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
         raises, nothing has changed: the processes it would replace keep running."""
+        if not ax.processes:
+            # an axis without motion may be a master its lane gears read as constant
+            self._lanes[ax.group].dirty = True
+        self.settle(ax)
         matching = [p for p in ax.processes if p.active and (replace is None or p.kind in replace)]
         p = make(
             sum((q.velocity for q in matching), 0.0), sum((q.acceleration for q in matching), 0.0)
@@ -582,6 +623,7 @@ class Controller:
         """Queue ``make`` to start when the axis's active motion is done (PLCopen buffered)."""
         if ax.buffered is not None:
             raise MotionError(ErrorCode.BUFFER_FULL, f"{ax.name} already has a buffered command")
+        self.settle(ax)
         pend = Pending(make, owner)
         if not any(p.active for p in ax.processes):
             pend.process = self.start(ax, make, replace=None)
@@ -654,6 +696,7 @@ class Controller:
             elif ax.state == AxisState.SERVO_CONTROL:
                 self.stop(ax, None, ax.config.max_deceleration, 0.0, owner)
                 ax.after_stop = AFTER_FAST_STOP[mode]
+                g.after_stops = True
             elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
                 self.shutdown(ax)
             # StoppingStatus until the axis is at rest (coasting axes have no ramp)

@@ -344,9 +344,11 @@ class GearProcess(Process):
         self.combined = len(self.terms) > 1
         self.direction = -1 if direction < 0 else 1
         self._c = [_Coupling(ctl, slave, t) for t in self.terms]
-        self._single = self._c[0] if len(self._c) == 1 else None
+        #: the coupling of a one-master gear (None for MC_CombineAxes)
+        self.single = self._c[0] if len(self._c) == 1 else None
         self._ramp = ramp
-        self._at_lock = 0.0
+        #: the gear's own displacement when it locked
+        self.at_lock = 0.0
         self.locked = False
         remember_direction(slave, self.direction)
         if ramp is None:
@@ -371,20 +373,20 @@ class GearProcess(Process):
         return self.locked or super().reached
 
     def _lock(self) -> None:
-        self._at_lock = self.position
+        self.at_lock = self.position
         for c in self._c:
             c.lock()
         self.locked = True
 
     def step(self, ctl: Controller, dt: float) -> None:
-        c1 = self._single
+        c1 = self.single
         if self.locked:
             if c1 is not None and not c1.exact:
                 # the hot path (one master, real ratio), inlined: no allocation, no ruckig
                 i = c1.index
                 m = c1.pos.item(i)
                 v = c1.vel.item(i)
-                self.position = self._at_lock + (m - c1.lock_pos) * c1.num / c1.den
+                self.position = self.at_lock + (m - c1.lock_pos) * c1.num / c1.den
                 self.velocity = c1.ratio * v
                 if c1.acc is not None:
                     self.acceleration = c1.ratio * c1.acc.item(i)
@@ -392,11 +394,11 @@ class GearProcess(Process):
                     self.acceleration = c1.ratio * (v - c1.v_prev) / dt
                 c1.v_prev = v
             elif c1 is not None:
-                self.position = self._at_lock + c1.displacement()
+                self.position = self.at_lock + c1.displacement()
                 self.velocity = c1.velocity()
                 self.acceleration = c1.acceleration(dt)
             else:
-                pos = self._at_lock
+                pos = self.at_lock
                 vel = acc = 0.0
                 for c in self._c:
                     pos += c.displacement()

@@ -52,6 +52,8 @@ class MotionGroup:
         self.axes = axes
         self.cycles = 0
         self.stops: list[GroupStop] = []
+        #: some axis has an after-stop action (disable, shutdown) waiting for rest
+        self.after_stops = False
         self.servo_idx = np.array(
             [a.index for a in axes if a.type == AxisType.SERVO], dtype=np.intp
         )

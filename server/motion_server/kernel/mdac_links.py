@@ -268,6 +268,7 @@ class MasterDrivenControl:
                 f"master {master.name} is {master.state.name.lower()}",
             )
         v_m = master_speed(ctl, master, link.reference)
+        ctl.settle(slave)
         replaced = [
             p for p in slave.processes if p.active and (replace is None or p.kind in replace)
         ]

@@ -10,7 +10,7 @@ calls back into instructions.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from .enums import AbortReason, ProcessKind, ProcessState
 from .errors import MotionError
@@ -20,12 +20,21 @@ if TYPE_CHECKING:
     from .controller import Controller
 
 
+class Lane(Protocol):
+    """A fast lane stepping processes as arrays (:mod:`.lanes`)."""
+
+    def evict(self, p: Process) -> None: ...
+
+
 class Process:
     """Base: a displacement with velocity and acceleration, advanced once per cycle."""
 
     kind: ProcessKind = ProcessKind.MOVE
     #: axis numbers this process reads (gearing); the controller steps masters first
     masters: tuple[int, ...] = ()
+    #: the fast lane stepping this process (:mod:`.lanes`); while set, ``position``,
+    #: ``velocity`` and ``acceleration`` are stale until the lane evicts it
+    lane: Lane | None = None
 
     def __init__(self, owner: Any = None) -> None:
         self.owner = owner
@@ -54,6 +63,8 @@ class Process:
         return self.state == ProcessState.DONE
 
     def abort(self, reason: AbortReason) -> None:
+        if self.lane is not None:
+            self.lane.evict(self)
         if self.state == ProcessState.ACTIVE:
             self.state = ProcessState.ABORTED
             self.abort_reason = reason
@@ -98,6 +109,8 @@ class ProfiledProcess(Process):
     def change_dynamics(self, limits: Limits, speed: float | None = None) -> None:
         """MCD: new limits and, unless None, a new speed, planned as one change. If the
         profile cannot be planned nothing changes and MotionError is raised."""
+        if self.lane is not None:
+            self.lane.evict(self)
         saved = dict(vars(self))
         try:
             self.limits = limits.validated()

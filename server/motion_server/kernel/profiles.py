@@ -184,6 +184,10 @@ class Profile:
             self._inp.current_acceleration = [0.0]
 
     @property
+    def dt(self) -> float:
+        return self._dt
+
+    @property
     def target_position(self) -> float | None:
         return self._target_position
 
