@@ -61,7 +61,7 @@ WATCHDOG_S = 60.0
 
 
 # -- the site map ---------------------------------------------------------------------------
-def site_map(axes: int, data_dir: Path, publish_hz: float = 20.0, chunk: int = 500) -> str:
+def site_map(axes: int, data_dir: Path, publish_hz: float = 20.0, chunk: int = 100) -> str:
     """A site map with ``axes`` servo axes, MSO_1 and MAJ_1 to start them, and MSO_LAT (on
     Axis1, already on: MSO on an enabled axis does nothing but set DN) for the latency."""
     out = [
@@ -404,7 +404,9 @@ def main() -> None:
     p.add_argument(
         "--publish-hz", type=float, default=20.0, help="server update rate (both servers)"
     )
-    p.add_argument("--chunk", type=int, default=500, help="motion-server's [opcua] chunk_size")
+    p.add_argument(
+        "--chunk", type=int, default=100, help="motion-server's [opcua] chunk_size (its default)"
+    )
     args = p.parse_args()
     count = min(args.axes * len(ANALOG), TAGS)
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

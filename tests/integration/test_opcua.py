@@ -304,3 +304,54 @@ async def test_queue_size_zero_delivers_the_latest_value(rt: Runtime, client_dir
         await sub.delete()
     finally:
         await client.disconnect()
+
+
+async def test_many_monitored_items_in_one_request_and_axis_values_by_subscription(
+    rt: Runtime, client_dir: Path
+) -> None:
+    """One CreateMonitoredItems of more items than the server creates between two yields:
+    every item gets its own result in request order (an unknown node its own Bad code),
+    and the positions of a jogging axis arrive as the values a Read returns."""
+    client = await connect(rt, client_dir, "admin")
+    try:
+        tags = Tags(client, await client.get_namespace_index(NS_URI))
+        fields = ("ActualPosition", "CommandPosition", "CommandVelocity", "PositionError")
+        names = [f"Axes.Axis{a}.{f}" for a in (1, 2, 3) for f in fields]
+        names += [f"Instructions.MAJ_1.{f}" for f in ("DN", "IP", "ER", "ERR")]
+        names += [f"Instructions.MSO_1.{f}" for f in ("DN", "ER", "ERR")]
+        names.insert(9, "Axes.NoSuchAxis.ActualPosition")
+        assert len(names) > 16  # more than one batch (CREATE_BATCH)
+        changes = Changes()
+        sub = await client.create_subscription(20, changes)
+        results = await sub.subscribe_data_change([tags.node(n) for n in names])
+        assert len(results) == len(names)
+        for name, result in zip(names, results, strict=True):
+            if name.startswith("Axes.NoSuchAxis"):
+                assert isinstance(result, ua.StatusCode)
+                assert result.value == ua.StatusCodes.BadNodeIdUnknown
+            else:
+                assert isinstance(result, int), (name, result)
+        await tags.trigger("MSO_1", Axis=(1, I32))
+        await tags.step(1)
+        assert await tags.read("Axes.Axis1.CommandVelocity") == 0.0  # at rest: from here
+        start = await tags.read("Axes.Axis1.CommandPosition")
+        await tags.trigger(
+            "MAJ_1",
+            Axis=(1, I32),
+            Direction=(0, I32),
+            SpeedUnits=(0, I32),
+            Speed=(10.0, F),
+            AccelRate=(1000.0, F),
+            DecelRate=(1000.0, F),
+        )
+        await tags.step(51)  # at speed after 10 ms; 100 ms at 10 mm/s from then on
+        position = await tags.read("Axes.Axis1.CommandPosition")
+        # from rest: 10 mm/s at 1000 mm/s^2 is reached in 10 ms (5 cycles) over 0.05 mm,
+        # then 46 cycles (92 ms) at speed
+        assert position - start == pytest.approx(0.05 + 10.0 * 0.092, abs=1e-9)
+        await changes.wait_for("Axes.Axis1.CommandPosition", position)
+        await changes.wait_for("Axes.Axis1.ActualPosition", position)  # virtual: actual = command
+        await changes.wait_for("Axes.Axis1.CommandVelocity", 10.0)
+        await sub.delete()
+    finally:
+        await client.disconnect()

@@ -159,3 +159,33 @@ def test_unused_registers_of_a_block_read_zero(image: TagImage) -> None:
     assert tail == [0] * 10
     with pytest.raises(ReadOnlyError):
         image.write_registers(block.end - 10, [1])
+
+
+def test_the_vectorised_axis_fields_equal_the_per_axis_getters() -> None:
+    """``AXIS_ARRAYS`` (``TagImage.axis_values``, what the OPC UA publisher compares)
+    read exactly what the per-axis getters read, rotary wrapping included, on both sides
+    of zero and of the rollover."""
+    from motion_server.kernel import AxisConfig, AxisType
+    from motion_server.tagmap.image import AXIS_ARRAYS, AXIS_GETTERS
+
+    from ..support import make_system
+
+    system = make_system(
+        AxisConfig(1, "L", AxisType.SERVO, following_error_limit=1e6),
+        AxisConfig(2, "R", AxisType.SERVO, rollover=360.0, following_error_limit=1e6),
+        AxisConfig(3, "V", AxisType.VIRTUAL, rollover=1.5),
+    )
+    ctl = system.ctl
+    positions = (-1234.567, -360.0, -0.25, 0.0, 359.9999, 360.0, 725.125, 1e9 + 0.3)
+    for k, x in enumerate(positions):
+        ctl.cmd_pos[:] = x
+        ctl.act_pos[:] = x - 0.001 * k
+        ctl.cmd_vel[:] = -3.5 * k
+        ctl.act_vel[:] = 2.25 * k
+        ctl.cmd_acc[:] = 1e3 * k
+        for field, vector in AXIS_ARRAYS.items():
+            values = vector(ctl)
+            for ax in ctl.axes:
+                expected = AXIS_GETTERS[field](ax)
+                assert values[ax.index] == expected, (field, ax.name, x)
+                assert type(float(values[ax.index])) is type(expected)

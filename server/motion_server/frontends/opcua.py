@@ -41,10 +41,15 @@ the site map sets ``allow_anonymous`` / ``allow_none_endpoint``. Client applicat
 certificates are accepted without a trust list (a simulator's choice; see README).
 
 Publishing: every ``1/publish_rate_hz`` seconds the tags whose value changed (analog
-values: by more than ``deadband``) are written to their nodes with
-``server.write_attribute_value``, ``chunk_size`` nodes at a time with a yield to the event
-loop between chunks, between motion cycles, never inside one. Monitored items created
-with queue size 0 get a queue of one (latest value), as the specification asks.
+values: by more than ``deadband``) are written to their nodes, between motion cycles,
+never inside one. A pass yields to the event loop after ``chunk_size`` node updates or
+``PUBLISH_SLICE_S`` of work, whichever comes first, so cycles and requests run in
+between. The axis fields that are functions of the kernel arrays (positions, velocities,
+following error) are compared for all axes at once (``TagImage.axis_values``); the rest
+tag by tag. A node's value is set as asyncua's ``write_attribute_value`` sets it (value,
+then the data-change callbacks of its monitored items), without looking the node up
+again or re-checking the variant type the publisher built. Monitored items created with
+queue size 0 get a queue of one (latest value), as the specification asks.
 
 A client's write of an instruction's BOOL input (``Execute``, ``Enable``) in realtime or
 scaled time also publishes that instance's tags right after the next cycle, so its
@@ -55,15 +60,18 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import ipaddress
 import logging
 import socket
+import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from asyncua import Server, ua
 from asyncua.common.connection import TransportLimits
 from asyncua.crypto.cert_gen import setup_self_signed_certificate
@@ -77,6 +85,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID
 from ..config import OpcUaSection, OpcUaUser
 from ..safety.audit import AuditLog
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagImage, TagType
+from ..tagmap.image import AXIS_ARRAYS
 from ..tagmap.nodeset import enum_text
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, Role
@@ -93,6 +102,8 @@ _ROLES = {"viewer": Role.VIEWER, "operator": Role.OPERATOR, "admin": Role.ADMIN}
 #: after a trigger write: how often to look for the next cycle, and for how long
 FOLLOW_POLL_S = 0.0005
 FOLLOW_LIMIT_S = 0.5
+#: the longest stretch of publishing work before a yield to the event loop
+PUBLISH_SLICE_S = 0.001
 
 
 def required_role(tag: Tag) -> Role:
@@ -110,6 +121,18 @@ class _Published:
     is_float: bool
     last: Any
     text_node: ua.NodeId | None = None  # ValueAsText of an enumerated value
+    #: the node's Value attribute in asyncua's address space (set once serving)
+    attval: Any = None
+
+
+@dataclass
+class _AxisField:
+    """One vectorised axis field: its tags, their axes' indices, the last published values."""
+
+    field: str
+    pubs: list[_Published]
+    index: np.ndarray
+    last: np.ndarray
 
 
 def _is_loopback(host: str) -> bool:
@@ -164,6 +187,9 @@ class OpcUaFrontend:
         self._standard_write: Any = None
         self._by_node: dict[str, _Published] = {}
         self._by_owner: dict[str, list[_Published]] = {}
+        #: tags compared as arrays (``_axis_fields``) and the others, one by one
+        self._axis_fields: list[_AxisField] = []
+        self._scalar: list[_Published] = []
         self._following: dict[str, asyncio.Task[None]] = {}
         self._task: asyncio.Task[None] | None = None
         self._lock = asyncio.Lock()
@@ -311,6 +337,7 @@ class OpcUaFrontend:
                 await enqueue(mid, event, maxsize or 1)
 
             isub.enqueue_datachange_event = enqueue_datachange_event
+            mis.create_monitored_items = _in_batches(mis.create_monitored_items)
             return result
 
         service.create_subscription = create_subscription
@@ -397,26 +424,52 @@ class OpcUaFrontend:
 
     # -- publishing -----------------------------------------------------------------------
     def _watch(self, space: dict[str, Any]) -> None:
+        assert self._server is not None
         ns = self.namespace_index
+        nodes = getattr(self._server.iserver.aspace, "_nodes", {})
+        ctl = self.image.system.ctl
+        by_field: dict[str, list[_Published]] = {}
         for tag in self.image.map:
             text = f"{tag.node_id}.ValueAsText" if tag.enum is not None else None
+            node_id = ua.NodeId(tag.node_id, ns)
+            node = nodes.get(node_id)
             pub = _Published(
                 tag,
-                ua.NodeId(tag.node_id, ns),
+                node_id,
                 VARIANT_TYPES[tag.type],
                 tag.type.is_float,
                 self.image.read(tag),
                 ua.NodeId(text, ns) if text in space else None,
+                node.attributes.get(ua.AttributeIds.Value) if node is not None else None,
             )
             self._published.append(pub)
             self._by_node[tag.node_id] = pub
             self._by_owner.setdefault(tag.owner, []).append(pub)
+            if tag.folder == Folder.AXES and tag.field in AXIS_ARRAYS:
+                by_field.setdefault(tag.field, []).append(pub)
+            else:
+                self._scalar.append(pub)
+        for field, pubs in by_field.items():
+            index = np.array([ctl.axis(p.tag.owner).index for p in pubs], dtype=np.intp)
+            last = np.array([float(p.last) for p in pubs])
+            self._axis_fields.append(_AxisField(field, pubs, index, last))
 
     async def _set(self, pub: _Published, value: Any, now: datetime) -> None:
         assert self._server is not None
         pub.last = value
         dv = ua.DataValue(variant(pub.tag, value), SourceTimestamp=now, ServerTimestamp=now)
-        await self._server.write_attribute_value(pub.node_id, dv)
+        att = pub.attval
+        if att is not None and att.value_setter is None:
+            # what AddressSpace.write_attribute_value does for a value of the right type
+            att.value = dv
+            att.value_callback = None
+            for handle, callback in list(att.datachange_callbacks.items()):
+                try:
+                    await callback(handle, dv)
+                except Exception:
+                    log.exception("OPC UA: data-change callback of %s failed", pub.tag.name)
+        else:
+            await self._server.write_attribute_value(pub.node_id, dv)
         self.updates += 1
         if pub.text_node is not None:
             text = ua.Variant(
@@ -430,13 +483,40 @@ class OpcUaFrontend:
             return await self._publish_pass()
 
     async def _publish_pass(self) -> int:
-        read = self.image.read
         deadband = self.config.deadband
         chunk = self.config.chunk_size
+        clock = time.perf_counter
         now = _now()
         changed = 0
         budget = chunk
-        for pub in self._published:
+        slice_end = clock() + PUBLISH_SLICE_S
+        for af in self._axis_fields:
+            values = self.image.axis_values(af.field)[af.index]
+            last = af.last
+            if deadband:
+                moved = np.flatnonzero(~(np.abs(values - last) <= deadband))
+            else:
+                moved = np.flatnonzero(values != last)
+            for k in moved.tolist():
+                value = float(values[k])
+                last[k] = value
+                await self._set(af.pubs[k], value, now)
+                changed += 1
+                budget -= 1
+                if budget <= 0 or clock() > slice_end:
+                    await asyncio.sleep(0)
+                    budget = chunk
+                    slice_end = clock() + PUBLISH_SLICE_S
+                    # the cycle that ran meanwhile moved the axes: publish its values
+                    values = self.image.axis_values(af.field)[af.index]
+                    now = _now()
+        read = self.image.read
+        for n, pub in enumerate(self._scalar):
+            if n & 63 == 63 and clock() > slice_end:
+                await asyncio.sleep(0)
+                budget = chunk
+                slice_end = clock() + PUBLISH_SLICE_S
+                now = _now()
             value = read(pub.tag)
             last = pub.last
             if value == last:
@@ -446,9 +526,11 @@ class OpcUaFrontend:
             await self._set(pub, value, now)
             changed += 1
             budget -= 1
-            if budget <= 0:
-                budget = chunk
+            if budget <= 0 or clock() > slice_end:
                 await asyncio.sleep(0)
+                budget = chunk
+                slice_end = clock() + PUBLISH_SLICE_S
+                now = _now()
         self.passes += 1
         return changed
 
@@ -466,6 +548,31 @@ class OpcUaFrontend:
             if deadline < now:  # a slow pass: do not try to catch up
                 deadline = now
             await asyncio.sleep(deadline - now)
+
+
+#: monitored items created between two yields to the event loop
+CREATE_BATCH = 16
+
+
+def _in_batches(create: Any) -> Any:
+    """CreateMonitoredItems in batches with a yield in between: asyncua creates all the
+    items of a request in one go (about 0.1 ms each), so a SCADA client subscribing to
+    1,000 tags at once would stop the event loop, and the motion cycles, for 100 ms."""
+
+    async def create_monitored_items(
+        params: ua.CreateMonitoredItemsParameters,
+    ) -> list[ua.MonitoredItemCreateResult]:
+        items = params.ItemsToCreate
+        if len(items) <= CREATE_BATCH:
+            return list(await create(params))
+        results: list[ua.MonitoredItemCreateResult] = []
+        for start in range(0, len(items), CREATE_BATCH):
+            part = dataclasses.replace(params, ItemsToCreate=items[start : start + CREATE_BATCH])
+            results += await create(part)
+            await asyncio.sleep(0)
+        return results
+
+    return create_monitored_items
 
 
 class _SharedValues(MonitoredItemValues):

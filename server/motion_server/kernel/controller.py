@@ -98,6 +98,9 @@ class Controller:
         self.cpu = np.array([a.counts_per_unit for a in axes])
         self.coast = np.array([max(a.coast_deceleration, 0.0) for a in axes])
         self.fe_limit = np.array([a.following_error_limit for a in axes])
+        #: rollover of rotary axes (0: linear) and the indices of the rotary ones
+        self.rollover = np.array([max(a.rollover, 0.0) for a in axes])
+        self.rotary_idx = np.flatnonzero(self.rollover > 0.0)
         self.axes: list[Axis] = [Axis(self, cfg, i) for i, cfg in enumerate(axes)]
         self._by_number = {a.number: a for a in self.axes}
         self._by_name = {a.name: a for a in self.axes}

@@ -18,9 +18,11 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+import numpy as np
+
 from ..instructions import MotionSystem
 from ..instructions.schema import TagType
-from ..kernel import Axis, MotionError
+from ..kernel import Axis, Controller, MotionError
 from ..kernel.group import MotionGroup
 from .codec import RegisterValueError, Value, decoder, encoder
 from .fields import ClockMode
@@ -126,6 +128,31 @@ AXIS_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "FeedbackInput": lambda ax: ax.feedback_input,
 }
 
+
+def wrapped(ctl: Controller, positions: np.ndarray) -> np.ndarray:
+    """``positions`` (all axes, unwound) as :meth:`Axis.wrap` reads them, vectorised
+    with the same operations (C ``fmod``, then + rollover below 0)."""
+    rot = ctl.rotary_idx
+    if rot.size == 0:
+        return positions
+    out = positions.copy()
+    r = ctl.rollover[rot]
+    w = np.fmod(positions[rot], r)
+    out[rot] = np.where(w < 0.0, w + r, w)
+    return out
+
+
+#: the axis fields that are plain functions of the kernel arrays: every axis at once, in
+#: axis index order, equal to ``AXIS_GETTERS`` (a test checks it)
+AXIS_ARRAYS: dict[str, Callable[[Controller], np.ndarray]] = {
+    "ActualPosition": lambda ctl: wrapped(ctl, ctl.act_pos),
+    "CommandPosition": lambda ctl: wrapped(ctl, ctl.cmd_pos),
+    "ActualVelocity": lambda ctl: ctl.act_vel,
+    "CommandVelocity": lambda ctl: ctl.cmd_vel,
+    "CommandAcceleration": lambda ctl: ctl.cmd_acc,
+    "PositionError": lambda ctl: ctl.cmd_pos - ctl.act_pos,
+}
+
 GROUP_GETTERS: dict[str, Callable[[MotionGroup], Value]] = {
     "Number": lambda g: g.number,
     "GroupState": lambda g: int(g.state),
@@ -193,6 +220,12 @@ class TagImage:
     def read(self, tag: Tag | str) -> Value:
         """The value of a tag as of the last completed cycle (or as last written)."""
         return self._get[self.tag(tag).name]()
+
+    def axis_values(self, field: str) -> np.ndarray:
+        """The values of an ``AXIS_ARRAYS`` field for every axis (by axis index), as of
+        the last completed cycle. The result may be the kernel's own array: index it (a
+        copy) before the next cycle."""
+        return AXIS_ARRAYS[field](self.system.ctl)
 
     def write(self, tag: Tag | str, value: Any) -> int:
         """Write one tag: :class:`ReadOnlyError`, :class:`BadValueError` on refusal.
