@@ -189,3 +189,24 @@ def test_the_vectorised_axis_fields_equal_the_per_axis_getters() -> None:
                 expected = AXIS_GETTERS[field](ax)
                 assert values[ax.index] == expected, (field, ax.name, x)
                 assert type(float(values[ax.index])) is type(expected)
+
+
+def test_static_tags_keep_their_value_through_motion_faults_and_shutdown(
+    image: TagImage,
+) -> None:
+    """What ``is_static`` marks (the OPC UA publisher sends it once) does not change when
+    axes are powered, moved, faulted and shut down."""
+    from motion_server.tagmap.image import is_static
+
+    static = [t for t in image.map if is_static(t)]
+    assert {t.field for t in static} >= {"Number", "Type", "AxisCount", "Member1"}
+    before = {t.name: image.read(t) for t in static}
+    ctl = image.system.ctl
+    for ax in ctl.axes:
+        if ax.type.name != "FEEDBACK_ONLY":
+            ctl.servo_on(ax)
+    image.system.cycle(10)
+    ctl.fault(ctl.axes[0], 1)
+    ctl.group_shutdown(ctl.groups[0].number)
+    image.system.cycle(10)
+    assert {t.name: image.read(t) for t in static} == before

@@ -85,7 +85,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID
 from ..config import OpcUaSection, OpcUaUser
 from ..safety.audit import AuditLog
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagImage, TagType
-from ..tagmap.image import AXIS_ARRAYS
+from ..tagmap.image import AXIS_ARRAYS, is_static
 from ..tagmap.nodeset import enum_text
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, Role
@@ -447,7 +447,7 @@ class OpcUaFrontend:
             self._by_owner.setdefault(tag.owner, []).append(pub)
             if tag.folder == Folder.AXES and tag.field in AXIS_ARRAYS:
                 by_field.setdefault(tag.field, []).append(pub)
-            else:
+            elif not is_static(tag):  # a static tag keeps the value the node was built with
                 self._scalar.append(pub)
         for field, pubs in by_field.items():
             index = np.array([ctl.axis(p.tag.owner).index for p in pubs], dtype=np.intp)

@@ -153,6 +153,24 @@ AXIS_ARRAYS: dict[str, Callable[[Controller], np.ndarray]] = {
     "PositionError": lambda ctl: ctl.cmd_pos - ctl.act_pos,
 }
 
+#: fields whose value never changes while the server runs (configuration)
+STATIC_FIELDS: dict[Folder, frozenset[str]] = {
+    Folder.AXES: frozenset({"Number", "Type"}),
+    Folder.GROUPS: frozenset({"Number", "CoarseUpdatePeriod", "AxisCount"}),
+    Folder.DIAGNOSTICS: frozenset(
+        {"VersionMajor", "VersionMinor", "VersionPatch", "AxisCount", "GroupCount"}
+    ),
+}
+
+
+def is_static(tag: Tag) -> bool:
+    """True for a tag whose value is fixed by the configuration (a publisher sends it
+    once)."""
+    if tag.folder == Folder.GROUPS and tag.field.startswith("Member"):
+        return True
+    return tag.field in STATIC_FIELDS.get(tag.folder, frozenset())
+
+
 GROUP_GETTERS: dict[str, Callable[[MotionGroup], Value]] = {
     "Number": lambda g: g.number,
     "GroupState": lambda g: int(g.state),
