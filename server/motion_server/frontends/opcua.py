@@ -76,10 +76,11 @@ from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from ..config import OpcUaSection, OpcUaUser
 from ..safety.audit import AuditLog
+from ..safety.roles import Role, required_role
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagImage, TagType
 from ..tagmap.nodeset import enum_text
 from .opcua_space import VARIANT_TYPES, build_space, variant
-from .opcua_users import Account, Directory, LoginLimiter, PeerSession, Role
+from .opcua_users import Account, Directory, LoginLimiter, PeerSession
 
 log = logging.getLogger("motion_server.opcua")
 
@@ -89,15 +90,9 @@ _POLICIES = {
     "Basic256Sha256_Sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
     "Basic256Sha256_SignAndEncrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
 }
-_ROLES = {"viewer": Role.VIEWER, "operator": Role.OPERATOR, "admin": Role.ADMIN}
 #: after a trigger write: how often to look for the next cycle, and for how long
 FOLLOW_POLL_S = 0.0005
 FOLLOW_LIMIT_S = 0.5
-
-
-def required_role(tag: Tag) -> Role:
-    """The lowest role that may write ``tag`` (Clock control is for admins)."""
-    return Role.ADMIN if tag.folder == Folder.CLOCK else Role.OPERATOR
 
 
 @dataclass
@@ -147,13 +142,13 @@ class OpcUaFrontend:
             cfg = cfg.model_copy(update={"allow_anonymous": False, "allow_none_endpoint": False})
         self.config = cfg
         accounts = [
-            Account(u.name, _ROLES[u.role], u.password_hash)
+            Account(u.name, Role.named(u.role), u.password_hash)
             for u in (cfg.users if users is None else users)
         ]
         self.directory = Directory(
             accounts,
             allow_anonymous=cfg.allow_anonymous,
-            anonymous_role=_ROLES[cfg.anonymous_role],
+            anonymous_role=Role.named(cfg.anonymous_role),
             limiter=LoginLimiter(cfg.max_login_failures, cfg.login_window_s, cfg.login_lockout_s),
         )
         self.server: Server | None = None  # set once listening
