@@ -61,31 +61,27 @@ import socket
 from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import Any
 
 from asyncua import Server, ua
 from asyncua.common.connection import TransportLimits
-from asyncua.crypto.cert_gen import setup_self_signed_certificate
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
 from asyncua.server.internal_session import InternalSession
 from asyncua.server.monitored_item_service import MonitoredItemValues
 from asyncua.ua import status_codes
-from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from ..config import OpcUaSection, OpcUaUser
 from ..safety.audit import AuditLog
 from ..safety.roles import Role, required_role
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagImage, TagType
 from ..tagmap.nodeset import enum_text
+from .certificates import self_signed
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession
 
 log = logging.getLogger("motion_server.opcua")
 
-CERT_FILE = "server-cert.der"
-KEY_FILE = "server-key.pem"
 _POLICIES = {
     "Basic256Sha256_Sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
     "Basic256Sha256_SignAndEncrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
@@ -247,21 +243,8 @@ class OpcUaFrontend:
             self.server = None
 
     async def _certificate(self, server: Server, app_uri: str) -> None:
-        data = Path(self.config.data_dir)
-        data.mkdir(parents=True, exist_ok=True)
-        cert, key = data / CERT_FILE, data / KEY_FILE
-        if not cert.exists():
-            log.info("OPC UA: generating the server certificate in %s", data)
-        await setup_self_signed_certificate(
-            key,
-            cert,
-            app_uri,
-            socket.gethostname(),
-            [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH],
-            {"commonName": f"motion-server {self.image.map.site}"},
-        )
-        with contextlib.suppress(OSError):
-            key.chmod(0o600)
+        common_name = f"motion-server {self.image.map.site}"
+        cert, key = await self_signed(self.config.data_dir, app_uri, common_name, "OPC UA")
         await server.load_certificate(str(cert))
         await server.load_private_key(str(key))
 
