@@ -361,6 +361,10 @@ class OpcUaSection(_Model):
     max_message_size: Annotated[int, Field(ge=8192, le=100 << 20)] = 4 << 20
     max_subscriptions: Annotated[int, Field(ge=1, le=10000)] = 100
     max_session_timeout_s: Annotated[float, Field(ge=5.0, le=86400.0)] = 600.0
+    #: seconds a TCP connection may stay silent (no byte received) before it is closed;
+    #: a connection with an activated session gets its session timeout if that is longer
+    #: (conforming clients talk at least that often). 0: never close for silence
+    idle_timeout: Annotated[float, Field(ge=0.0, le=86400.0)] = 60.0
     #: failed logins per client address within ``login_window_s`` before a lockout
     max_login_failures: Annotated[int, Field(ge=1, le=1000)] = 5
     login_window_s: Annotated[float, Field(gt=0.0)] = 60.0
