@@ -191,6 +191,66 @@ class ModbusAccessSection(_Model):
         return value
 
 
+RoleName = Literal["viewer", "operator", "admin"]
+
+#: certificate roles understood without a ``roles`` table in the site map
+DEFAULT_CERTIFICATE_ROLES: dict[str, RoleName] = {
+    "viewer": "viewer",
+    "read": "viewer",
+    "operator": "operator",
+    "admin": "admin",
+}
+
+
+class ModbusTlsSection(_Model):
+    """Modbus/TCP Security (``[modbus.tls]``): Modbus over TLS (1.2 or later) on ``port``
+    (802, the standard's; 0 = ephemeral), beside plain Modbus TCP (``tls_only`` turns
+    that off). Every client must present a certificate that ``ca_file`` (PEM) verifies.
+    The server's own certificate is ``cert_file`` + ``key_file`` (PEM, key unencrypted),
+    or, when both are empty, a self-signed pair generated in ``data_dir`` on first start.
+
+    A client's role comes from its certificate's role extension (OID
+    1.3.6.1.4.1.50316.802.1, a UTF8String), looked up without regard to case in
+    ``roles`` (certificate role -> viewer, operator or admin); a certificate without the
+    extension gets ``default_role``; one whose role is not in ``roles`` (or unreadable)
+    gets viewer. ``handshake_timeout``: seconds a connection may take to complete the
+    handshake."""
+
+    enabled: bool = False
+    port: Annotated[int, Field(ge=0, le=65535)] = 802
+    tls_only: bool = False
+    cert_file: str = ""
+    key_file: str = ""
+    ca_file: str = ""
+    data_dir: str = "modbus-tls-data"
+    default_role: RoleName = "viewer"
+    roles: dict[str, RoleName] = Field(default_factory=lambda: dict(DEFAULT_CERTIFICATE_ROLES))
+    handshake_timeout: Annotated[float, Field(gt=0.0, le=300.0)] = 10.0
+
+    @field_validator("roles")
+    @classmethod
+    def _roles(cls, value: dict[str, RoleName]) -> dict[str, RoleName]:
+        out: dict[str, RoleName] = {}
+        for name, role in value.items():
+            key = name.strip().lower()
+            if not key:
+                raise ValueError("an empty certificate role name")
+            if key in out and out[key] != role:
+                raise ValueError(f"certificate role {name!r} is mapped twice")
+            out[key] = role
+        return out
+
+    @model_validator(mode="after")
+    def _files(self) -> ModbusTlsSection:
+        if bool(self.cert_file) != bool(self.key_file):
+            raise ValueError("cert_file and key_file go together (or both empty: self-signed)")
+        if self.enabled and not self.ca_file:
+            raise ValueError("ca_file is required: client certificates are always verified")
+        if self.tls_only and not self.enabled:
+            raise ValueError("tls_only needs enabled = true (else Modbus would serve nothing)")
+        return self
+
+
 class WatchdogSection(_Model):
     """A communication watchdog (``[[watchdogs]]``): a client must change the tag
     ``<name>.Heartbeat`` at least every ``timeout`` seconds (simulated time), else
@@ -230,7 +290,8 @@ class RetainSection(_Model):
 class ModbusSection(_Model):
     """Modbus TCP front-end. ``port = 0`` binds an ephemeral port (tests); ``unit_id = 0``
     answers every unit id. The bases place the register blocks of each kind (see
-    ``motion_server.tagmap.layout``)."""
+    ``motion_server.tagmap.layout``). ``access``: who may connect and write; ``tls``:
+    Modbus/TCP Security beside (or instead of) plain Modbus TCP."""
 
     enabled: bool = True
     host: str = "127.0.0.1"
@@ -245,6 +306,7 @@ class ModbusSection(_Model):
     #: watchdog blocks (``[[watchdogs]]``): safety_base + 20·k
     safety_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] = 900
     access: ModbusAccessSection = ModbusAccessSection()
+    tls: ModbusTlsSection = ModbusTlsSection()
 
 
 HASH_RE = r"^scrypt\$\d+\$\d+\$\d+\$[A-Za-z0-9+/=]+\$[A-Za-z0-9+/=]+$"
@@ -299,6 +361,10 @@ class OpcUaSection(_Model):
     max_message_size: Annotated[int, Field(ge=8192, le=100 << 20)] = 4 << 20
     max_subscriptions: Annotated[int, Field(ge=1, le=10000)] = 100
     max_session_timeout_s: Annotated[float, Field(ge=5.0, le=86400.0)] = 600.0
+    #: seconds a TCP connection may stay silent (no byte received) before it is closed;
+    #: a connection with an activated session gets its session timeout if that is longer
+    #: (conforming clients talk at least that often). 0: never close for silence
+    idle_timeout: Annotated[float, Field(ge=0.0, le=86400.0)] = 60.0
     #: failed logins per client address within ``login_window_s`` before a lockout
     max_login_failures: Annotated[int, Field(ge=1, le=1000)] = 5
     login_window_s: Annotated[float, Field(gt=0.0)] = 60.0

@@ -245,7 +245,7 @@ class Runtime:
             if cfg.enabled if modbus is None else modbus:
                 policy = AccessPolicy(cfg.access, self.tagmap)
                 self.modbus = ModbusFrontend(
-                    self.image, cfg.host, cfg.port, cfg.unit_id, policy, self.audit
+                    self.image, cfg.host, cfg.port, cfg.unit_id, policy, self.audit, cfg.tls
                 )
                 await self.modbus.start()
             ucfg = self.site.opcua

@@ -56,7 +56,8 @@ write = ["Instructions"]
     refused = [r for r in records if r["result"] == "refused"]
     assert [(r["tag"], r["old"], r["new"]) for r in accepted] == [("MAJ_1.Speed", 10.0, 25.0)]
     a = accepted[0]
-    assert a["protocol"] == "modbus" and a["address"] == "127.0.0.1" and a["user"] == ""
+    assert a["protocol"] == "modbus" and a["address"] == "127.0.0.1"
+    assert a["user"] == "" and a["role"] == ""  # plain Modbus TCP: no user, no role
     assert isinstance(a["port"], int) and a["port"] > 0
     assert {"time", "cycle", "event", "connection"} <= a.keys()
     assert len(refused) == 2

@@ -122,12 +122,12 @@ async def test_opcua_writes_are_audited_with_the_user_and_never_the_password(
     assert "not-the-admin-password" not in text
     records = [json.loads(line) for line in text.splitlines()]
     writes = [r for r in records if r["event"] == "write" and r["protocol"] == "opcua"]
-    seen = [(r["user"], r["result"], r["tag"], r.get("reason", "")) for r in writes]
+    seen = [(r["user"], r["role"], r["result"], r["tag"], r.get("reason", "")) for r in writes]
     assert seen == [
-        ("operator", "accepted", "MAJ_1.Speed", ""),
-        ("operator", "refused", "Clock.StepCycles", "BadUserAccessDenied"),
-        ("viewer", "refused", "MAJ_1.Speed", "BadUserAccessDenied"),
-        ("operator", "refused", "MAJ_1.Speed", "BadTypeMismatch"),
+        ("operator", "operator", "accepted", "MAJ_1.Speed", ""),
+        ("operator", "operator", "refused", "Clock.StepCycles", "BadUserAccessDenied"),
+        ("viewer", "viewer", "refused", "MAJ_1.Speed", "BadUserAccessDenied"),
+        ("operator", "operator", "refused", "MAJ_1.Speed", "BadTypeMismatch"),
     ]
     first = writes[0]
     assert (first["old"], first["new"]) == (10.0, 25.0)

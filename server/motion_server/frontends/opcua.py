@@ -51,6 +51,16 @@ then the data-change callbacks of its monitored items), without looking the node
 again or re-checking the variant type the publisher built. Monitored items created with
 queue size 0 get a queue of one (latest value), as the specification asks.
 
+Silent clients: a session that receives no request for its session timeout (revised by
+the server, at most ``max_session_timeout_s``) is closed by asyncua, and with it its
+subscriptions. asyncua does not close the TCP connection then, though, and closes one
+that never activates a session only after 30 s. So every ``idle_timeout`` / 4 (at most
+1 s) the front-end closes the connections that received no byte for ``idle_timeout``
+seconds, or, while they hold an activated session, for that session's timeout if it is
+longer: a raw socket that never says Hello, a client silent after its Hello, a
+connection whose session has timed out. Closes are logged and audited (``disconnect``,
+``idle timeout``).
+
 A client's write of an instruction's BOOL input (``Execute``, ``Enable``) in realtime or
 scaled time also publishes that instance's tags right after the next cycle, so its
 EN/DN/ER are readable within a cycle or two instead of waiting for the next pass.
@@ -65,50 +75,43 @@ import ipaddress
 import logging
 import socket
 import time
+import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from asyncua import Server, ua
 from asyncua.common.connection import TransportLimits
-from asyncua.crypto.cert_gen import setup_self_signed_certificate
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
-from asyncua.server.internal_session import InternalSession
+from asyncua.server.internal_session import InternalSession, SessionState
 from asyncua.server.monitored_item_service import MonitoredItemValues
 from asyncua.ua import status_codes
-from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from ..config import OpcUaSection, OpcUaUser
 from ..safety.audit import AuditLog
+from ..safety.client import ClientInfo
+from ..safety.roles import Role, required_role
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagImage, TagType
 from ..tagmap.image import AXIS_ARRAYS, is_static
 from ..tagmap.nodeset import enum_text
+from .certificates import self_signed
 from .opcua_space import VARIANT_TYPES, build_space, variant
-from .opcua_users import Account, Directory, LoginLimiter, PeerSession, Role
+from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
 
 log = logging.getLogger("motion_server.opcua")
 
-CERT_FILE = "server-cert.der"
-KEY_FILE = "server-key.pem"
 _POLICIES = {
     "Basic256Sha256_Sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
     "Basic256Sha256_SignAndEncrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
 }
-_ROLES = {"viewer": Role.VIEWER, "operator": Role.OPERATOR, "admin": Role.ADMIN}
 #: after a trigger write: how often to look for the next cycle, and for how long
 FOLLOW_POLL_S = 0.0005
 FOLLOW_LIMIT_S = 0.5
 #: the longest stretch of publishing work before a yield to the event loop
 PUBLISH_SLICE_S = 0.001
-
-
-def required_role(tag: Tag) -> Role:
-    """The lowest role that may write ``tag`` (Clock control is for admins)."""
-    return Role.ADMIN if tag.folder == Folder.CLOCK else Role.OPERATOR
 
 
 @dataclass
@@ -170,13 +173,13 @@ class OpcUaFrontend:
             cfg = cfg.model_copy(update={"allow_anonymous": False, "allow_none_endpoint": False})
         self.config = cfg
         accounts = [
-            Account(u.name, _ROLES[u.role], u.password_hash)
+            Account(u.name, Role.named(u.role), u.password_hash)
             for u in (cfg.users if users is None else users)
         ]
         self.directory = Directory(
             accounts,
             allow_anonymous=cfg.allow_anonymous,
-            anonymous_role=_ROLES[cfg.anonymous_role],
+            anonymous_role=Role.named(cfg.anonymous_role),
             limiter=LoginLimiter(cfg.max_login_failures, cfg.login_window_s, cfg.login_lockout_s),
         )
         self.server: Server | None = None  # set once listening
@@ -192,12 +195,17 @@ class OpcUaFrontend:
         self._scalar: list[_Published] = []
         self._following: dict[str, asyncio.Task[None]] = {}
         self._task: asyncio.Task[None] | None = None
+        self._idle_task: asyncio.Task[None] | None = None
+        #: when each open connection last received a byte (loop time)
+        self._received: weakref.WeakKeyDictionary[Any, _LastByte] = weakref.WeakKeyDictionary()
         self._lock = asyncio.Lock()
         #: counters (diagnostics, benches)
         self.writes = 0
         self.refused = 0
         self.updates = 0
         self.passes = 0
+        #: connections closed for silence
+        self.idle_closed = 0
 
     # -- lifecycle ------------------------------------------------------------------------
     @property
@@ -257,6 +265,10 @@ class OpcUaFrontend:
         self.server = server
         self.port = port
         self._task = asyncio.create_task(self._publish_loop(), name="opcua-publisher")
+        if cfg.idle_timeout > 0:
+            self._idle_task = asyncio.create_task(
+                self._close_idle(cfg.idle_timeout), name="opcua-idle-timeout"
+            )
         log.info(
             "OPC UA on %s (%s), namespace %s, %d users",
             self.endpoint,
@@ -266,11 +278,12 @@ class OpcUaFrontend:
         )
 
     async def stop(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
+        for task in (self._task, self._idle_task):
+            if task is not None:
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
+        self._task = self._idle_task = None
         for task in list(self._following.values()):
             task.cancel()
         if self.server is not None:
@@ -278,23 +291,44 @@ class OpcUaFrontend:
             self.server = None
 
     async def _certificate(self, server: Server, app_uri: str) -> None:
-        data = Path(self.config.data_dir)
-        data.mkdir(parents=True, exist_ok=True)
-        cert, key = data / CERT_FILE, data / KEY_FILE
-        if not cert.exists():
-            log.info("OPC UA: generating the server certificate in %s", data)
-        await setup_self_signed_certificate(
-            key,
-            cert,
-            app_uri,
-            socket.gethostname(),
-            [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH],
-            {"commonName": f"motion-server {self.image.map.site}"},
-        )
-        with contextlib.suppress(OSError):
-            key.chmod(0o600)
+        common_name = f"motion-server {self.image.map.site}"
+        cert, key = await self_signed(self.config.data_dir, app_uri, common_name, "OPC UA")
         await server.load_certificate(str(cert))
         await server.load_private_key(str(key))
+
+    # -- silent connections -----------------------------------------------------------------
+    async def _close_idle(self, timeout: float) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            await asyncio.sleep(min(timeout / 4, 1.0))
+            try:
+                self._sweep(loop.time(), timeout)
+            except Exception:  # keep watching whatever one pass hit
+                log.exception("OPC UA: idle connection check failed")
+
+    def _sweep(self, now: float, timeout: float) -> None:
+        bserver = self.server.bserver if self.server is not None else None
+        for proto in list(bserver.clients if bserver is not None else ()):
+            last = self._received.get(proto)
+            if last is None:  # new since the last pass: watch it from now on
+                self._received[proto] = _LastByte.watch(proto, now)
+                continue
+            limit = timeout
+            session = proto.processor.session if proto.processor is not None else None
+            if session is not None and session.state == SessionState.Activated:
+                limit = max(timeout, session.session_timeout or 0.0)
+            if now - last.time <= limit or proto.transport is None:
+                continue
+            self.idle_closed += 1
+            client = (
+                session.client_info()
+                if isinstance(session, PeerSession)
+                else ClientInfo("opcua", *_peer(proto.peer_name))
+            )
+            log.info("OPC UA connection %s silent for %.1f s: closed", client.key, now - last.time)
+            if self.audit is not None:
+                self.audit.connection(client, "disconnect", "idle timeout")
+            proto.transport.close()
 
     def _create_session(
         self, name: str, user: User | None = None, external: bool = False
@@ -573,6 +607,33 @@ def _in_batches(create: Any) -> Any:
         return results
 
     return create_monitored_items
+
+
+class _LastByte:
+    """When a connection last received a byte. asyncua builds its protocol objects
+    inside ``Server.start`` without a hook, so the front-end wraps the ``data_received``
+    of each one it finds (a weak reference back: no cycle keeps a closed one alive)."""
+
+    __slots__ = ("time",)
+
+    def __init__(self, time: float) -> None:
+        self.time = time
+
+    @classmethod
+    def watch(cls, proto: Any, now: float) -> _LastByte:
+        last = cls(now)
+        loop = asyncio.get_running_loop()
+        received = type(proto).data_received
+        ref = weakref.ref(proto)
+
+        def data_received(data: bytes) -> None:
+            last.time = loop.time()
+            target = ref()
+            if target is not None:
+                received(target, data)
+
+        proto.data_received = data_received
+        return last
 
 
 class _SharedValues(MonitoredItemValues):

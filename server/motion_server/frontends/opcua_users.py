@@ -7,8 +7,8 @@ Password hashes are strings of the form (``motion-server hash-password`` prints 
 scrypt from :mod:`hashlib` with a random 16-byte salt and a 32-byte key; the default cost
 is n = 2**14, r = 8, p = 1. Verification compares in constant time.
 
-Roles (an :class:`Role` per user, from the site map's ``[[opcua.users]]`` or the users
-secret file):
+Roles (a :class:`~motion_server.safety.roles.Role` per user, from the site map's
+``[[opcua.users]]`` or the users secret file; the same roles as Modbus/TCP Security's):
 
 - ``viewer``: read, browse, subscribe; no writes;
 - ``operator``: also write instruction operands and triggers (``Execute``) and hand-wheel
@@ -35,7 +35,6 @@ import secrets
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from enum import IntEnum
 from typing import Any
 
 from asyncua import ua
@@ -44,6 +43,7 @@ from asyncua.server.internal_session import InternalSession
 from asyncua.server.user_managers import UserManager
 
 from ..safety.client import ClientInfo, writing_as
+from ..safety.roles import Role
 
 log = logging.getLogger("motion_server.opcua")
 
@@ -54,14 +54,6 @@ SALT_BYTES = 16
 KEY_BYTES = 32
 #: scrypt cost bounds accepted when verifying (a hash outside them is refused, not run)
 MAX_SCRYPT_N = 2**20
-
-
-class Role(IntEnum):
-    """What an OPC UA user may write (each role includes the ones below it)."""
-
-    VIEWER = 0
-    OPERATOR = 1
-    ADMIN = 2
 
 
 def hash_password(password: str, n: int = SCRYPT_N, r: int = SCRYPT_R, p: int = SCRYPT_P) -> str:
@@ -236,9 +228,14 @@ class PeerSession(InternalSession):
         self.client = ClientInfo("opcua", host, port, next(_connection_numbers))
 
     def client_info(self) -> ClientInfo:
-        """The session's client with the user logged in (``anonymous`` without a name)."""
+        """The session's client with the user logged in (``anonymous`` without a name)
+        and that user's role."""
         user = self.user.name if self.user is not None else None
-        return dataclasses.replace(self.client, user=user or "anonymous")
+        manager = self.iserver.user_manager
+        role = manager.role_of(self.user) if isinstance(manager, Directory) else None
+        return dataclasses.replace(
+            self.client, user=user or "anonymous", role=role.label if role is not None else ""
+        )
 
     async def write(self, params: ua.WriteParameters) -> list[ua.StatusCode]:
         with writing_as(self.client_info()):

@@ -4,13 +4,17 @@ One line per event, for example::
 
     {"time": "2025-01-31T10:00:00.123456+00:00", "cycle": 1200, "event": "write",
      "result": "accepted", "protocol": "modbus", "address": "127.0.0.1", "port": 50412,
-     "connection": 3, "user": "", "tag": "MAJ_1.Speed", "old": 10.0, "new": 25.0}
+     "connection": 3, "user": "", "role": "", "tag": "MAJ_1.Speed", "old": 10.0,
+     "new": 25.0}
 
 ``result`` is ``accepted`` or ``refused`` (then ``reason`` says why and ``registers`` or
 ``tag`` says what); ``event`` is ``write``, ``connect`` or ``disconnect`` (connections
-refused by the allowlist or the limit, idle timeouts). ``user`` is the OPC UA user name
-(the OPC UA front-end fills it; Modbus has none). No credential is ever written: values
-are those of tags, and user names only. The file rotates by size
+refused by the allowlist or the limit, idle timeouts, Modbus/TCP Security handshakes).
+``user`` is the OPC UA user name or the common name of a Modbus/TCP Security client
+certificate (plain Modbus has none); ``role`` is the client's role (``viewer``,
+``operator``, ``admin``; empty for plain Modbus). No credential is ever written: values
+are those of tags, user names and certificate names only, never a password, a key or a
+certificate. The file rotates by size
 (``logging.handlers.RotatingFileHandler``: ``max_bytes``, ``backups``).
 """
 
@@ -93,6 +97,7 @@ class AuditLog:
             "port": client.port,
             "connection": client.connection,
             "user": client.user,
+            "role": client.role,
             **{k: _plain(v) for k, v in fields.items()},
         }
         line = json.dumps(record, separators=(",", ":"), ensure_ascii=False)

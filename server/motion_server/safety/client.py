@@ -17,13 +17,16 @@ from dataclasses import dataclass
 class ClientInfo:
     """One client connection. ``connection`` is unique per connection for the server's
     life (a reconnect from the same address is a new connection); ``user`` is the OPC UA
-    user name (empty for Modbus, which has none)."""
+    user name or, for Modbus/TCP Security, the common name of the client certificate
+    (empty for plain Modbus TCP, which has none); ``role`` is the client's role
+    (``viewer``, ``operator``, ``admin``; empty for plain Modbus TCP)."""
 
     protocol: str
     address: str
     port: int = 0
     connection: int = 0
     user: str = ""
+    role: str = ""
 
     @property
     def key(self) -> str:
