@@ -126,7 +126,18 @@ async def secure_client(
 ) -> Client:
     """A client on the Basic256Sha256 endpoint (not connected yet)."""
     assert rt.opcua is not None
-    client = Client(rt.opcua.endpoint, timeout=10)
+    return await secure_client_at(rt.opcua.endpoint, client_dir, user, password, mode)
+
+
+async def secure_client_at(
+    endpoint: str,
+    client_dir: Path,
+    user: str | None,
+    password: str | None = None,
+    mode: ua.MessageSecurityMode = ua.MessageSecurityMode.SignAndEncrypt,
+) -> Client:
+    """:func:`secure_client` for a server known by its endpoint (another process)."""
+    client = Client(endpoint, timeout=10)
     client.application_uri = CLIENT_URI
     cert, key = await client.setup_self_signed_certificate(
         client_dir / "client-key.pem", client_dir / "client-cert.der"

@@ -2,8 +2,10 @@
 
 Batches of one kind of abuse each, reproducible from a seed (``MOTION_FUZZ_SEED``, default
 20250131), at least 2,000 messages per run (``MOTION_FUZZ_LONG=1``: ten times as many).
-The server runs the realtime clock with transport limits far below asyncua's 100 MB
-default (8 KiB chunks, 8 chunks, 32 KiB messages) and a session limit. After every batch
+The server runs the realtime clock in a process of its own (as deployed; in a thread of
+the test process it would share the interpreter lock with the abusive clients), with
+transport limits far below asyncua's 100 MB default (8 KiB chunks, 8 chunks, 32 KiB
+messages) and a session limit. After every batch
 a proper client (Basic256Sha256 SignAndEncrypt, user name) that stayed connected reads
 ``Diagnostics.DroppedCycles`` within 1 s and finds 0 (no cycle was late beyond the
 catch-up bound), and a fresh secure client can still connect and log in. Counts and
@@ -17,7 +19,6 @@ import contextlib
 import os
 import random
 import struct
-import threading
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
@@ -28,8 +29,8 @@ from asyncua import Client, ua
 from asyncua.crypto.security_policies import SecurityPolicyNone
 
 from motion_server import config
-from motion_server.runtime import Runtime
-from tests.opcua_support import SITE, USERS, secure_client, user_hashes
+from tests.opcua_support import SITE, USERS, secure_client_at, user_hashes
+from tests.robustness.server_process import ServerProcess
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 
@@ -42,7 +43,7 @@ CHUNKS = 8
 MESSAGE = 32768
 
 
-def campaign_site(data_dir: Path) -> config.SiteMap:
+def campaign_site(data_dir: Path) -> str:
     users = "\n".join(
         f'[[opcua.users]]\nname = "{name}"\nrole = "{USERS[name][0]}"\npassword_hash = "{h}"\n'
         for name, h in user_hashes().items()
@@ -56,38 +57,8 @@ def campaign_site(data_dir: Path) -> config.SiteMap:
         f"max_chunk_count = {CHUNKS}\nmax_message_size = {MESSAGE}\n"
     )
     text = text.replace("[opcua]\n", "[opcua]\n" + limits, 1)
-    return config.parse(text, "opcua-campaign.toml")
-
-
-class ServerThread:
-    """The runtime and its OPC UA front-end in a thread with its own event loop."""
-
-    def __init__(self, site: config.SiteMap) -> None:
-        self.site = site
-        self.runtime: Runtime | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._ready = threading.Event()
-        self._thread = threading.Thread(target=lambda: asyncio.run(self._main()), daemon=True)
-
-    async def _main(self) -> None:
-        rt = Runtime(self.site)
-        self.runtime, self._loop = rt, asyncio.get_running_loop()
-        task = asyncio.create_task(rt.serve())
-        await rt.ready.wait()
-        self._ready.set()
-        await task
-
-    def start(self) -> Runtime:
-        self._thread.start()
-        assert self._ready.wait(30.0), "server did not start"
-        assert self.runtime is not None
-        return self.runtime
-
-    def stop(self) -> None:
-        if self._loop is not None and self.runtime is not None:
-            self._loop.call_soon_threadsafe(self.runtime.request_stop)
-        self._thread.join(20.0)
-        assert not self._thread.is_alive()
+    config.parse(text, "opcua-campaign.toml")  # a bad map fails here, not in the child
+    return text
 
 
 # -- raw messages ------------------------------------------------------------------------------
@@ -175,10 +146,9 @@ async def raw_batch(port: int, url: str, gen: Callable[..., list[bytes]], n: int
     return sent  # messages
 
 
-async def open_channel(rt: Runtime) -> Client:
+async def open_channel(srv: ServerProcess) -> Client:
     """A client with a secure channel (None policy: discovery only) and no session."""
-    assert rt.opcua is not None
-    client = Client(rt.opcua.endpoint, timeout=5)
+    client = Client(srv.endpoint, timeout=5)
     client.security_policy = SecurityPolicyNone()
     await client.connect_socket()
     await client.send_hello()
@@ -186,12 +156,12 @@ async def open_channel(rt: Runtime) -> Client:
     return client
 
 
-async def too_many_chunks(rt: Runtime, r: random.Random, n: int) -> int:
+async def too_many_chunks(srv: ServerProcess, r: random.Random, n: int) -> int:
     """Intermediate chunks past max_chunk_count (and past max_message_size) on an open
     channel; the server must drop the message (and the channel), not buffer it."""
     sent = 0
     while sent < n:
-        client = await open_channel(rt)
+        client = await open_channel(srv)
         proto = client.uaclient.protocol
         assert proto is not None and proto.transport is not None
         token = proto._connection.security_token
@@ -211,23 +181,23 @@ async def too_many_chunks(rt: Runtime, r: random.Random, n: int) -> int:
     return sent
 
 
-async def before_activate(rt: Runtime, r: random.Random, n: int) -> int:
+async def before_activate(srv: ServerProcess, r: random.Random, n: int) -> int:
     """Read and Write on a session that was created but never activated: refused."""
     sent = 0
     while sent < n:
-        client = await open_channel(rt)
+        client = await open_channel(srv)
         try:
             params = ua.CreateSessionParameters(
                 ClientDescription=ua.ApplicationDescription(
                     ApplicationUri="urn:campaign", ApplicationType=ua.ApplicationType.Client
                 ),
-                EndpointUrl=rt.opcua.endpoint,  # type: ignore[union-attr]
+                EndpointUrl=srv.endpoint,
                 SessionName="never activated",
                 ClientNonce=r.randbytes(32),
                 RequestedSessionTimeout=10_000,
             )
             await client.uaclient.create_session(params)  # not Client's: it wants a policy
-            node = client.get_node(ua.NodeId("Clock.Cycle", rt.opcua.namespace_index))  # type: ignore[union-attr]
+            node = client.get_node(ua.NodeId("Clock.Cycle", srv.namespace_index))
             for _ in range(10):
                 with pytest.raises(ua.UaError):
                     if r.random() < 0.5:
@@ -241,16 +211,14 @@ async def before_activate(rt: Runtime, r: random.Random, n: int) -> int:
     return sent
 
 
-async def subscriptions_left_behind(rt: Runtime, client_dir: Path, n: int) -> int:
+async def subscriptions_left_behind(srv: ServerProcess, client_dir: Path, n: int) -> int:
     """Sessions that subscribe, then close without deleting their subscriptions."""
-    assert rt.opcua is not None and rt.opcua.server is not None
-    service = rt.opcua.server.iserver.subscription_service
-    before = len(service.subscriptions)
+    before = (await srv.stats())["subscriptions"]
     sent = 0
     while sent < n:
-        client = await secure_client(rt, client_dir, "viewer")
+        client = await secure_client_at(srv.endpoint, client_dir, "viewer")
         await client.connect()
-        ns = rt.opcua.namespace_index
+        ns = srv.namespace_index
         for _ in range(3):
             sub = await client.create_subscription(50, None)
             nodes = [client.get_node(ua.NodeId(f"Clock.{f}", ns)) for f in ("Cycle", "Time")]
@@ -262,22 +230,23 @@ async def subscriptions_left_behind(rt: Runtime, client_dir: Path, n: int) -> in
             await client.close_secure_channel()
         client.disconnect_socket()
     deadline = time.monotonic() + 5
-    while len(service.subscriptions) > before and time.monotonic() < deadline:
+    left = (await srv.stats())["subscriptions"]
+    while left > before and time.monotonic() < deadline:
         await asyncio.sleep(0.05)
-    assert len(service.subscriptions) == before, "subscriptions outlived their sessions"
+        left = (await srv.stats())["subscriptions"]
+    assert left == before, "subscriptions outlived their sessions"
     return sent
 
 
-async def session_flood(rt: Runtime, n: int) -> int:
+async def session_flood(srv: ServerProcess, n: int) -> int:
     """Connections past max_sessions: the extra ones are refused, the rest still served."""
-    assert rt.opcua is not None
-    url = rt.opcua.endpoint
+    url = srv.endpoint
     sent = 0
     while sent < n:
         conns = []
         for _ in range(MAX_SESSIONS * 3):
             with contextlib.suppress(OSError):
-                r, w = await asyncio.open_connection("127.0.0.1", rt.opcua.port)
+                r, w = await asyncio.open_connection("127.0.0.1", srv.port)
                 w.write(hello(url))
                 conns.append((r, w))
                 sent += 1
@@ -296,24 +265,25 @@ async def session_flood(rt: Runtime, n: int) -> int:
 
 # -- the campaign --------------------------------------------------------------------------------
 @pytest_asyncio.fixture(loop_scope="module", scope="module")
-async def server(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[Runtime]:
-    srv = ServerThread(campaign_site(tmp_path_factory.mktemp("opcua-campaign")))
-    rt = await asyncio.to_thread(srv.start)
+async def server(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[ServerProcess]:
+    directory = tmp_path_factory.mktemp("opcua-campaign")
+    srv = ServerProcess(campaign_site(directory / "opcua-data"), directory)
+    await srv.start()
     try:
-        yield rt
+        yield srv
     finally:
-        await asyncio.to_thread(srv.stop)
+        await srv.stop()
 
 
 class Checker:
     """The proper client that stays connected, and the post-batch checks."""
 
-    def __init__(self, rt: Runtime, client_dir: Path) -> None:
-        self.rt, self.client_dir = rt, client_dir
+    def __init__(self, srv: ServerProcess, client_dir: Path) -> None:
+        self.srv, self.client_dir = srv, client_dir
         self.client: Client | None = None
 
     async def __aenter__(self) -> Checker:
-        self.client = await secure_client(self.rt, self.client_dir, "operator")
+        self.client = await secure_client_at(self.srv.endpoint, self.client_dir, "operator")
         await self.client.connect()
         return self
 
@@ -322,39 +292,39 @@ class Checker:
             await self.client.disconnect()
 
     async def check(self, label: str) -> tuple[float, int]:
-        assert self.client is not None and self.rt.opcua is not None
-        ns = self.rt.opcua.namespace_index
+        assert self.client is not None
+        ns = self.srv.namespace_index
         dropped = self.client.get_node(ua.NodeId("Diagnostics.DroppedCycles", ns))
         t0 = time.perf_counter()
         value = await asyncio.wait_for(dropped.read_value(), 1.0)
         elapsed = time.perf_counter() - t0
         assert elapsed < 1.0, f"{label}: read answered after {elapsed:.3f} s"
-        assert value == 0, f"{label}: {value} cycles dropped (late beyond catch-up)"
-        fresh = await secure_client(self.rt, self.client_dir, "viewer")  # new clients too
-        await asyncio.wait_for(fresh.connect(), 10.0)
+        late = [line for line in self.srv.log().splitlines() if "late" in line]
+        assert value == 0, f"{label}: {value} cycles dropped (late beyond catch-up): {late}"
+        fresh = await secure_client_at(self.srv.endpoint, self.client_dir, "viewer")
+        await asyncio.wait_for(fresh.connect(), 10.0)  # new clients are served too
         cycle = await fresh.get_node(ua.NodeId("Clock.Cycle", ns)).read_value()
         await fresh.disconnect()
         return elapsed, cycle
 
 
-async def test_malformed_message_campaign(server: Runtime, tmp_path: Path) -> None:
-    rt = server
-    assert rt.opcua is not None
-    url, port = rt.opcua.endpoint, rt.opcua.port
+async def test_malformed_message_campaign(server: ServerProcess, tmp_path: Path) -> None:
+    srv = server
+    url, port = srv.endpoint, srv.port
     r = random.Random(SEED)
     per_batch = 250 * SCALE
     kinds: list[tuple[str, Callable[[], Awaitable[int]]]] = [
         (name, lambda gen=gen: raw_batch(port, url, gen, per_batch)) for name, gen in RAW.items()
     ]
     kinds += [
-        ("too many chunks", lambda: too_many_chunks(rt, r, per_batch)),
-        ("before activate", lambda: before_activate(rt, r, per_batch // 5)),
-        ("subscriptions left", lambda: subscriptions_left_behind(rt, tmp_path, 21 * SCALE)),
-        ("session flood", lambda: session_flood(rt, MAX_SESSIONS * 3 * SCALE)),
+        ("too many chunks", lambda: too_many_chunks(srv, r, per_batch)),
+        ("before activate", lambda: before_activate(srv, r, per_batch // 5)),
+        ("subscriptions left", lambda: subscriptions_left_behind(srv, tmp_path, 21 * SCALE)),
+        ("session flood", lambda: session_flood(srv, MAX_SESSIONS * 3 * SCALE)),
     ]
     print(f"\nOPC UA campaign, seed {SEED}, at least {MIN_MESSAGES} messages")
     total = batches = 0
-    async with Checker(rt, tmp_path) as checker:
+    async with Checker(srv, tmp_path) as checker:
         while total < MIN_MESSAGES:
             for name, run in kinds:
                 result = await run()
@@ -362,10 +332,11 @@ async def test_malformed_message_campaign(server: Runtime, tmp_path: Path) -> No
                 total += n
                 batches += 1
                 elapsed, cycle = await checker.check(name)
+                stats = await srv.stats()
                 print(
                     f"batch {batches:3d} {name:20s} {n:5d} messages; valid read in "
-                    f"{elapsed * 1000:6.1f} ms; cycle {cycle}; overruns {rt.overruns}, "
-                    f"dropped {rt.dropped}"
+                    f"{elapsed * 1000:6.1f} ms; cycle {cycle}; overruns {stats['overruns']}, "
+                    f"dropped {stats['dropped']}"
                 )
     print(f"total {total} malformed or abusive messages in {batches} batches")
     assert total >= MIN_MESSAGES
