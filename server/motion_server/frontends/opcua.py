@@ -518,12 +518,9 @@ class OpcUaFrontend:
 
     async def _publish_pass(self) -> int:
         deadband = self.config.deadband
-        chunk = self.config.chunk_size
-        clock = time.perf_counter
+        slices = _Slices(self.config.chunk_size)
         now = _now()
         changed = 0
-        budget = chunk
-        slice_end = clock() + PUBLISH_SLICE_S
         for af in self._axis_fields:
             values = self.image.axis_values(af.field)[af.index]
             last = af.last
@@ -536,20 +533,13 @@ class OpcUaFrontend:
                 last[k] = value
                 await self._set(af.pubs[k], value, now)
                 changed += 1
-                budget -= 1
-                if budget <= 0 or clock() > slice_end:
-                    await asyncio.sleep(0)
-                    budget = chunk
-                    slice_end = clock() + PUBLISH_SLICE_S
+                if await slices.after_update():
                     # the cycle that ran meanwhile moved the axes: publish its values
                     values = self.image.axis_values(af.field)[af.index]
                     now = _now()
         read = self.image.read
         for n, pub in enumerate(self._scalar):
-            if n & 63 == 63 and clock() > slice_end:
-                await asyncio.sleep(0)
-                budget = chunk
-                slice_end = clock() + PUBLISH_SLICE_S
+            if n & 63 == 63 and await slices.after_reads():
                 now = _now()
             value = read(pub.tag)
             last = pub.last
@@ -559,11 +549,7 @@ class OpcUaFrontend:
                 continue
             await self._set(pub, value, now)
             changed += 1
-            budget -= 1
-            if budget <= 0 or clock() > slice_end:
-                await asyncio.sleep(0)
-                budget = chunk
-                slice_end = clock() + PUBLISH_SLICE_S
+            if await slices.after_update():
                 now = _now()
         self.passes += 1
         return changed
@@ -582,6 +568,35 @@ class OpcUaFrontend:
             if deadline < now:  # a slow pass: do not try to catch up
                 deadline = now
             await asyncio.sleep(deadline - now)
+
+
+class _Slices:
+    """Where a publishing pass yields to the event loop: after ``chunk`` node updates or
+    ``PUBLISH_SLICE_S`` of work, whichever comes first."""
+
+    def __init__(self, chunk: int) -> None:
+        self.chunk = chunk
+        self._restart()
+
+    def _restart(self) -> None:
+        self.budget = self.chunk
+        self.end = time.perf_counter() + PUBLISH_SLICE_S
+
+    async def _yield_if(self, due: bool) -> bool:
+        if due or time.perf_counter() > self.end:
+            await asyncio.sleep(0)
+            self._restart()
+            return True
+        return False
+
+    async def after_update(self) -> bool:
+        """Count one node update; True if the pass yielded (other cycles may have run)."""
+        self.budget -= 1
+        return await self._yield_if(self.budget <= 0)
+
+    async def after_reads(self) -> bool:
+        """After a run of reads: yield if the slice's time is up."""
+        return await self._yield_if(False)
 
 
 #: monitored items created between two yields to the event loop
