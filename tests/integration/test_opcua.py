@@ -58,6 +58,19 @@ class Tags:
         await self.write("Clock.Step", False, ua.VariantType.Boolean)
         await self.write("Clock.Step", True, ua.VariantType.Boolean)
 
+    async def jog(self, axis: int, speed: float, rate: float) -> None:
+        """MAJ_1 forward on ``axis`` at ``speed`` (units/s), accelerating and decelerating
+        at ``rate`` (units/s^2)."""
+        await self.trigger(
+            "MAJ_1",
+            Axis=(axis, I32),
+            Direction=(0, I32),
+            SpeedUnits=(0, I32),
+            Speed=(speed, F),
+            AccelRate=(rate, F),
+            DecelRate=(rate, F),
+        )
+
     async def trigger(self, inst: str, **operands: tuple[Any, ua.VariantType]) -> None:
         for name, (value, vt) in operands.items():
             await self.write(f"Instructions.{inst}.{name}", value, vt)
@@ -167,15 +180,7 @@ async def test_mag_and_mgs_triggered_by_writes_seen_by_read_and_subscription(
             await tags.trigger("MSO_1", Axis=(axis, I32))
             await tags.step(1)
             assert await tags.read("Instructions.MSO_1.DN") is True
-        await tags.trigger(
-            "MAJ_1",
-            Axis=(1, I32),
-            Direction=(0, I32),
-            SpeedUnits=(0, I32),
-            Speed=(10.0, F),
-            AccelRate=(100.0, F),
-            DecelRate=(100.0, F),
-        )
+        await tags.jog(1, 10.0, 100.0)
         await tags.step(60)  # 0.1 s to reach 10 mm/s
         err = await tags.read("Instructions.MAJ_1.ERR")
         assert await tags.read("Instructions.MAJ_1.IP") is True, f"MAJ ERR {err}"
@@ -335,15 +340,7 @@ async def test_many_monitored_items_in_one_request_and_axis_values_by_subscripti
         await tags.step(1)
         assert await tags.read("Axes.Axis1.CommandVelocity") == 0.0  # at rest: from here
         start = await tags.read("Axes.Axis1.CommandPosition")
-        await tags.trigger(
-            "MAJ_1",
-            Axis=(1, I32),
-            Direction=(0, I32),
-            SpeedUnits=(0, I32),
-            Speed=(10.0, F),
-            AccelRate=(1000.0, F),
-            DecelRate=(1000.0, F),
-        )
+        await tags.jog(1, 10.0, 1000.0)
         await tags.step(51)  # at speed after 10 ms; 100 ms at 10 mm/s from then on
         position = await tags.read("Axes.Axis1.CommandPosition")
         # from rest: 10 mm/s at 1000 mm/s^2 is reached in 10 ms (5 cycles) over 0.05 mm,

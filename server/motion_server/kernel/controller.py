@@ -396,8 +396,7 @@ class Controller:
             for ax in g.axes:
                 self._visit(ax, g.number, order, ())
             g.order = order
-            lanes = self._lanes[g.number]
-            lanes.dirty = True
+            self._lanes[g.number].dirty = True
         self._order_dirty = False
 
     def _visit(self, ax: Axis, group: int, order: list[Axis], path: tuple[int, ...]) -> None:

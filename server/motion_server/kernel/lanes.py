@@ -253,7 +253,6 @@ class GroupLanes:
             self.act_gears.admit(p, ax)
 
     def rebuild(self, ctl: Controller) -> None:
-        self.dirty = False
         self.jogs.rebuild()
         self.act_gears.rebuild()
         self.act_gears.order([0] * len(self.act_gears.members))
@@ -261,6 +260,7 @@ class GroupLanes:
         self._order_command_gears(ctl)
         laned = {id(ax) for lane in (self.jogs, self.cmd_gears, self.act_gears) for ax in lane.axes}
         self.python_order = [ax for ax in self.group.order if id(ax) not in laned]
+        self.dirty = False  # evictions while levelling set it: they are rebuilt above
 
     def _order_command_gears(self, ctl: Controller) -> None:
         lane = self.cmd_gears
@@ -300,7 +300,6 @@ class GroupLanes:
             lane.rebuild()
             levels = [lv for lv in levels if lv is not None]
         lane.order(levels)  # type: ignore[arg-type]
-        self.dirty = False
 
     def step(self, ctl: Controller, dt: float) -> None:
         self.jogs.step(ctl)
