@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 import getpass
 import logging
 import sys
 from pathlib import Path
 
 from . import __version__, config
-from .runtime import ClockMode, Runtime
+from .launch import setup_logging
 from .safety.retain import RetainError
+from .supervisor import Supervisor
 from .tagmap import FORMATS, build_tagmap, export
 
 log = logging.getLogger("motion_server")
@@ -22,11 +22,6 @@ def _load(path: str | None) -> config.SiteMap:
         return config.load(path)
     except config.SiteMapError as exc:
         raise SystemExit(f"motion-server: site map error:\n{exc}") from None
-
-
-async def _serve(rt: Runtime, modbus: bool | None, opcua: bool | None) -> None:
-    rt.install_signal_handlers()
-    await rt.serve(modbus=modbus, opcua=opcua)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -48,30 +43,34 @@ def cmd_run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise SystemExit(f"motion-server: {exc}") from None
         site = site.model_copy(update={"opcua": opcua})
+    clock = {k: v for k, v in (("clock", args.clock), ("scale", args.scale)) if v is not None}
+    if clock:
+        try:
+            controller = config.ControllerSection.model_validate(
+                site.controller.model_dump() | clock
+            )
+        except ValueError as exc:
+            raise SystemExit(f"motion-server: {exc}") from None
+        site = site.model_copy(update={"controller": controller})
     try:
         users = config.opcua_users(site)  # fail early on a broken users secret file
     except config.SiteMapError as exc:
         raise SystemExit(f"motion-server: {exc}") from None
     log.info("OPC UA users: %d", len(users))
+    log.info("site map %s", site.source)
+    supervisor = Supervisor(
+        site,
+        args.log_level.upper(),
+        fresh=args.fresh,
+        modbus=False if args.no_modbus else None,
+        opcua=False if args.no_opcua else None,
+    )
     try:
-        rt = Runtime(site, fresh=args.fresh)
+        return supervisor.run()
     except RetainError as exc:
         raise SystemExit(
             f"motion-server: {exc}\n(fix or remove the file, or start clean with --fresh)"
         ) from None
-    if args.clock:
-        rt.set_mode(ClockMode[args.clock.upper()])
-    if args.scale:
-        rt.scale = args.scale
-    log.info("site map %s", site.source)
-    try:
-        asyncio.run(_serve(rt, False if args.no_modbus else None, False if args.no_opcua else None))
-    except OSError as exc:
-        # a port in use, an address not on this host: the front-ends were closed already
-        where = f": {exc.filename}" if exc.filename else ""
-        raise SystemExit(f"motion-server: cannot serve: {exc.strerror or exc}{where}") from None
-    log.info("stopped")
-    return 0
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -119,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("map", nargs="?", help="site map (TOML)")
     run.add_argument(
         "--clock",
-        choices=["realtime", "scaled", "manual"],
+        choices=["realtime", "scaled", "manual", "fast"],
         help="override the site map's clock mode",
     )
     run.add_argument(
@@ -159,13 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    level = args.log_level.upper()
-    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    if level != "DEBUG":
-        # asyncua reports every standard node it loads at INFO: thousands of lines
-        logging.getLogger("asyncua").setLevel(logging.WARNING)
-        # it also logs a bind failure with a traceback; cmd_run reports it in one line
-        logging.getLogger("asyncua.server.server").setLevel(logging.CRITICAL)
+    setup_logging(args.log_level)
     result: int = args.func(args)
     return result
 

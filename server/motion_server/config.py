@@ -69,7 +69,7 @@ class SiteSection(_Model):
 
 
 class ControllerSection(_Model):
-    clock: Literal["realtime", "scaled", "manual"] = "realtime"
+    clock: Literal["realtime", "scaled", "manual", "fast"] = "realtime"
     scale: Annotated[float, Field(ge=0.1, le=100.0)] = 1.0
     remote_clock: bool = True
     status_log_interval: Annotated[float, Field(ge=0.0)] = 10.0

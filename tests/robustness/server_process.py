@@ -1,56 +1,28 @@
-"""A motion-server runtime in its own process, for campaigns that measure its deadlines.
+"""``motion-server run`` on a site map, as deployed (the scan and each front-end in a
+process of their own), for campaigns that measure its deadlines.
 
-In a thread of the test process the server would share the interpreter lock with the
-test's own clients: on a loaded machine each handover can wait for an operating-system
-time slice, and the server's loop then runs late for reasons a deployed server (a process
-of its own) does not have. The parent talks to the child over stdin/stdout, one JSON
-object per line:
-
-- the child prints ``{"endpoint", "port", "ns"}`` once serving;
-- ``stats`` -> ``{"overruns", "dropped", "subscriptions"}``;
-- ``stop`` -> the runtime's programmed stop; the child exits.
-
-Run as ``python -m tests.robustness.server_process SITE_FILE``.
+The parent reads the OPC UA endpoint from the server's log, and its statistics over
+OPC UA as any SCADA would: ``Diagnostics.Overruns`` and ``Diagnostics.DroppedCycles``
+from the site's namespace, the current subscription count from the standard server
+diagnostics (``Server.ServerDiagnostics.ServerDiagnosticsSummary``). ``stop()`` sends
+SIGINT: the programmed stop, then exit 0.
 """
 
 from __future__ import annotations
 
 import asyncio
-import json
+import re
+import signal
 import sys
 from pathlib import Path
-from typing import Any
+
+from asyncua import Client, ua
 
 from motion_server import config
-from motion_server.runtime import Runtime
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-async def _child(site_file: str) -> None:
-    rt = Runtime(config.load(site_file))
-    task = asyncio.create_task(rt.serve())
-    await asyncio.wait_for(rt.ready.wait(), 60.0)
-    assert rt.opcua is not None and rt.opcua.server is not None
-    service = rt.opcua.server.iserver.subscription_service
-
-    def say(obj: dict[str, Any]) -> None:
-        sys.stdout.write(json.dumps(obj) + "\n")
-        sys.stdout.flush()
-
-    say({"endpoint": rt.opcua.endpoint, "port": rt.opcua.port, "ns": rt.opcua.namespace_index})
-    loop = asyncio.get_running_loop()
-    reader = asyncio.StreamReader()
-    await loop.connect_read_pipe(lambda: asyncio.StreamReaderProtocol(reader), sys.stdin)
-    while True:
-        line = (await reader.readline()).decode().strip()
-        if line == "stats":
-            subs = len(service.subscriptions)
-            say({"overruns": rt.overruns, "dropped": rt.dropped, "subscriptions": subs})
-        elif line in ("stop", ""):  # "" : the parent went away
-            break
-    rt.request_stop()
-    await asyncio.wait_for(task, 30.0)
+ENDPOINT = re.compile(r"OPC UA on (opc\.tcp://[^ ]+/)")
+SUBSCRIPTIONS = ua.ObjectIds.Server_ServerDiagnostics_ServerDiagnosticsSummary_CurrentSubscriptionCount
 
 
 class ServerProcess:
@@ -59,60 +31,64 @@ class ServerProcess:
     def __init__(self, site_text: str, directory: Path) -> None:
         self.site_file = directory / "site.toml"
         self.site_file.write_text(site_text)
+        self.namespace_uri = config.parse(site_text).site.namespace_uri
         self.log_file = directory / "server.log"
         self.proc: asyncio.subprocess.Process | None = None
         self.endpoint = ""
         self.port = 0
         self.namespace_index = 0
+        self._stats_client: Client | None = None
 
     async def start(self) -> ServerProcess:
         self.proc = await asyncio.create_subprocess_exec(
             sys.executable,
             "-m",
-            "tests.robustness.server_process",
+            "motion_server.cli",
+            "run",
             str(self.site_file),
-            cwd=ROOT,
-            stdin=asyncio.subprocess.PIPE,
-            stdout=asyncio.subprocess.PIPE,
+            cwd=self.site_file.parent,
+            stdin=asyncio.subprocess.DEVNULL,
+            stdout=asyncio.subprocess.DEVNULL,
             stderr=self.log_file.open("wb"),
         )
-        hello = await self._line(60.0)
-        self.endpoint, self.port, self.namespace_index = (
-            hello["endpoint"],
-            hello["port"],
-            hello["ns"],
-        )
+        loop = asyncio.get_running_loop()
+        give_up = loop.time() + 120.0
+        while loop.time() < give_up:
+            found = ENDPOINT.search(self.log())
+            if found:
+                self.endpoint = found.group(1)
+                break
+            if self.proc.returncode is not None:
+                raise RuntimeError(f"the server process ended:\n{self.log()[-3000:]}")
+            await asyncio.sleep(0.1)
+        else:
+            raise RuntimeError(f"the server did not serve OPC UA:\n{self.log()[-3000:]}")
+        self.port = int(self.endpoint.rsplit(":", 1)[1].strip("/"))
         return self
 
-    async def _line(self, timeout: float) -> dict[str, Any]:
-        assert self.proc is not None and self.proc.stdout is not None
-        raw = await asyncio.wait_for(self.proc.stdout.readline(), timeout)
-        if not raw:
-            raise RuntimeError(f"the server process ended:\n{self.log_file.read_text()[-3000:]}")
-        result: dict[str, Any] = json.loads(raw)
-        return result
-
-    async def stats(self) -> dict[str, int]:
-        assert self.proc is not None and self.proc.stdin is not None
-        self.proc.stdin.write(b"stats\n")
-        await self.proc.stdin.drain()
-        return await self._line(10.0)
+    async def stats(self, client: Client) -> dict[str, int]:
+        """Overruns, dropped cycles and current subscriptions, read with ``client``."""
+        if not self.namespace_index:
+            self.namespace_index = await client.get_namespace_index(self.namespace_uri)
+        ns = self.namespace_index
+        overruns, dropped, subscriptions = await client.read_values(
+            [
+                client.get_node(ua.NodeId("Diagnostics.Overruns", ns)),
+                client.get_node(ua.NodeId("Diagnostics.DroppedCycles", ns)),
+                client.get_node(ua.NodeId(SUBSCRIPTIONS)),
+            ]
+        )
+        return {"overruns": overruns, "dropped": dropped, "subscriptions": subscriptions}
 
     def log(self) -> str:
         return self.log_file.read_text(errors="replace")
 
     async def stop(self) -> None:
-        if self.proc is None or self.proc.stdin is None:
+        if self.proc is None or self.proc.returncode is not None:
             return
-        if self.proc.returncode is None:
-            self.proc.stdin.write(b"stop\n")
-            await self.proc.stdin.drain()
-            try:
-                await asyncio.wait_for(self.proc.wait(), 30.0)
-            except TimeoutError:
-                self.proc.kill()
-                await self.proc.wait()
-
-
-if __name__ == "__main__":
-    asyncio.run(_child(sys.argv[1]))
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            await asyncio.wait_for(self.proc.wait(), 30.0)
+        except TimeoutError:
+            self.proc.kill()
+            await self.proc.wait()

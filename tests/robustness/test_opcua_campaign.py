@@ -2,8 +2,8 @@
 
 Batches of one kind of abuse each, reproducible from a seed (``MOTION_FUZZ_SEED``, default
 20250131), at least 2,000 messages per run (``MOTION_FUZZ_LONG=1``: ten times as many).
-The server runs the realtime clock in a process of its own (as deployed; in a thread of
-the test process it would share the interpreter lock with the abusive clients), with
+The server runs as deployed (``motion-server run``: the scan and each front-end in a
+process of its own), with the realtime clock,
 transport limits far below asyncua's 100 MB default (8 KiB chunks, 8 chunks, 32 KiB
 messages) and a session limit. After every batch
 a proper client (Basic256Sha256 SignAndEncrypt, user name) that stayed connected reads
@@ -211,9 +211,11 @@ async def before_activate(srv: ServerProcess, r: random.Random, n: int) -> int:
     return sent
 
 
-async def subscriptions_left_behind(srv: ServerProcess, client_dir: Path, n: int) -> int:
+async def subscriptions_left_behind(
+    srv: ServerProcess, observer: Client, client_dir: Path, n: int
+) -> int:
     """Sessions that subscribe, then close without deleting their subscriptions."""
-    before = (await srv.stats())["subscriptions"]
+    before = (await srv.stats(observer))["subscriptions"]
     sent = 0
     while sent < n:
         client = await secure_client_at(srv.endpoint, client_dir, "viewer")
@@ -230,10 +232,10 @@ async def subscriptions_left_behind(srv: ServerProcess, client_dir: Path, n: int
             await client.close_secure_channel()
         client.disconnect_socket()
     deadline = time.monotonic() + 5
-    left = (await srv.stats())["subscriptions"]
+    left = (await srv.stats(observer))["subscriptions"]
     while left > before and time.monotonic() < deadline:
         await asyncio.sleep(0.05)
-        left = (await srv.stats())["subscriptions"]
+        left = (await srv.stats(observer))["subscriptions"]
     assert left == before, "subscriptions outlived their sessions"
     return sent
 
@@ -285,6 +287,7 @@ class Checker:
     async def __aenter__(self) -> Checker:
         self.client = await secure_client_at(self.srv.endpoint, self.client_dir, "operator")
         await self.client.connect()
+        await self.srv.stats(self.client)  # learns the namespace index
         return self
 
     async def __aexit__(self, *exc: object) -> None:
@@ -313,18 +316,22 @@ async def test_malformed_message_campaign(server: ServerProcess, tmp_path: Path)
     url, port = srv.endpoint, srv.port
     r = random.Random(SEED)
     per_batch = 250 * SCALE
+    checker = Checker(srv, tmp_path)
     kinds: list[tuple[str, Callable[[], Awaitable[int]]]] = [
         (name, lambda gen=gen: raw_batch(port, url, gen, per_batch)) for name, gen in RAW.items()
     ]
     kinds += [
         ("too many chunks", lambda: too_many_chunks(srv, r, per_batch)),
         ("before activate", lambda: before_activate(srv, r, per_batch // 5)),
-        ("subscriptions left", lambda: subscriptions_left_behind(srv, tmp_path, 21 * SCALE)),
+        (
+            "subscriptions left",
+            lambda: subscriptions_left_behind(srv, checker.client, tmp_path, 21 * SCALE),
+        ),
         ("session flood", lambda: session_flood(srv, MAX_SESSIONS * 3 * SCALE)),
     ]
     print(f"\nOPC UA campaign, seed {SEED}, at least {MIN_MESSAGES} messages")
     total = batches = 0
-    async with Checker(srv, tmp_path) as checker:
+    async with checker:
         while total < MIN_MESSAGES:
             for name, run in kinds:
                 result = await run()
@@ -332,7 +339,8 @@ async def test_malformed_message_campaign(server: ServerProcess, tmp_path: Path)
                 total += n
                 batches += 1
                 elapsed, cycle = await checker.check(name)
-                stats = await srv.stats()
+                assert checker.client is not None
+                stats = await srv.stats(checker.client)
                 print(
                     f"batch {batches:3d} {name:20s} {n:5d} messages; valid read in "
                     f"{elapsed * 1000:6.1f} ms; cycle {cycle}; overruns {stats['overruns']}, "

@@ -68,7 +68,7 @@ def test_other_motion_server_variables_are_not_settings(small_map: Path) -> None
     [
         ("MOTION_SERVER_MODBUS_PORT", "70000", "less than or equal to 65535"),
         ("MOTION_SERVER_MODBUS_PORT", "five", "valid integer"),
-        ("MOTION_SERVER_CONTROLLER_CLOCK", "sometimes", "'realtime', 'scaled' or 'manual'"),
+        ("MOTION_SERVER_CONTROLLER_CLOCK", "sometimes", "'realtime', 'scaled', 'manual' or 'fast'"),
         ("MOTION_SERVER_MODBUS_WORD_ORDER", "middle", "'big' or 'little'"),
     ],
 )

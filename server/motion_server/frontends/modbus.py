@@ -16,9 +16,12 @@ Exceptions:
 - 11 (gateway target failed to respond) a unit id other than the site's; with
   ``unit_id = 0`` every unit id is answered.
 
+Reads show the last cycle the scan published; writes are judged here and queued for the
+scan's next cycle (:class:`~.view.ImageView`); a client reads back what it wrote at once.
 A write that covers only part of a 32/64-bit value changes those words: operands are
 latched on the trigger's edge, so a client may write the two halves separately. A write
 to ``Clock.Step`` is answered once the cycles it asked for have run (manual clock).
+When the scan cannot take writes (gone, or refused this front-end) a write answers 04.
 Known upstream limits: several requests pipelined in one TCP segment get only the first
 answered.
 
@@ -77,8 +80,9 @@ from ..safety.access import AccessPolicy
 from ..safety.audit import AuditLog
 from ..safety.client import ClientInfo, current_client, writing_as
 from ..safety.roles import Role, RoleRegisters
-from ..tagmap import AddressError, BadValueError, ReadOnlyError, TagImage, TagMap
+from ..tagmap import AddressError, BadValueError, ReadOnlyError, TagMap
 from .modbus_tls import handshake_failure, identify, server_context, server_files
+from .view import ImageView, ScanUnavailable
 
 log = logging.getLogger("motion_server.modbus")
 
@@ -217,7 +221,7 @@ class ModbusFrontend:
 
     def __init__(
         self,
-        image: TagImage,
+        image: ImageView,
         host: str = "127.0.0.1",
         port: int = 5020,
         unit_id: int | None = None,
@@ -447,8 +451,9 @@ class ModbusFrontend:
                     reason = self._roles.write_refused(Role.named(client.role), address, count)
                     if reason is not None:
                         raise PermissionError(reason)
-                if image.write_registers(address, [int(v) for v in set_values], check=False):
-                    await image.settle()  # a Clock.Step: answer once its cycles ran
+                ticket = image.write_registers(address, [int(v) for v in set_values], check=False)
+                if ticket.waits:
+                    await ticket.done()  # a Clock.Step: answer once its cycles ran
             return None
         except (AddressError, ReadOnlyError, PermissionError) as exc:
             log.debug("FC%d %d+%d: %s", function_code, address, count, exc)
@@ -457,6 +462,10 @@ class ModbusFrontend:
         except BadValueError as exc:
             log.info("FC%d %d+%d refused: %s", function_code, address, count, exc)
             code = ExcCodes.ILLEGAL_VALUE
+            reason = str(exc)
+        except ScanUnavailable as exc:
+            log.warning("FC%d %d+%d: %s", function_code, address, count, exc)
+            code = ExcCodes.DEVICE_FAILURE
             reason = str(exc)
         except Exception as exc:  # never let one request take the server down
             log.exception("FC%d %d+%d failed", function_code, address, count)

@@ -5,7 +5,7 @@ Public surface::
 
     from motion_server.frontends.opcua import OpcUaFrontend
 
-    ua_fe = OpcUaFrontend(runtime.image, site.opcua, users)   # users: config.opcua_users(site)
+    ua_fe = OpcUaFrontend(view, site.opcua, users)   # view: an ImageView of the scan's image
     await ua_fe.start()      # certificate in data_dir (generated on first start), bind, publish
     ua_fe.port               # the bound TCP port (``port = 0`` in the site map: ephemeral)
     ua_fe.endpoint           # opc.tcp://host:port/
@@ -13,14 +13,16 @@ Public surface::
     await ua_fe.publish()    # push changed values now (the runtime does this at the rate)
     await ua_fe.stop()
 
-``Runtime.serve()`` does all of this from the site map's ``[opcua]`` section.
+The OPC UA front-end process (:mod:`.process`) does all of this from the site map's
+``[opcua]`` section.
 
 Nodes: see :mod:`motion_server.tagmap.nodeset` (string NodeIds = ``tag.node_id`` in the
 site's namespace, e.g. ``ns=<i>;s=Instructions.MAG_1.Ratio``).
 
-Writes go through :meth:`TagImage.write`, the path Modbus writes take: operands land in
-the instance's inputs and the instance fires on the rising edge of ``Execute`` at the next
-cycle. Each item of a Write gets its own status:
+Reads and publishing come from the scan's shared image (:class:`~.view.ImageView`);
+writes are judged here and queued for the scan, the path Modbus writes take: operands
+land in the instance's inputs at the start of the next cycle and the instance fires on
+the rising edge of ``Execute`` in that cycle. Each item of a Write gets its own status:
 
 - ``BadUserAccessDenied``: the session's role may not write this tag (viewer: nothing;
   operator: instruction inputs and hand-wheel inputs; admin: also ``Clock``), or an
@@ -28,7 +30,8 @@ cycle. Each item of a Write gets its own status:
 - ``BadNotWritable``: a status (read-only) variable;
 - ``BadTypeMismatch``: a Variant of another type than the node's DataType;
 - ``BadOutOfRange``: a value the tag refuses (an unknown ``Clock.Mode``, a non-finite
-  hand-wheel input).
+  value, a position beyond the kernel's range);
+- ``BadResourceUnavailable``: the scan takes no writes (it is gone).
 
 A write to ``Clock.Step`` (manual clock) is answered once its cycles ran and their values
 are published, so a client that reads after it sees the new cycle.
@@ -41,14 +44,14 @@ the site map sets ``allow_anonymous`` / ``allow_none_endpoint``. Client applicat
 certificates are accepted without a trust list (a simulator's choice; see README).
 
 Publishing: every ``1/publish_rate_hz`` seconds the tags whose value changed (analog
-values: by more than ``deadband``) are written to their nodes, between motion cycles,
-never inside one. A pass yields to the event loop after ``chunk_size`` node updates or
-``PUBLISH_SLICE_S`` of work, whichever comes first, so cycles and requests run in
-between. The axis fields that are functions of the kernel arrays (positions, velocities,
-following error) are compared for all axes at once (``TagImage.axis_values``); the rest
-tag by tag. A node's value is set as asyncua's ``write_attribute_value`` sets it (value,
-then the data-change callbacks of its monitored items), without looking the node up
-again or re-checking the variant type the publisher built. Monitored items created with
+values: by more than ``deadband``) are written to their nodes: the newest snapshot is
+compared with the values last published for every tag at once (numpy), and only the
+changed ones are set. A pass yields to the event loop after ``chunk_size`` node updates
+or ``PUBLISH_SLICE_S`` of work, whichever comes first, so requests run in between (the
+motion cycle runs in another process and never waits for this one). A node's value is
+set as asyncua's ``write_attribute_value`` sets it (value, then the data-change callbacks
+of its monitored items), without looking the node up again or re-checking the variant
+type the publisher built. Monitored items created with
 queue size 0 get a queue of one (latest value), as the specification asks.
 
 Silent clients: a session that receives no request for its session timeout (revised by
@@ -62,8 +65,9 @@ connection whose session has timed out. Closes are logged and audited (``disconn
 ``idle timeout``).
 
 A client's write of an instruction's BOOL input (``Execute``, ``Enable``) in realtime or
-scaled time also publishes that instance's tags right after the next cycle, so its
-EN/DN/ER are readable within a cycle or two instead of waiting for the next pass.
+scaled time also publishes that instance's tags as soon as the scan acknowledges the
+write (the cycle that took it is in the image), so its EN/DN/ER are readable within a
+cycle or two instead of waiting for the next pass.
 """
 
 from __future__ import annotations
@@ -94,12 +98,12 @@ from ..config import OpcUaSection, OpcUaUser
 from ..safety.audit import AuditLog
 from ..safety.client import ClientInfo
 from ..safety.roles import Role, required_role
-from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagImage, TagType
-from ..tagmap.image import AXIS_ARRAYS, is_static
+from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagType
 from ..tagmap.nodeset import enum_text
 from .certificates import self_signed
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
+from .view import ImageView, ScanUnavailable, Ticket
 
 log = logging.getLogger("motion_server.opcua")
 
@@ -107,8 +111,7 @@ _POLICIES = {
     "Basic256Sha256_Sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
     "Basic256Sha256_SignAndEncrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
 }
-#: after a trigger write: how often to look for the next cycle, and for how long
-FOLLOW_POLL_S = 0.0005
+#: after a trigger write: how long to wait for the scan's acknowledgement
 FOLLOW_LIMIT_S = 0.5
 #: the longest stretch of publishing work before a yield to the event loop
 PUBLISH_SLICE_S = 0.001
@@ -119,6 +122,7 @@ class _Published:
     """One tag the publisher watches: its node, its last published value."""
 
     tag: Tag
+    slot: int
     node_id: ua.NodeId
     vtype: ua.VariantType
     is_float: bool
@@ -126,16 +130,6 @@ class _Published:
     text_node: ua.NodeId | None = None  # ValueAsText of an enumerated value
     #: the node's Value attribute in asyncua's address space (set once serving)
     attval: Any = None
-
-
-@dataclass
-class _AxisField:
-    """One vectorised axis field: its tags, their axes' indices, the last published values."""
-
-    field: str
-    pubs: list[_Published]
-    index: np.ndarray
-    last: np.ndarray
 
 
 def _is_loopback(host: str) -> bool:
@@ -153,7 +147,7 @@ class OpcUaFrontend:
 
     def __init__(
         self,
-        image: TagImage,
+        image: ImageView,
         config: OpcUaSection | None = None,
         users: Iterable[OpcUaUser] | None = None,
         audit: AuditLog | None = None,
@@ -190,9 +184,9 @@ class OpcUaFrontend:
         self._standard_write: Any = None
         self._by_node: dict[str, _Published] = {}
         self._by_owner: dict[str, list[_Published]] = {}
-        #: tags compared as arrays (``_axis_fields``) and the others, one by one
-        self._axis_fields: list[_AxisField] = []
-        self._scalar: list[_Published] = []
+        #: the values last published, one per image slot; which slots are analog
+        self._last = np.zeros(0)
+        self._analog = np.zeros(0, dtype=bool)
         self._following: dict[str, asyncio.Task[None]] = {}
         self._task: asyncio.Task[None] | None = None
         self._idle_task: asyncio.Task[None] | None = None
@@ -261,6 +255,7 @@ class OpcUaFrontend:
         self._standard_write = iserver.attribute_service.write
         iserver.attribute_service.write = self._write
         self._patch_queue_size(server)
+        self._live_diagnostics(server)
         await server.start()
         self.server = server
         self.port = port
@@ -345,6 +340,35 @@ class OpcUaFrontend:
             external=external,
         )
 
+    def _live_diagnostics(self, server: Server) -> None:
+        """The standard server diagnostics a SCADA reads (Server.ServerDiagnostics): the
+        current session and subscription counts, computed when read (asyncua leaves
+        them at 0)."""
+        iserver = server.iserver
+        ids = ua.ObjectIds
+        summary = {
+            ids.Server_ServerDiagnostics_ServerDiagnosticsSummary_CurrentSessionCount: (
+                lambda: InternalSession._current_connections
+            ),
+            ids.Server_ServerDiagnostics_ServerDiagnosticsSummary_CurrentSubscriptionCount: (
+                lambda: len(iserver.subscription_service.subscriptions)
+            ),
+        }
+        for node, count in summary.items():
+
+            def read(nodeid: ua.NodeId, attr: Any, count: Any = count) -> ua.DataValue:
+                return ua.DataValue(ua.Variant(int(count()), ua.VariantType.UInt32))
+
+            iserver.aspace.set_attribute_value_callback(
+                ua.NodeId(node), ua.AttributeIds.Value, read
+            )
+        enabled = ua.DataValue(ua.Variant(True, ua.VariantType.Boolean))
+        iserver.aspace.set_attribute_value_callback(
+            ua.NodeId(ids.Server_ServerDiagnostics_EnabledFlag),
+            ua.AttributeIds.Value,
+            lambda nodeid, attr: enabled,
+        )
+
     def _patch_queue_size(self, server: Server) -> None:
         """Queue size 0 means a queue of one (latest value), not asyncua's unbounded; and
         monitored items keep the published DataValue instead of a deep copy of it."""
@@ -419,74 +443,80 @@ class OpcUaFrontend:
         if var is None or var.VariantType != pub.vtype or var.is_array or var.Value is None:
             return ua.StatusCode(ua.StatusCodes.BadTypeMismatch)
         try:
-            requested = self.image.write(tag, var.Value)
+            ticket = self.image.write(tag, var.Value)
         except ReadOnlyError:
             return ua.StatusCode(ua.StatusCodes.BadNotWritable)
         except BadValueError as exc:
             log.info("OPC UA: write of %s refused: %s", tag.name, exc)
             return ua.StatusCode(ua.StatusCodes.BadOutOfRange)
+        except ScanUnavailable as exc:
+            log.warning("OPC UA: write of %s: %s", tag.name, exc)
+            return ua.StatusCode(ua.StatusCodes.BadResourceUnavailable)
         except Exception:  # never let one item take the request (or the server) down
             log.exception("OPC UA: write of %s failed", tag.name)
             return ua.StatusCode(ua.StatusCodes.BadInternalError)
         self.writes += 1
         await self._set(pub, self.image.read(tag), _now())
-        if requested:
-            await self.image.settle()  # a Clock.Step: answer once its cycles ran
+        if ticket.waits:
+            try:
+                await ticket.done()  # a Clock.Step: answer once its cycles ran
+            except ScanUnavailable:
+                return ua.StatusCode(ua.StatusCodes.BadResourceUnavailable)
             await self.publish()
         elif tag.folder == Folder.INSTRUCTIONS and tag.type == TagType.BOOL:
-            self._follow(tag.owner)
+            self._follow(tag.owner, ticket)
         return ua.StatusCode()
 
-    def _follow(self, owner: str) -> None:
-        """Publish ``owner``'s tags once the next cycle ran (clock running)."""
-        if owner in self._following or self.image.host.mode == ClockMode.MANUAL:
+    def _follow(self, owner: str, ticket: Ticket) -> None:
+        """Publish ``owner``'s tags once the cycle that took the write is in the image
+        (clock running: the scan acknowledges a write with the cycle it ran in)."""
+        if owner in self._following or self.image.mode == ClockMode.MANUAL:
             return
-        task = asyncio.create_task(self._publish_owner(owner, self.image.host.heartbeat))
+        task = asyncio.create_task(self._publish_owner(owner, ticket))
         self._following[owner] = task
         task.add_done_callback(lambda _: self._following.pop(owner, None))
 
-    async def _publish_owner(self, owner: str, heartbeat: int) -> None:
-        loop = asyncio.get_running_loop()
-        give_up = loop.time() + FOLLOW_LIMIT_S
-        while self.image.host.heartbeat == heartbeat and loop.time() < give_up:
-            await asyncio.sleep(FOLLOW_POLL_S)
+    async def _publish_owner(self, owner: str, ticket: Ticket) -> None:
+        try:
+            await asyncio.wait_for(ticket.done(), FOLLOW_LIMIT_S)
+        except (TimeoutError, ScanUnavailable):
+            return
         now = _now()
+        values = self.image.values()
         for pub in self._by_owner.get(owner, []):
-            value = self.image.read(pub.tag)
-            if value != pub.last:
-                await self._set(pub, value, now)
+            raw = values[pub.slot]
+            if raw != self._last[pub.slot]:
+                self._last[pub.slot] = raw
+                await self._set(pub, self.image.typed(pub.slot, float(raw)), now)
 
     # -- publishing -----------------------------------------------------------------------
     def _watch(self, space: dict[str, Any]) -> None:
         assert self._server is not None
         ns = self.namespace_index
         nodes = getattr(self._server.iserver.aspace, "_nodes", {})
-        ctl = self.image.system.ctl
-        by_field: dict[str, list[_Published]] = {}
-        for tag in self.image.map:
+        image = self.image
+        values = image.values()
+        for tag in image.map:
             text = f"{tag.node_id}.ValueAsText" if tag.enum is not None else None
             node_id = ua.NodeId(tag.node_id, ns)
             node = nodes.get(node_id)
+            slot = image.slot(tag)
             pub = _Published(
                 tag,
+                slot,
                 node_id,
                 VARIANT_TYPES[tag.type],
                 tag.type.is_float,
-                self.image.read(tag),
+                image.typed(slot, float(values[slot])),
                 ua.NodeId(text, ns) if text in space else None,
                 node.attributes.get(ua.AttributeIds.Value) if node is not None else None,
             )
             self._published.append(pub)
             self._by_node[tag.node_id] = pub
             self._by_owner.setdefault(tag.owner, []).append(pub)
-            if tag.folder == Folder.AXES and tag.field in AXIS_ARRAYS:
-                by_field.setdefault(tag.field, []).append(pub)
-            elif not is_static(tag):  # a static tag keeps the value the node was built with
-                self._scalar.append(pub)
-        for field, pubs in by_field.items():
-            index = np.array([ctl.axis(p.tag.owner).index for p in pubs], dtype=np.intp)
-            last = np.array([float(p.last) for p in pubs])
-            self._axis_fields.append(_AxisField(field, pubs, index, last))
+        self._published.sort(key=lambda p: p.slot)
+        self._last = values.copy()
+        self._analog = np.array([p.is_float for p in self._published], dtype=bool)
 
     async def _set(self, pub: _Published, value: Any, now: datetime) -> None:
         assert self._server is not None
@@ -519,35 +549,19 @@ class OpcUaFrontend:
     async def _publish_pass(self) -> int:
         deadband = self.config.deadband
         slices = _Slices(self.config.chunk_size)
+        values = self.image.values()
+        last = self._last
+        moved = values != last
+        if deadband:
+            moved &= ~(self._analog & (np.abs(values - last) <= deadband))
         now = _now()
         changed = 0
-        for af in self._axis_fields:
-            values = self.image.axis_values(af.field)[af.index]
-            last = af.last
-            if deadband:
-                moved = np.flatnonzero(~(np.abs(values - last) <= deadband))
-            else:
-                moved = np.flatnonzero(values != last)
-            for k in moved.tolist():
-                value = float(values[k])
-                last[k] = value
-                await self._set(af.pubs[k], value, now)
-                changed += 1
-                if await slices.after_update():
-                    # the cycle that ran meanwhile moved the axes: publish its values
-                    values = self.image.axis_values(af.field)[af.index]
-                    now = _now()
-        read = self.image.read
-        for n, pub in enumerate(self._scalar):
-            if n & 63 == 63 and await slices.after_reads():
-                now = _now()
-            value = read(pub.tag)
-            last = pub.last
-            if value == last:
-                continue
-            if pub.is_float and deadband and abs(value - last) <= deadband:
-                continue
-            await self._set(pub, value, now)
+        pubs = self._published
+        typed = self.image.typed
+        for k in np.flatnonzero(moved).tolist():
+            raw = float(values[k])
+            last[k] = raw
+            await self._set(pubs[k], typed(k, raw), now)
             changed += 1
             if await slices.after_update():
                 now = _now()
@@ -593,10 +607,6 @@ class _Slices:
         """Count one node update; True if the pass yielded (other cycles may have run)."""
         self.budget -= 1
         return await self._yield_if(self.budget <= 0)
-
-    async def after_reads(self) -> bool:
-        """After a run of reads: yield if the slice's time is up."""
-        return await self._yield_if(False)
 
 
 #: monitored items created between two yields to the event loop

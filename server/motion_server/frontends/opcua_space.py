@@ -11,7 +11,7 @@ from typing import Any
 
 from asyncua import Server, ua
 
-from ..tagmap import Tag, TagImage, TagType
+from ..tagmap import Tag, TagType
 from ..tagmap.nodeset import (
     ACCESS_READ,
     ACCESS_READ_WRITE,
@@ -23,6 +23,7 @@ from ..tagmap.nodeset import (
     enum_text,
     node_plan,
 )
+from .view import ImageView
 
 VARIANT_TYPES: dict[TagType, ua.VariantType] = {
     TagType.BOOL: ua.VariantType.Boolean,
@@ -68,7 +69,7 @@ def _property_value(spec: NodeSpec) -> ua.Variant:
     return ua.Variant(ua.LocalizedText(str(v)), ua.VariantType.LocalizedText)
 
 
-async def build_space(server: Server, ns: int, image: TagImage) -> dict[str, NodeSpec]:
+async def build_space(server: Server, ns: int, image: ImageView) -> dict[str, NodeSpec]:
     """Add the site's nodes to ``server`` under namespace index ``ns``; returns the plan
     by node id (string identifier)."""
     plan = node_plan(image.map)
@@ -94,7 +95,7 @@ async def build_space(server: Server, ns: int, image: TagImage) -> dict[str, Nod
     return {spec.node_id: spec for spec in plan}
 
 
-def _add_item(spec: NodeSpec, ns: int, image: TagImage) -> ua.AddNodesItem:
+def _add_item(spec: NodeSpec, ns: int, image: ImageView) -> ua.AddNodesItem:
     item = ua.AddNodesItem()
     item.RequestedNewNodeId = ua.NodeId(spec.node_id, ns)
     # standard properties keep their standard (namespace 0) browse names

@@ -26,6 +26,28 @@ class TransitionError(RuntimeError):
     """An event that the state table does not allow in the current state."""
 
 
+class Outputs(dict[str, Any]):
+    """An instance's outputs. A change of value adds the instance's name to ``changed``
+    (the set its system gives it): the scan publishes only what changed."""
+
+    __slots__ = ("changed", "owner")
+
+    def __init__(self, owner: str, values: dict[str, Any]) -> None:
+        super().__init__(values)
+        self.owner = owner
+        self.changed: set[str] | None = None
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        if dict.get(self, key, _UNSET) != value:
+            changed = self.changed
+            if changed is not None:
+                changed.add(self.owner)
+        dict.__setitem__(self, key, value)
+
+
+_UNSET = object()
+
+
 class Instruction:
     TYPE: ClassVar[str] = ""
     DIALECT: ClassVar[Dialect]
@@ -44,9 +66,9 @@ class Instruction:
         for key, value in (defaults or {}).items():
             op = self.operand(key)
             self.inputs[key] = coerce(op.type, value)
-        self.outputs: dict[str, Any] = {
-            f.name: coerce(f.type, f.default) for f in self.status_fields()
-        }
+        self.outputs = Outputs(
+            name, {f.name: coerce(f.type, f.default) for f in self.status_fields()}
+        )
         self.op: dict[str, Any] = dict(self.inputs)
         self._last_trigger = False
 
@@ -102,6 +124,22 @@ class Instruction:
 
     def group(self, name: str = "Group") -> MotionGroup:
         return self.ctl.group(int(self.op[name]))
+
+    def commanded_axes(self) -> list[Axis]:
+        """The axes the latched axis operands name (those that exist)."""
+        out: list[Axis] = []
+        for op in self.OPERANDS:
+            if op.kind == Kind.AXIS:
+                try:
+                    out.append(self.ctl.axis(int(self.op[op.name])))
+                except (MotionError, TypeError, ValueError, OverflowError):
+                    continue
+        return out
+
+    def fail_internal(self) -> None:
+        """The instance raised an unexpected exception: show the internal error
+        (Logix ER, PLCopen Error, code :attr:`ErrorCode.INTERNAL_ERROR`)."""
+        raise NotImplementedError
 
     def operand_index(self, name: str) -> int:
         for i, op in enumerate(self.OPERANDS):
@@ -187,6 +225,9 @@ class LogixInstruction(Instruction):
         self.outputs["ERR"] = int(code)
         self.outputs["EXERR"] = int(exerr)
         self.set_bits(ER=True, DN=False, IP=False, PC=False, AC=False)
+
+    def fail_internal(self) -> None:
+        self.fail(ErrorCode.INTERNAL_ERROR)
 
     def scan(self) -> None:
         rung = bool(self.inputs[self.TRIGGER])
@@ -282,6 +323,11 @@ class PLCopenBlock(Instruction):
     def fail(self, code: int) -> None:
         self.fire(BlockEvent.FAIL)
         self.outputs["ErrorID"] = int(code)
+
+    def fail_internal(self) -> None:
+        self.active = False
+        self.fail(ErrorCode.INTERNAL_ERROR)
+        self._publish()
 
     def scan(self) -> None:
         ex = bool(self.inputs[self.TRIGGER])

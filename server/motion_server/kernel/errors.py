@@ -31,6 +31,7 @@ class ErrorCode(IntEnum):
     COMBINED_SLAVE_GEAR_OUT = 1002
     NOT_GEARED = 1003
     BUFFER_FULL = 1004
+    INTERNAL_ERROR = 1005
 
 
 ERROR_TEXT: dict[ErrorCode, str] = {
@@ -54,6 +55,8 @@ ERROR_TEXT: dict[ErrorCode, str] = {
     ErrorCode.COMBINED_SLAVE_GEAR_OUT: "MC_GearOut is not allowed on a combined (two-master) slave",
     ErrorCode.NOT_GEARED: "the slave axis is not geared",
     ErrorCode.BUFFER_FULL: "a buffered command is already waiting on this axis",
+    ErrorCode.INTERNAL_ERROR: "internal error in the server (logged with its traceback); "
+    "the instruction's axes were stopped",
 }
 
 

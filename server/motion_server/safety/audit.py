@@ -85,6 +85,16 @@ class AuditLog:
             self._handler.close()
             self._handler = None
 
+    def write_line(self, line: str) -> None:
+        """Write a line another process formatted (the supervisor writes the front-ends')."""
+        self.lines += 1
+        if self._sink is not None:
+            self._sink(line)
+        if self._handler is not None:
+            self._handler.emit(
+                logging.LogRecord("motion_server.audit", logging.INFO, "", 0, line, None, None)
+            )
+
     # -- events ---------------------------------------------------------------------------
     def emit(self, client: ClientInfo, event: str, result: str, **fields: Any) -> None:
         record = {
@@ -100,14 +110,7 @@ class AuditLog:
             "role": client.role,
             **{k: _plain(v) for k, v in fields.items()},
         }
-        line = json.dumps(record, separators=(",", ":"), ensure_ascii=False)
-        self.lines += 1
-        if self._sink is not None:
-            self._sink(line)
-        if self._handler is not None:
-            self._handler.emit(
-                logging.LogRecord("motion_server.audit", logging.INFO, "", 0, line, None, None)
-            )
+        self.write_line(json.dumps(record, separators=(",", ":"), ensure_ascii=False))
 
     def accepted(self, tag: Tag, old: Value, new: Value) -> None:
         """A :class:`~motion_server.tagmap.TagImage` observer: one accepted tag write."""

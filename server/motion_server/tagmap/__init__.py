@@ -41,17 +41,10 @@ exports (``motion-server map --format json|csv|md``) and the JSON Schema of the
 
 from ..instructions.schema import TagType
 from .codec import decode, encode
+from .errors import AddressError, BadValueError, ReadOnlyError, TagAccessError
 from .export import FORMATS, export, json_schema, to_dict
 from .fields import ClockMode
-from .image import (
-    AddressError,
-    BadValueError,
-    Host,
-    ReadOnlyError,
-    StandaloneHost,
-    TagAccessError,
-    TagImage,
-)
+from .image import Host, StandaloneHost, TagImage
 from .layout import build_tagmap, layout_problems
 from .model import (
     MAP_FORMAT,

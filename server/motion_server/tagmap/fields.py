@@ -21,6 +21,8 @@ class ClockMode(IntEnum):
     REALTIME = 0
     MANUAL = 1
     SCALED = 2
+    #: cycles back to back, as fast as the CPU allows (test benches, co-simulation)
+    FAST = 3
 
 
 @dataclass(frozen=True)
@@ -99,6 +101,22 @@ DIAGNOSTICS_FIELDS: tuple[FieldSpec, ...] = (
     FieldSpec("AxisCount", TagType.INT),
     FieldSpec("GroupCount", TagType.INT),
     FieldSpec("InstanceCount", TagType.INT, description="instruction instances"),
+    FieldSpec(
+        "ScanLoad",
+        TagType.REAL,
+        units="%",
+        description="share of the last second the scan spent running cycles",
+    ),
+    FieldSpec(
+        "QueuedWrites",
+        TagType.UDINT,
+        description="client write batches waiting for the next cycle when the last one began",
+    ),
+    FieldSpec(
+        "FrontendRestarts",
+        TagType.UDINT,
+        description="front-end processes restarted after they died (motion went on)",
+    ),
 )
 
 

@@ -12,8 +12,6 @@ front-end maps them to its own codes (Modbus: :class:`AddressError` and
 
 from __future__ import annotations
 
-import bisect
-import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -24,25 +22,12 @@ from ..instructions import MotionSystem
 from ..instructions.schema import TagType
 from ..kernel import Axis, Controller, MotionError
 from ..kernel.group import MotionGroup
-from .codec import RegisterValueError, Value, decoder, encoder
+from .codec import Value, encoder
+from .errors import AddressError, ReadOnlyError
 from .fields import ClockMode
+from .judge import Judge
 from .model import Folder, Tag, TagMap, UnknownTagError
-
-
-class TagAccessError(Exception):
-    """A read or write the image refuses (the base of the errors below)."""
-
-
-class AddressError(TagAccessError):
-    """Registers outside the map."""
-
-
-class ReadOnlyError(TagAccessError):
-    """A write to a read-only tag or register."""
-
-
-class BadValueError(TagAccessError):
-    """A value the tag cannot hold (wrong type or range, an unknown clock mode ...)."""
+from .registers import RegisterWrites
 
 
 class Host(Protocol):
@@ -57,6 +42,10 @@ class Host(Protocol):
     last_cycle_time: float
     max_cycle_time: float
     version: str
+    #: percent of the last second spent in cycles; write batches waiting; restarts
+    load: float
+    queued_writes: int
+    restarts: int
 
     def set_mode(self, mode: ClockMode) -> None: ...
 
@@ -79,6 +68,9 @@ class StandaloneHost:
         self.last_cycle_time = 0.0
         self.max_cycle_time = 0.0
         self.version = version
+        self.load = 0.0
+        self.queued_writes = 0
+        self.restarts = 0
 
     def set_mode(self, mode: ClockMode) -> None:
         self.mode = mode
@@ -179,22 +171,22 @@ GROUP_GETTERS: dict[str, Callable[[MotionGroup], Value]] = {
 }
 
 
-def checked(tag_type: TagType, value: Any) -> Value:
-    """``value`` as the Python value a tag of ``tag_type`` holds, or :class:`BadValueError`."""
-    if tag_type == TagType.BOOL:
-        if value in (0, 1):  # True/False, 0/1, 0.0/1.0
-            return bool(value)
-        raise BadValueError(f"{value!r} is not a BOOL (0 or 1)")
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise BadValueError(f"{value!r} is not a number")
-    if tag_type.is_float:
-        return float(value)
-    if isinstance(value, float) and not value.is_integer():
-        raise BadValueError(f"{value!r} is not an integer ({tag_type.value})")
-    lo, hi = tag_type.bounds
-    if not lo <= value <= hi:
-        raise BadValueError(f"{value} is outside the {tag_type.value} range {lo:.0f}..{hi:.0f}")
-    return int(value)
+def check_registers(tagmap: TagMap, address: int, count: int, write: bool) -> None:
+    """:class:`AddressError` unless every register is in the map; for a write,
+    :class:`ReadOnlyError` unless every register is in a block's command region."""
+    if count < 1 or address < 0:
+        raise AddressError(f"bad register range {address}+{count}")
+    a, end = address, address + count
+    while a < end:
+        block = tagmap.block_at(a)
+        if block is None:
+            raise AddressError(f"register {a} is outside the map")
+        if not write:
+            a = block.end
+        elif block.command_start <= a < block.command_end:
+            a = block.command_end
+        else:
+            raise ReadOnlyError(f"register {a} ({block.owner}) is read-only")
 
 
 class TagImage:
@@ -207,8 +199,11 @@ class TagImage:
         system: MotionSystem,
         host: Host | None = None,
         bindings: Mapping[str, tuple[Getter, Setter | None]] | None = None,
+        judge: Judge | None = None,
     ) -> None:
         self.map = tagmap
+        #: judges every written value (type, range, the kernel's numeric boundary)
+        self.judge = judge if judge is not None else Judge.for_system(tagmap, system)
         self.system = system
         self.host: Host = host if host is not None else StandaloneHost(system)
         #: getter/setter by tag name for the Safety folder (watchdogs: the runtime's)
@@ -223,7 +218,7 @@ class TagImage:
         for tag in tagmap:
             self._bind(tag)
         self._slots = self._build_slots()
-        self._starts = [s.address for s in self._slots]
+        self._writes = RegisterWrites(tagmap.tags, tagmap.word_order)
         #: bumped by every write: part of the key of the block copies
         self.generation = 0
         self._copies: dict[int, tuple[tuple[int, int], list[int]]] = {}
@@ -284,19 +279,7 @@ class TagImage:
     # -- by register ------------------------------------------------------------------------
     def check(self, address: int, count: int, write: bool) -> None:
         """:class:`AddressError` unless every register is in the map (and writable)."""
-        if count < 1 or address < 0:
-            raise AddressError(f"bad register range {address}+{count}")
-        a, end = address, address + count
-        while a < end:
-            block = self.map.block_at(a)
-            if block is None:
-                raise AddressError(f"register {a} is outside the map")
-            if not write:
-                a = block.end
-            elif block.command_start <= a < block.command_end:
-                a = block.command_end
-            else:
-                raise ReadOnlyError(f"register {a} ({block.owner}) is read-only")
+        check_registers(self.map, address, count, write)
 
     def read_registers(self, address: int, count: int, check: bool = True) -> list[int]:
         """``count`` registers from ``address`` (unused registers of a block read 0)."""
@@ -333,49 +316,26 @@ class TagImage:
         return words
 
     def write_registers(self, address: int, values: Sequence[int], check: bool = True) -> int:
-        """Write registers. A write that covers part of a 32/64-bit value changes those
-        words only (the value is judged when the instruction latches it); registers
-        between tags take no value. Returns the number of cycles requested (Clock.Step)."""
-        count = len(values)
+        """Write registers (see :class:`RegisterWrites`). Returns the number of cycles
+        requested (Clock.Step)."""
         if check:
-            self.check(address, count, write=True)
-        updates: list[tuple[Tag | str, Any]] = []
-        end = address + count
-        slots = self._slots
-        i = max(bisect.bisect_right(self._starts, address) - 1, 0)
-        while i < len(slots) and slots[i].address < end:
-            s = slots[i]
-            i += 1
-            if s.end <= address:
-                continue
-            if s.tags[0].type == TagType.BOOL:
-                reg = values[s.address - address]
-                updates += [(t, bool((reg >> (t.bit or 0)) & 1)) for t in s.tags]
-                continue
-            words = list(s.read())
-            for k in range(s.count):
-                if address <= s.address + k < end:
-                    words[k] = values[s.address + k - address]
-            tag = s.tags[0]
-            try:
-                updates.append((tag, self._decoders[tag.name](words)))
-            except RegisterValueError as exc:
-                raise BadValueError(f"{tag.name}: {exc}") from None
-        return self.write_many(updates)
+            self.check(address, len(values), write=True)
+        return self.write_many(self._writes.updates(address, values, self._current))
+
+    def _current(self, address: int, count: int) -> list[int]:
+        return self.read_registers(address, count, check=False)
 
     # -- binding ----------------------------------------------------------------------------
     def _judge(self, tag: Tag, value: Any) -> Value:
-        v = checked(tag.type, value)
-        if tag.owner == "Clock" and tag.field == "Mode":
-            try:
-                return ClockMode(int(v))
-            except ValueError:
-                raise BadValueError(
-                    f"Clock.Mode {v}: expected 0 realtime, 1 manual, 2 scaled"
-                ) from None
-        if tag.field == "FeedbackInput" and not math.isfinite(float(v)):
-            raise BadValueError(f"{tag.name} must be finite, got {v}")
-        return v
+        return self.judge(tag, value)
+
+    def getter(self, name: str) -> Getter:
+        """The function that reads tag ``name`` from the system."""
+        return self._get[name]
+
+    def setter(self, name: str) -> Setter:
+        """The function that writes tag ``name`` (a writable tag) into the system."""
+        return self._set[name]
 
     def _bind(self, tag: Tag) -> None:
         binders = {
@@ -461,6 +421,9 @@ class TagImage:
             "AxisCount": lambda: len(system.ctl.axes),
             "GroupCount": lambda: len(system.ctl.groups),
             "InstanceCount": lambda: len(system.instances),
+            "ScanLoad": lambda: host.load,
+            "QueuedWrites": lambda: host.queued_writes & _UINT32,
+            "FrontendRestarts": lambda: host.restarts & _UINT32,
         }
         self._get[tag.name] = getters[tag.field]
 
@@ -498,7 +461,6 @@ class TagImage:
 
     def _build_slots(self) -> list[_Slot]:
         order = self.map.word_order
-        self._decoders: dict[str, Callable[[Sequence[int]], Value]] = {}
         by_address: dict[int, list[Tag]] = {}
         slots: list[_Slot] = []
         for tag in self.map:
@@ -507,7 +469,6 @@ class TagImage:
                 continue
             enc = encoder(tag.type, order)
             get = self._get[tag.name]
-            self._decoders[tag.name] = decoder(tag.type, order)
             slots.append(_Slot(tag.address, tag.count, [tag], _word_reader(enc, get)))
         for address, tags in by_address.items():
             getters = [(self._get[t.name], t.bit or 0) for t in tags]

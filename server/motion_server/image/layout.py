@@ -1,0 +1,44 @@
+"""Which image slot holds which tag: one float64 per tag, in tag-map order.
+
+Every value a tag can hold fits a float64 exactly (BOOL 0/1, integers up to 32 bits,
+REAL and LREAL). Both sides compute the layout from the same site map; the fingerprint
+(a hash of the names and types in slot order) is checked when a front-end connects, so
+a front-end built from another map is refused rather than misread.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+
+from ..tagmap.model import Tag, TagMap
+
+
+@dataclass(frozen=True)
+class ImageLayout:
+    """Slots of a :class:`TagMap`: ``slot(tag)`` is the index of its value."""
+
+    tagmap: TagMap
+    tags: tuple[Tag, ...] = field(init=False)
+    _slots: dict[str, int] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        tags = tuple(self.tagmap.tags)
+        object.__setattr__(self, "tags", tags)
+        object.__setattr__(self, "_slots", {t.name: i for i, t in enumerate(tags)})
+
+    @property
+    def size(self) -> int:
+        return len(self.tags)
+
+    def slot(self, tag: Tag | str) -> int:
+        name = tag if isinstance(tag, str) else tag.name
+        return self._slots[name]
+
+    @property
+    def fingerprint(self) -> int:
+        """A 63-bit hash of the tag names and types in slot order."""
+        h = hashlib.sha256()
+        for t in self.tags:
+            h.update(f"{t.name}:{t.type.value};".encode())
+        return int.from_bytes(h.digest()[:8], "little") & ((1 << 63) - 1)

@@ -1,0 +1,87 @@
+"""What the supervisor tells a process it starts (the scan, a front-end): one JSON line
+on the child's standard input. The pipe stays open afterwards as a lifeline: when it
+reaches end of file, the supervisor is gone and the child stops.
+
+The site map travels as validated data (``SiteMap.model_dump``), so the child neither
+reads files nor the environment again: every process serves exactly the map the
+supervisor checked, with the command line's overrides applied.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from dataclasses import asdict, dataclass, field
+from typing import IO, Any
+
+from .config import OpcUaUser, SiteMap
+
+LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+
+
+@dataclass
+class LaunchSpec:
+    """Everything a child process needs. ``channels``: channel number -> inherited file
+    descriptor of its socket; ``image_fd``: the shared image (memfd)."""
+
+    site: dict[str, Any]
+    source: str
+    log_level: str
+    image_fd: int
+    image_size: int
+    channels: dict[int, int]
+    fresh: bool = False
+    users: list[dict[str, Any]] = field(default_factory=list)
+    #: how many times this front-end was started before (connection numbers stay unique)
+    generation: int = 0
+
+    @classmethod
+    def build(
+        cls,
+        site: SiteMap,
+        log_level: str,
+        image_fd: int,
+        image_size: int,
+        channels: dict[int, int],
+        users: list[OpcUaUser] | None = None,
+        **extra: Any,
+    ) -> LaunchSpec:
+        return cls(
+            site=site.model_dump(mode="json"),
+            source=site.source,
+            log_level=log_level,
+            image_fd=image_fd,
+            image_size=image_size,
+            channels=channels,
+            users=[u.model_dump(mode="json") for u in users or []],
+            **extra,
+        )
+
+    def encode(self) -> bytes:
+        return (json.dumps(asdict(self), separators=(",", ":")) + "\n").encode("utf-8")
+
+    @classmethod
+    def read(cls, stream: IO[bytes]) -> LaunchSpec:
+        line = stream.readline()
+        if not line:
+            raise SystemExit("motion-server: no launch spec on standard input")
+        data = json.loads(line)
+        data["channels"] = {int(k): int(v) for k, v in data["channels"].items()}
+        return cls(**data)
+
+    def site_map(self) -> SiteMap:
+        return SiteMap.model_validate({**self.site, "source": self.source})
+
+    def opcua_users(self) -> list[OpcUaUser]:
+        return [OpcUaUser.model_validate(u) for u in self.users]
+
+
+def setup_logging(level: str) -> None:
+    """The server's log format on standard error, in every process."""
+    logging.basicConfig(level=level.upper(), format=LOG_FORMAT, stream=sys.stderr)
+    if level.upper() != "DEBUG":
+        # asyncua reports every standard node it loads at INFO: thousands of lines
+        logging.getLogger("asyncua").setLevel(logging.WARNING)
+        # it also logs a bind failure with a traceback; the front-end reports it in one line
+        logging.getLogger("asyncua.server.server").setLevel(logging.CRITICAL)

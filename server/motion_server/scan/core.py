@@ -1,0 +1,567 @@
+"""The scan: the controller's cycle, its clock, its watchdogs and its image.
+
+:class:`Scan` owns everything that moves: the :class:`MotionSystem` (kernel and
+instruction instances), the communication watchdogs, the retained state, the clock and
+the diagnostics counters. It talks to the rest of the server only through the shared
+image (:mod:`motion_server.image.buffer`, written after every cycle) and through its
+channels (:mod:`.channel`: judged write batches in, acknowledgements out).
+
+It does no I/O of its own: :meth:`Scan.service` does one pass of work (read the packets
+waiting, apply writes, run the cycles that are due, publish, acknowledge) and returns
+when it wants to be called again; the caller sleeps until then or until a channel has a
+packet. :mod:`.process` does that with ``select`` in a process of its own (how the server
+runs); :class:`motion_server.runtime.Runtime` does it on an asyncio loop, in the test's
+own process.
+
+Clock modes (simulated time advances exactly one base period per cycle, always):
+
+- ``realtime``: cycles on an absolute deadline schedule; a late pass runs the missed
+  cycles back to back (at most ``max_catch_up``; the rest are dropped and logged) and
+  counts every late cycle as an overrun. The period never stretches. Writes wait for the
+  next cycle.
+- ``scaled``: the same at ``scale`` simulated seconds per real second.
+- ``manual``: time stands still; writes apply at once; a rising edge of ``Clock.Step``
+  runs ``Clock.StepCycles`` cycles (in chunks, with packets read in between) and its
+  write is acknowledged once they ran.
+- ``fast``: cycles back to back as fast as the CPU allows; writes apply at the start of
+  the next cycle, the image is published about every millisecond.
+
+Stopping (:meth:`Scan.request_stop`: SIGINT/SIGTERM, or the supervisor): the programmed
+stop of every group, as a controller does when it leaves run mode, run back to back;
+then the retained state is saved and :attr:`Scan.finished` becomes true.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..config import SiteMap
+from ..image import wire
+from ..image.buffer import META_WORDS, ImageWriter, Meta, ScanState, image_bytes
+from ..image.layout import ImageLayout
+from ..instructions import MotionSystem
+from ..kernel import GroupStop
+from ..kernel.group import OperatingMode
+from ..safety import retain
+from ..safety.client import writing_as
+from ..safety.watchdog import Watchdog
+from ..tagmap import ClockMode, TagAccessError, TagImage, build_tagmap
+from ..tagmap.image import Getter, Setter
+from ..tagmap.judge import Judge
+from .channel import CONTROL, Channel
+from .filler import ImageFiller
+
+log = logging.getLogger("motion_server.scan")
+
+#: simulated seconds the programmed stop may take before the scan gives up waiting
+SHUTDOWN_STOP_LIMIT = 30.0
+#: manual clock: cycles run back to back before packets are read again
+MANUAL_CHUNK = 200
+#: fast clock: wall seconds of cycles between two publishes (and packet reads)
+FAST_SLICE = 0.001
+#: stop cycles run per pass
+STOP_CHUNK = 50
+#: how often the scan load is computed (wall seconds)
+LOAD_WINDOW = 1.0
+
+RetainSink = Callable[[dict[str, Any]], None]
+
+
+class Scan:
+    """The motion cycle of one site (see the module docstring).
+
+    ``buffer``: the shared memory of the image (the scan's side maps it writable); a
+    private one when None. ``retain_sink``: where retained state goes (the supervisor
+    writes the file); when None the scan writes the file itself. ``system``: a system
+    built from ``site`` (tests pass one they prepared).
+    """
+
+    def __init__(
+        self,
+        site: SiteMap,
+        system: MotionSystem | None = None,
+        *,
+        buffer: Any = None,
+        fresh: bool = False,
+        retain_sink: RetainSink | None = None,
+    ) -> None:
+        self.site = site
+        self.system = system or site.build()
+        self.ctl = self.system.ctl
+        self.retain_file = retain.retain_path(site) if site.retain.enabled else None
+        self._retain_sink = retain_sink
+        if self.retain_file is not None and not fresh:
+            payload = retain.load(self.retain_file, site.site.name)
+            if payload is not None:
+                for note in retain.restore(self.system, payload):
+                    log.warning("retain: %s", note)
+                log.info("retained state restored from %s", self.retain_file)
+        ctl_cfg = site.controller
+        self.mode = ClockMode[ctl_cfg.clock.upper()]
+        self.scale = ctl_cfg.scale
+        self.max_catch_up = ctl_cfg.max_catch_up
+        self.status_log_interval = ctl_cfg.status_log_interval
+        self.version = __version__
+        # diagnostics
+        self.heartbeat = 0
+        self.overruns = 0
+        self.dropped = 0
+        self.last_cycle_time = 0.0
+        self.max_cycle_time = 0.0
+        self.load = 0.0
+        self.queued_writes = 0
+        self.restarts = 0
+        self.writes_applied = 0
+        self.kernel_failures = 0
+        # the image
+        self.tagmap = build_tagmap(site)
+        self.layout = ImageLayout(self.tagmap)
+        self.watchdogs = {w.name: Watchdog(w, self.ctl) for w in site.watchdogs}
+        bindings: dict[str, tuple[Getter, Setter | None]] = {}
+        for wd in self.watchdogs.values():
+            bindings |= wd.bindings()
+        self.image = TagImage(
+            self.tagmap, self.system, self, bindings, Judge.for_system(self.tagmap, self.system)
+        )
+        self.filler = ImageFiller(self.image, self.layout)
+        size = self.layout.size
+        buf = buffer if buffer is not None else bytearray(image_bytes(size))
+        self.writer = ImageWriter(buf, size, self.layout.fingerprint)
+        self.meta = np.zeros(META_WORDS, dtype=np.int64)
+        # channels and the write queue
+        self.channels: dict[int, Channel] = {}
+        self._queue: deque[tuple[Channel, wire.Batch]] = deque()
+        #: batches waiting for their cycles: (channel, sequence, tick to reach)
+        self._waiting: list[tuple[Channel, int, int]] = []
+        #: acknowledgements that go out with the next publish (an ACK means: the image
+        #: shows the write, and the cycles it asked for)
+        self._outgoing: list[tuple[Channel, bytes]] = []
+        self._pending_cycles = 0
+        # schedule
+        self.state = ScanState.STARTING
+        self._stop_requested = False
+        self._stops: list[GroupStop] = []
+        self._stop_cycles = 0
+        self._reschedule = True
+        self._deadline = 0.0
+        self._next_log = 0.0
+        self._next_save = 0.0
+        self._load_start = 0.0
+        self._load_busy = 0.0
+        self._dirty = False
+        self._refill = False
+
+    # -- set-up ---------------------------------------------------------------------------
+    def attach(self, channel: Channel) -> None:
+        """Serve ``channel`` (a front-end's write queue, or the supervisor's control)."""
+        self.channels[channel.number] = channel
+
+    def start(self, now: float) -> None:
+        """Publish the first image and begin running (the controller is ready)."""
+        self.filler.fill_all()
+        self.state = ScanState.RUNNING
+        self.rebase(now)
+        self._publish()
+        log.info(
+            "motion-server %s: %d axes, %d groups, %d instructions, period %.1f ms, clock %s",
+            self.version,
+            len(self.ctl.axes),
+            len(self.ctl.groups),
+            len(self.system.instances),
+            self.period * 1000,
+            self.mode.name.lower(),
+        )
+        control = self.channels.get(CONTROL)
+        if control is not None:
+            control.send(wire.encode_simple(wire.Kind.READY))
+
+    def rebase(self, now: float) -> None:
+        """Restart the schedule and the timers from ``now`` (a new clock source)."""
+        self._reschedule = True
+        self._deadline = now
+        self._next_log = now + self.status_log_interval
+        self._next_save = now + self.site.retain.interval
+        self._load_start = now
+        self._load_busy = 0.0
+
+    def deliver(self, channel: Channel, batch: wire.Batch) -> None:
+        """Queue a batch that did not come through a socket (the in-process runtime)."""
+        self._queue.append((channel, batch))
+        self.queued_writes = len(self._queue)
+
+    @property
+    def period(self) -> float:
+        return self.ctl.period
+
+    @property
+    def finished(self) -> bool:
+        return self.state == ScanState.STOPPED
+
+    # -- the host protocol of the tag image -------------------------------------------------
+    def set_mode(self, mode: ClockMode) -> None:
+        if mode != self.mode:
+            log.info("clock mode %s -> %s", self.mode.name.lower(), mode.name.lower())
+            self.mode = mode
+            self._reschedule = True
+            if mode != ClockMode.MANUAL:
+                self._pending_cycles = 0
+                self._ack_waiting(wire.Result.NOT_RUN)
+
+    def request_cycles(self, count: int) -> None:
+        """Manual clock: run ``count`` more cycles (ignored in the other modes)."""
+        if count > 0 and self.mode == ClockMode.MANUAL:
+            self._pending_cycles += count
+
+    async def settle(self) -> None:
+        """(The tag image's host protocol; the scan acknowledges writes instead.)"""
+
+    def request_stop(self) -> None:
+        if not self._stop_requested:
+            self._stop_requested = True
+
+    # -- one pass -------------------------------------------------------------------------
+    def service(self, now: float) -> float | None:
+        """Do what is due at ``now`` (monotonic seconds); return when to be called next
+        (None: only when a packet arrives)."""
+        self._receive()
+        if self._stop_requested and self.state == ScanState.RUNNING:
+            self._begin_stop()
+        if self.state == ScanState.STOPPING:
+            return self._stopping(now)
+        if self.state != ScanState.RUNNING:
+            return None
+        mode = self.mode
+        if mode == ClockMode.MANUAL:
+            wake = self._manual()
+        elif mode == ClockMode.FAST:
+            wake = self._fast(now)
+        else:
+            wake = self._realtime(now)
+        self._flush()
+        timer = self._periodic(now)
+        if wake is None:
+            return timer
+        return wake if timer is None else min(wake, timer)
+
+    def cycle(self, count: int = 1) -> None:
+        """Run ``count`` cycles now, whatever the clock mode (tests, tools); the writes
+        waiting are applied first and the image is published after each cycle."""
+        self._receive()
+        for _ in range(count):
+            self._apply_queued()
+            self._run_cycle()
+            self._ack_due()
+            self._publish()
+        if not count and self._dirty:
+            self._apply_queued()
+            self._publish()
+        self._flush()
+
+    def _manual(self) -> float | None:
+        self._apply_queued()
+        if self._pending_cycles:
+            n = min(self._pending_cycles, MANUAL_CHUNK)
+            for _ in range(n):
+                self._run_cycle()
+            self._pending_cycles -= n
+            self._ack_due()
+            self._publish()
+            return 0.0  # more to run, or to read: at once
+        if self._dirty:
+            self._publish()
+        return None
+
+    def _fast(self, now: float) -> float:
+        end = time.perf_counter() + FAST_SLICE
+        while True:
+            self._apply_queued()
+            self._run_cycle()
+            if time.perf_counter() >= end:
+                break
+        self._ack_due()
+        self._publish()
+        return now
+
+    def _realtime(self, now: float) -> float:
+        if self._reschedule:
+            self._deadline = now
+            self._reschedule = False
+        step = self.period / (self.scale if self.mode == ClockMode.SCALED else 1.0)
+        if now < self._deadline:
+            return self._deadline  # writes that arrived meanwhile wait for the cycle
+        due = int((now - self._deadline) / step) + 1
+        if due > 1:
+            self.overruns += due - 1
+        if due > self.max_catch_up:
+            self.dropped += due - self.max_catch_up
+            log.warning(
+                "scan %.1f ms late: dropped %d cycles",
+                (now - self._deadline) * 1000,
+                due - self.max_catch_up,
+            )
+            self._deadline += (due - self.max_catch_up) * step
+            due = self.max_catch_up
+        for _ in range(due):
+            self._apply_queued()
+            self._run_cycle()
+            self._ack_due()
+            self._publish()
+        self._deadline += due * step
+        return self._deadline
+
+    # -- cycles -----------------------------------------------------------------------------
+    def _run_cycle(self) -> None:
+        t0 = time.perf_counter()
+        for wd in self.watchdogs.values():
+            wd.check()
+        try:
+            self.system.cycle()
+        except Exception as exc:  # the kernel contains its own; never end the scan
+            self.kernel_failures += 1
+            if self.kernel_failures == 1 or self.kernel_failures % 1000 == 0:
+                log.error(
+                    "cycle %d failed (%d so far); the scan goes on",
+                    self.ctl.tick,
+                    self.kernel_failures,
+                    exc_info=exc,
+                )
+        if self.system.internal_errors:
+            self._log_internal_errors()
+        self.heartbeat = (self.heartbeat + 1) & 0xFFFFFFFF
+        self.filler.fill()
+        self._refill = False
+        self._dirty = True
+        spent = time.perf_counter() - t0
+        self.last_cycle_time = spent
+        if spent > self.max_cycle_time:
+            self.max_cycle_time = spent
+        self._load_busy += spent
+
+    def _log_internal_errors(self) -> None:
+        errors = self.system.internal_errors
+        for name, exc in errors:
+            log.error(
+                "instruction %s raised %s: it shows the internal error (1005), its axes stop",
+                name,
+                type(exc).__name__,
+                exc_info=exc,
+            )
+        errors.clear()
+
+    def _publish(self) -> None:
+        if self._refill:  # writes applied since the last cycle: what they changed
+            self.filler.fill()
+            self._refill = False
+        meta = self.meta
+        meta[Meta.TICK] = self.ctl.tick
+        meta[Meta.STATE] = int(self.state)
+        meta[Meta.CLOCK_MODE] = int(self.mode)
+        self.writer.publish(self.filler.values, meta)
+        self._dirty = False
+        if self._outgoing:
+            for ch, packet in self._outgoing:
+                ch.send(packet)
+            self._outgoing = []
+
+    # -- writes -----------------------------------------------------------------------------
+    def _receive(self) -> None:
+        for ch in list(self.channels.values()):
+            for data in ch.receive():
+                self._packet(ch, data)
+            if ch.closed:
+                log.info("%s channel closed", ch.name)
+                del self.channels[ch.number]
+                if ch.number == CONTROL:
+                    log.warning("the supervisor is gone: stopping")
+                    self.request_stop()
+
+    def _packet(self, ch: Channel, data: bytes) -> None:
+        try:
+            kind, _, _ = wire.header(data)
+            if kind == wire.Kind.HELLO:
+                self._hello(ch, data)
+            elif not ch.welcomed:
+                return  # left over from a front-end that died: wait for the new HELLO
+            elif kind == wire.Kind.WRITE:
+                batch = ch.assembler.feed(data)
+                if batch is not None:
+                    self._queue.append((ch, batch))
+                    self.queued_writes = len(self._queue)
+            elif kind == wire.Kind.STOP and ch.number == CONTROL:
+                log.info("stop requested: programmed stop of every group")
+                self.request_stop()
+            elif kind == wire.Kind.RESTARTS and ch.number == CONTROL:
+                self.restarts = wire.decode_count(data)
+            else:
+                raise wire.WireError(f"unexpected {kind.name} packet")
+        except (wire.WireError, ValueError) as exc:
+            log.warning("%s channel: %s; ignored until the next HELLO", ch.name, exc)
+            ch.reset()
+
+    def _hello(self, ch: Channel, data: bytes) -> None:
+        number, pid, fingerprint = wire.decode_hello(data)
+        ch.reset()
+        if number != ch.number or fingerprint != self.layout.fingerprint:
+            why = "another site map" if fingerprint != self.layout.fingerprint else "channel"
+            log.warning("%s channel: HELLO from pid %d refused (%s)", ch.name, pid, why)
+            ch.send(wire.encode_simple(wire.Kind.REFUSED, why))
+            return
+        ch.welcomed = True
+        ch.peer_pid = pid
+        applied = int(self.meta[Meta.APPLIED + ch.number])
+        ch.send(wire.encode_simple(wire.Kind.WELCOME, str(applied)))
+        log.debug("%s front-end (pid %d) connected", ch.name, pid)
+
+    def _apply_queued(self) -> None:
+        queue = self._queue
+        self.queued_writes = len(queue)
+        while queue:
+            ch, batch = queue.popleft()
+            self._apply(ch, batch)
+
+    def _apply(self, ch: Channel, batch: wire.Batch) -> None:
+        tags = self.layout.tags
+        updates = []
+        for slot, value in batch.items:
+            if not 0 <= slot < len(tags):
+                log.warning("%s channel: write to slot %d outside the image", ch.name, slot)
+                self._ack(ch, batch.seq, wire.Result.REFUSED)
+                return
+            updates.append((tags[slot], value))
+        before = self._pending_cycles
+        try:
+            with writing_as(batch.client):
+                self.image.write_many(updates)
+        except TagAccessError as exc:
+            log.warning("%s channel: a write refused by the scan: %s", ch.name, exc)
+            self._ack(ch, batch.seq, wire.Result.REFUSED)
+            return
+        self.filler.refresh(t for t, _ in updates)
+        self._refill = True
+        self.meta[Meta.APPLIED + ch.number] = batch.seq
+        self.writes_applied += 1
+        self._dirty = True
+        if self._pending_cycles > before:
+            self._waiting.append((ch, batch.seq, self.ctl.tick + self._pending_cycles))
+        else:
+            self._ack(ch, batch.seq, wire.Result.APPLIED)
+
+    def _ack(self, ch: Channel, seq: int, result: wire.Result, cycles: int = 0) -> None:
+        packet = wire.encode_ack(wire.Ack(seq, self.ctl.tick, cycles, result))
+        self._outgoing.append((ch, packet))
+        self._dirty = True
+
+    def _ack_due(self) -> None:
+        if not self._waiting:
+            return
+        tick = self.ctl.tick
+        keep = []
+        for ch, seq, target in self._waiting:
+            if tick >= target:
+                self._ack(ch, seq, wire.Result.APPLIED)
+            else:
+                keep.append((ch, seq, target))
+        self._waiting = keep
+
+    def _ack_waiting(self, result: wire.Result) -> None:
+        for ch, seq, _ in self._waiting:
+            self._ack(ch, seq, result)
+        self._waiting = []
+
+    def _flush(self) -> None:
+        for ch in self.channels.values():
+            if ch.outbox:
+                ch.flush()
+
+    # -- stopping ---------------------------------------------------------------------------
+    def _begin_stop(self) -> None:
+        self.state = ScanState.STOPPING
+        self._pending_cycles = 0
+        self._ack_waiting(wire.Result.NOT_RUN)
+        self._stops = self.ctl.set_mode(OperatingMode.PROGRAM)
+        self._stop_cycles = 0
+        self._publish()
+
+    def _stopping(self, now: float) -> float | None:
+        limit = int(SHUTDOWN_STOP_LIMIT / self.period)
+        self._apply_queued()
+        done = all(s.complete for s in self._stops)
+        n = 0
+        while not done and self._stop_cycles < limit and n < STOP_CHUNK:
+            self._run_cycle()
+            self._stop_cycles += 1
+            n += 1
+            done = all(s.complete for s in self._stops)
+        self._publish()
+        if not done and self._stop_cycles < limit:
+            self._flush()
+            return now
+        if done:
+            log.info(
+                "programmed stop complete after %d cycles (%.3f s simulated)",
+                self._stop_cycles,
+                self._stop_cycles * self.period,
+            )
+        else:
+            log.warning("programmed stop not complete after %.0f s simulated", SHUTDOWN_STOP_LIMIT)
+        self.save_retained()
+        self.state = ScanState.STOPPED
+        self._publish()
+        control = self.channels.get(CONTROL)
+        if control is not None:
+            control.send(wire.encode_simple(wire.Kind.STOPPED))
+        self._flush()
+        return None
+
+    # -- housekeeping -----------------------------------------------------------------------
+    def _periodic(self, now: float) -> float | None:
+        timers: list[float] = []
+        if now - self._load_start >= LOAD_WINDOW:
+            self.load = 100.0 * self._load_busy / (now - self._load_start)
+            self._load_busy = 0.0
+            self._load_start = now
+        timers.append(self._load_start + LOAD_WINDOW)
+        every = self.site.retain.interval
+        if self.retain_file is not None and every:
+            if now >= self._next_save:
+                self._next_save = now + every
+                self.save_retained()
+            timers.append(self._next_save)
+        if self.status_log_interval:
+            if now >= self._next_log:
+                self._next_log = now + self.status_log_interval
+                log.info("%s", self.status_line())
+            timers.append(self._next_log)
+        return min(timers)
+
+    def save_retained(self) -> None:
+        """Hand the retained state to its sink (the supervisor writes it), or write it."""
+        if self.retain_file is None:
+            return
+        payload = retain.snapshot(self.site, self.system)
+        if self._retain_sink is not None:
+            self._retain_sink(payload)
+            return
+        try:
+            retain.save(self.retain_file, payload)
+        except OSError as exc:
+            log.error("retain: cannot write %s: %s", self.retain_file, exc)
+
+    def status_line(self) -> str:
+        axes = " ".join(
+            f"{a.name}={a.actual_position:.3f}{a.config.units}/{a.state.name.lower()}"
+            for a in self.ctl.axes[:16]
+        )
+        more = f" (+{len(self.ctl.axes) - 16} axes)" if len(self.ctl.axes) > 16 else ""
+        return (
+            f"cycle {self.ctl.tick} t={self.ctl.time:.3f}s overruns={self.overruns} "
+            f"dropped={self.dropped} max_cycle={self.max_cycle_time * 1e6:.0f}us "
+            f"load={self.load:.1f}% {axes}{more}"
+        )

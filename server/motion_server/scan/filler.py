@@ -1,0 +1,94 @@
+"""The scan's copy of every tag value, brought up to date after each cycle.
+
+What changes how often decides how a slot is filled:
+
+- configuration (axis and group numbers, member lists, versions): once;
+- the axis arrays (positions, velocities, following error): for every axis at once,
+  from the kernel's numpy arrays;
+- axis status words, group states, diagnostics, the clock and the watchdogs: every
+  cycle, value by value;
+- instruction outputs: only of the instances whose outputs changed in the cycle (their
+  output dictionaries note it: :class:`~motion_server.instructions.base.Outputs`);
+- writable tags (operands, triggers, hand-wheel inputs, clock commands): when written
+  (:meth:`ImageFiller.refresh`), and in :meth:`ImageFiller.fill_all`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from ..image.layout import ImageLayout
+from ..tagmap.image import AXIS_ARRAYS, Getter, TagImage, is_static
+from ..tagmap.model import Folder, Tag
+
+
+class ImageFiller:
+    """Keeps ``values`` (one float64 per slot of ``layout``) equal to what ``image``'s
+    getters read, at a cost proportional to what changed."""
+
+    def __init__(self, image: TagImage, layout: ImageLayout) -> None:
+        self.image = image
+        self.layout = layout
+        system = image.system
+        ctl = system.ctl
+        self.values = np.zeros(layout.size)
+        self._all: list[tuple[int, Getter]] = []
+        self._each_cycle: list[tuple[int, Getter]] = []
+        by_field: dict[str, tuple[list[int], list[int]]] = {}
+        self._outputs: dict[str, list[tuple[str, int]]] = {}
+        for slot, tag in enumerate(layout.tags):
+            get = image.getter(tag.name)
+            self._all.append((slot, get))
+            if is_static(tag) or (tag.writable and tag.folder == Folder.INSTRUCTIONS):
+                continue
+            if tag.folder == Folder.AXES and tag.field in AXIS_ARRAYS:
+                slots, axes = by_field.setdefault(tag.field, ([], []))
+                slots.append(slot)
+                axes.append(ctl.axis(tag.owner).index)
+            elif tag.folder == Folder.INSTRUCTIONS:
+                self._outputs.setdefault(tag.owner, []).append((tag.field, slot))
+            else:
+                self._each_cycle.append((slot, get))
+        self._arrays = [
+            (field, np.array(slots, dtype=np.intp), np.array(axes, dtype=np.intp))
+            for field, (slots, axes) in by_field.items()
+        ]
+        self._each_slots = np.array([s for s, _ in self._each_cycle], dtype=np.intp)
+        self._each_get = [g for _, g in self._each_cycle]
+        self._instances = system.instances
+        self._changed = system.changed_outputs
+
+    def fill_all(self) -> None:
+        """Every slot from its getter (at start, after a restore)."""
+        values = self.values
+        for slot, get in self._all:
+            values[slot] = get()
+        self._changed.clear()
+
+    def fill(self) -> None:
+        """After a cycle: what may have changed."""
+        values = self.values
+        ctl = self.image.system.ctl
+        for field, slots, axes in self._arrays:
+            values[slots] = AXIS_ARRAYS[field](ctl)[axes]
+        if self._each_get:
+            values[self._each_slots] = [get() for get in self._each_get]
+        changed = self._changed
+        if changed:
+            instances = self._instances
+            outputs = self._outputs
+            for name in changed:
+                out = instances[name].outputs
+                for key, slot in outputs.get(name, ()):
+                    values[slot] = out[key]
+            changed.clear()
+
+    def refresh(self, tags: Iterable[Tag]) -> None:
+        """After writes: the written tags' slots."""
+        values = self.values
+        slot = self.layout.slot
+        image = self.image
+        for tag in tags:
+            values[slot(tag)] = image.getter(tag.name)()

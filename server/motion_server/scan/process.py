@@ -1,0 +1,115 @@
+"""The scan process: ``python -m motion_server.scan``, started by the supervisor.
+
+It reads its :class:`~motion_server.launch.LaunchSpec` from standard input, maps the
+shared image writable, builds the system and runs :meth:`Scan.service` in a ``select``
+loop over its channels (the supervisor's control channel and one per front-end). It
+imports no protocol stack (a test checks): nothing a client sends is parsed here, only
+the judged batches front-ends forward.
+
+Signals: SIGTERM runs the programmed stop of every group, then the process exits 0;
+SIGINT is left to the supervisor (a terminal's Ctrl-C reaches the whole process group,
+and the supervisor orders the stop). End of file on the control channel (the
+supervisor died) stops the same way.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import os
+import select
+import signal
+import socket
+import sys
+import time
+
+from ..config import SiteMapError
+from ..image import wire
+from ..image.buffer import map_shared
+from ..launch import LaunchSpec, setup_logging
+from ..safety.retain import RetainError
+from .channel import CONTROL, Channel
+from .core import Scan
+
+log = logging.getLogger("motion_server.scan")
+
+
+#: the scan's scheduling priority (nice value) when the system allows raising it
+SCAN_NICE = -10
+
+
+def _raise_priority() -> None:
+    """Ask the operating system to run the scan before ordinary processes (a front-end
+    busy with a flood of requests, a client on the same machine). Allowed for root or
+    with CAP_SYS_NICE; otherwise the scan keeps the normal priority (said at DEBUG)."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, SCAN_NICE)
+    except (PermissionError, OSError) as exc:
+        log.debug("scan priority unchanged: %s", exc)
+    else:
+        log.debug("scan priority raised (nice %d)", SCAN_NICE)
+
+
+def main() -> int:
+    spec = LaunchSpec.read(sys.stdin.buffer)
+    setup_logging(spec.log_level)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    wake_r, wake_w = os.pipe()
+    os.set_blocking(wake_r, False)
+    os.set_blocking(wake_w, False)
+    signal.set_wakeup_fd(wake_w)
+    stop = [False]
+
+    def on_term(signum: int, frame: object) -> None:
+        stop[0] = True
+
+    signal.signal(signal.SIGTERM, on_term)
+    channels = {
+        number: Channel(socket.socket(fileno=fd), number) for number, fd in spec.channels.items()
+    }
+    control = channels.get(CONTROL)
+
+    def send_retain(payload: dict[str, object]) -> None:
+        import json
+
+        blob = json.dumps(payload, separators=(",", ":")).encode("utf-8")
+        if control is not None and not control.closed:
+            for packet in wire.encode_blob(wire.Kind.RETAIN, blob):
+                control.send(packet)
+
+    try:
+        site = spec.site_map()
+        image = map_shared(spec.image_fd, spec.image_size, writable=True)
+        scan = Scan(site, buffer=image, fresh=spec.fresh, retain_sink=send_retain)
+    except (SiteMapError, RetainError) as exc:
+        print(f"motion-server: {exc}", file=sys.stderr)
+        return 2
+    for ch in channels.values():
+        scan.attach(ch)
+    _raise_priority()
+    # the start-up heap (the whole system) is never scanned by the collector again
+    gc.collect()
+    gc.freeze()
+    scan.start(time.monotonic())
+    while not scan.finished:
+        if stop[0]:
+            scan.request_stop()
+        wake = scan.service(time.monotonic())
+        if scan.finished:
+            break
+        fds: list[int] = [wake_r, *(ch.fileno() for ch in scan.channels.values())]
+        timeout = None if wake is None else max(0.0, wake - time.monotonic())
+        if timeout == 0.0:
+            continue
+        try:
+            ready, _, _ = select.select(fds, [], [], timeout)
+        except InterruptedError:
+            continue
+        if wake_r in ready:
+            try:
+                while os.read(wake_r, 512):
+                    pass
+            except BlockingIOError:
+                pass
+    log.info("scan stopped")
+    return 0

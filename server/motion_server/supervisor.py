@@ -1,0 +1,460 @@
+"""``motion-server run``: the scan and the front-ends, each in a process of its own.
+
+The supervisor (this process) checks the site map, creates the shared image (an
+anonymous ``memfd``) and one ``SOCK_SEQPACKET`` socket pair per channel, and starts:
+
+1. the **scan** (``python -m motion_server.scan``): kernel, instructions, clock,
+   watchdogs, retained state. It imports no protocol code;
+2. once the scan says READY (the controller runs), the **front-ends**, one process per
+   protocol (``python -m motion_server.frontends modbus|opcua``), so their ports open
+   only when there is a controller behind them.
+
+Then it watches them:
+
+- a front-end that dies is logged and started again (after 0.5 s, doubling to 30 s while
+  it keeps dying within a minute of its start) on the same port, with the same channel to
+  the scan, while motion goes on; clients reconnect. ``Diagnostics.FrontendRestarts``
+  counts the restarts;
+- a scan that dies stops everything with one log line; the retained state is not
+  overwritten (only the scan hands it over, and the supervisor writes what it was given);
+- SIGINT or SIGTERM: the scan runs the programmed stop of every group, hands over the
+  retained state, and ends; then the front-ends are stopped; exit 0.
+
+The supervisor also owns the files several processes feed: the audit log (the
+front-ends send it their lines) and the retain file (the scan sends its payload).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import selectors
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import IO, Any
+
+from .config import SiteMap, opcua_users
+from .image import wire
+from .image.buffer import create_shared, image_bytes
+from .image.layout import ImageLayout
+from .launch import LaunchSpec
+from .safety import retain
+from .safety.audit import AuditLog
+from .scan.channel import CONTROL, MODBUS, OPCUA
+from .tagmap import build_tagmap
+
+log = logging.getLogger("motion_server.supervisor")
+
+#: seconds the scan may take to build the system and publish its first image
+SCAN_START_TIMEOUT = 120.0
+#: seconds a front-end may take to listen (OPC UA builds its address space first)
+FRONTEND_START_TIMEOUT = 120.0
+#: seconds a stopping process gets after SIGTERM before SIGKILL
+TERMINATE_GRACE = 10.0
+#: restart back-off of a front-end that keeps dying: first delay, the longest
+RESTART_FIRST = 0.5
+RESTART_LONGEST = 30.0
+#: a front-end that ran this long before dying restarts with the first delay again
+RESTART_RESET = 60.0
+
+
+class StartError(RuntimeError):
+    """The server could not start (the reason is one line)."""
+
+
+@dataclass
+class _Child:
+    """One process the supervisor started."""
+
+    role: str  # "scan", "modbus", "opcua"
+    proc: subprocess.Popen[bytes]
+    started: float
+    listening: dict[str, Any] = field(default_factory=dict)
+    buffer: bytes = b""
+    failed: str = ""
+
+    @property
+    def stdout(self) -> IO[bytes]:
+        assert self.proc.stdout is not None
+        return self.proc.stdout
+
+
+def _describe(returncode: int) -> str:
+    if returncode < 0:
+        try:
+            return f"killed by {signal.Signals(-returncode).name}"
+        except ValueError:
+            return f"killed by signal {-returncode}"
+    return f"exit code {returncode}"
+
+
+class Supervisor:
+    """Runs one site map; :meth:`run` returns the process exit code."""
+
+    def __init__(
+        self,
+        site: SiteMap,
+        log_level: str = "INFO",
+        fresh: bool = False,
+        modbus: bool | None = None,
+        opcua: bool | None = None,
+    ) -> None:
+        self.site = site
+        self.log_level = log_level
+        self.fresh = fresh
+        self.roles: dict[str, int] = {}
+        if site.modbus.enabled if modbus is None else modbus:
+            self.roles["modbus"] = MODBUS
+        if site.opcua.enabled if opcua is None else opcua:
+            self.roles["opcua"] = OPCUA
+        self.layout = ImageLayout(build_tagmap(site))
+        self.size = image_bytes(self.layout.size)
+        self.users = opcua_users(site) if "opcua" in self.roles else []
+        self.audit = AuditLog.from_config(site.audit, site.data_dir, lambda: 0)
+        self.retain_file = retain.retain_path(site) if site.retain.enabled else None
+        self.restarts = 0
+        self._generation: dict[str, int] = {}
+        self._delay: dict[str, float] = {}
+        self._children: dict[str, _Child] = {}
+        self._due: dict[str, float] = {}
+        self._ports: dict[str, dict[str, Any]] = {}
+        self._selector = selectors.DefaultSelector()
+        self._stopping = False
+        self._scan_stopped = False
+        self._retain_parts: list[bytes] = []
+        self._signal_r, self._signal_w = os.pipe()
+
+    # -- start ------------------------------------------------------------------------------
+    def run(self) -> int:
+        for fd in (self._signal_r, self._signal_w):
+            os.set_blocking(fd, False)
+        previous = signal.set_wakeup_fd(self._signal_w)
+        handlers = {
+            sig: signal.signal(sig, lambda *_: None) for sig in (signal.SIGINT, signal.SIGTERM)
+        }
+        self._selector.register(self._signal_r, selectors.EVENT_READ, "signal")
+        try:
+            return self._run()
+        except StartError as exc:
+            log.error("%s", exc)
+            self._stop_all()
+            return 1
+        finally:
+            signal.set_wakeup_fd(previous)
+            for sig, handler in handlers.items():
+                signal.signal(sig, handler)
+            if self.audit is not None:
+                self.audit.close()
+
+    def _run(self) -> int:
+        if self.retain_file is not None and not self.fresh:
+            # refuse a bad retain file here, in one line, before anything starts
+            retain.load(self.retain_file, self.site.site.name)
+        self.image_fd = create_shared(self.size)
+        self.control, scan_control = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        self.control.setblocking(False)
+        self._fe_ends: dict[str, socket.socket] = {}
+        scan_fds = {CONTROL: scan_control.fileno()}
+        scan_socks = [scan_control]
+        for role, number in self.roles.items():
+            scan_end, fe_end = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+            self._fe_ends[role] = fe_end
+            scan_fds[number] = scan_end.fileno()
+            scan_socks.append(scan_end)
+        spec = LaunchSpec.build(
+            self.site,
+            self.log_level,
+            self.image_fd,
+            self.size,
+            scan_fds,
+            fresh=self.fresh,
+        )
+        scan = self._spawn("scan", [sys.executable, "-m", "motion_server.scan"], spec)
+        for sock in scan_socks:  # the scan holds them now
+            sock.close()
+        self._selector.register(self.control, selectors.EVENT_READ, "control")
+        if not self._wait_ready(scan):
+            code = scan.proc.poll()
+            return code if code else (0 if self._stopping else 1)
+        for role in self.roles:
+            self._start_frontend(role)
+        if not self._wait_listening():
+            return 1
+        return self._watch()
+
+    def _spawn(self, role: str, argv: list[str], spec: LaunchSpec) -> _Child:
+        fds = [self.image_fd, *spec.channels.values()]
+        proc = subprocess.Popen(
+            argv,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE if role != "scan" else subprocess.DEVNULL,
+            pass_fds=fds,
+        )
+        assert proc.stdin is not None
+        proc.stdin.write(spec.encode())
+        proc.stdin.flush()  # left open: the child's lifeline
+        child = _Child(role, proc, time.monotonic())
+        self._children[role] = child
+        if proc.stdout is not None:
+            os.set_blocking(proc.stdout.fileno(), False)
+            self._selector.register(proc.stdout, selectors.EVENT_READ, role)
+        return child
+
+    def _start_frontend(self, role: str) -> None:
+        generation = self._generation.get(role, 0)
+        self._generation[role] = generation + 1
+        site = self.site
+        port = self._ports.get(role, {})
+        if port:  # a restart: the port it had (an ephemeral one included)
+            if role == "modbus":
+                modbus = site.modbus.model_copy(update={"port": port.get("port", 0)})
+                tls = site.modbus.tls
+                if port.get("tls_port"):
+                    tls = tls.model_copy(update={"port": port["tls_port"]})
+                site = site.model_copy(update={"modbus": modbus.model_copy(update={"tls": tls})})
+            else:
+                opcua = site.opcua.model_copy(update={"port": port.get("port", 0)})
+                site = site.model_copy(update={"opcua": opcua})
+        fe_end = self._fe_ends[role]
+        spec = LaunchSpec.build(
+            site,
+            self.log_level,
+            self.image_fd,
+            self.size,
+            {self.roles[role]: fe_end.fileno()},
+            users=self.users if role == "opcua" else None,
+            generation=generation,
+        )
+        self._spawn(role, [sys.executable, "-m", "motion_server.frontends", role], spec)
+
+    def _wait_ready(self, scan: _Child) -> bool:
+        """Until the scan says READY; False when it exited or a signal came first."""
+        give_up = time.monotonic() + SCAN_START_TIMEOUT
+        while time.monotonic() < give_up:
+            for kind in self._poll(0.2):
+                if kind == wire.Kind.READY:
+                    return True
+            if self._stopping:
+                self._stop_all()
+                return False
+            if scan.proc.poll() is not None:
+                log.error("the scan process could not start (%s)", _describe(scan.proc.returncode))
+                return False
+        raise StartError(f"the scan did not start within {SCAN_START_TIMEOUT:.0f} s")
+
+    def _wait_listening(self) -> bool:
+        give_up = time.monotonic() + FRONTEND_START_TIMEOUT
+        while time.monotonic() < give_up:
+            self._poll(0.2)
+            children = [self._children[r] for r in self.roles]
+            failed = [c for c in children if c.failed or c.proc.poll() is not None]
+            if failed or self._stopping:
+                for c in failed:
+                    why = c.failed or _describe(c.proc.wait())
+                    log.error("motion-server: cannot serve %s: %s", c.role, why)
+                self._stop_all()
+                return self._stopping and not failed
+            if all(c.listening for c in children):
+                return True
+        raise StartError(f"the front-ends did not listen within {FRONTEND_START_TIMEOUT:.0f} s")
+
+    # -- watch ------------------------------------------------------------------------------
+    def _watch(self) -> int:
+        scan = self._children["scan"]
+        while True:
+            timeout = 0.5
+            if self._due:
+                timeout = max(0.0, min(0.5, min(self._due.values()) - time.monotonic()))
+            self._poll(timeout)
+            if self._stopping and not self._stop_sent:
+                self._send_stop()
+            if scan.proc.poll() is not None or self._scan_stopped:
+                break
+            self._reap_frontends()
+            now = time.monotonic()
+            for role, when in list(self._due.items()):
+                if now >= when and not self._stopping:
+                    del self._due[role]
+                    self._start_frontend(role)
+        code = scan.proc.wait()
+        if self._scan_stopped or (self._stopping and code == 0):
+            self._stop_frontends()
+            log.info("stopped")
+            return 0
+        log.error(
+            "the scan process died (%s): motion has stopped; stopping the server", _describe(code)
+        )
+        self._stop_frontends()
+        return 1
+
+    _stop_sent = False
+
+    def _send_stop(self) -> None:
+        self._stop_sent = True
+        try:
+            self.control.send(wire.encode_simple(wire.Kind.STOP))
+        except OSError:
+            scan = self._children.get("scan")
+            if scan is not None and scan.proc.poll() is None:
+                scan.proc.terminate()
+
+    def _reap_frontends(self) -> None:
+        for role in list(self.roles):
+            child = self._children.get(role)
+            if child is None or child.proc.poll() is None:
+                continue
+            self._drop(child)
+            lived = time.monotonic() - child.started
+            if self._stopping:
+                continue
+            delay = self._delay.get(role, RESTART_FIRST)
+            if lived > RESTART_RESET:
+                delay = RESTART_FIRST
+            self._delay[role] = min(delay * 2, RESTART_LONGEST)
+            self.restarts += 1
+            log.error(
+                "the %s front-end died (%s): restarting it in %.1f s; motion goes on",
+                role,
+                _describe(child.proc.returncode),
+                delay,
+            )
+            self._due[role] = time.monotonic() + delay
+            with contextlib.suppress(OSError):
+                self.control.send(wire.encode_count(wire.Kind.RESTARTS, self.restarts))
+
+    def _drop(self, child: _Child) -> None:
+        del self._children[child.role]
+        if child.proc.stdout is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                self._selector.unregister(child.proc.stdout)
+            child.proc.stdout.close()
+        if child.proc.stdin is not None:
+            with contextlib.suppress(OSError):
+                child.proc.stdin.close()
+
+    def _poll(self, timeout: float) -> list[wire.Kind]:
+        """Wait up to ``timeout`` for signals, the scan's packets and the children's
+        lines; returns the kinds of the control packets that came."""
+        kinds: list[wire.Kind] = []
+        for key, _ in self._selector.select(timeout):
+            what = key.data
+            if what == "signal":
+                self._on_signal()
+            elif what == "control":
+                kinds += self._on_control()
+            else:
+                self._on_child_output(what)
+        return kinds
+
+    def _on_signal(self) -> None:
+        try:
+            while os.read(self._signal_r, 512):
+                pass
+        except BlockingIOError:
+            pass
+        if not self._stopping:
+            log.info("stop requested: programmed stop of every group")
+            self._stopping = True
+
+    def _on_control(self) -> list[wire.Kind]:
+        kinds: list[wire.Kind] = []
+        while True:
+            try:
+                data = self.control.recv(1 << 16)
+            except BlockingIOError:
+                return kinds
+            except OSError:
+                data = b""
+            if not data:
+                self._selector.unregister(self.control)
+                return kinds
+            try:
+                kind, flags, _ = wire.header(data)
+            except wire.WireError as exc:
+                log.warning("control channel: %s", exc)
+                continue
+            kinds.append(kind)
+            if kind == wire.Kind.RETAIN:
+                self._retain_parts.append(data[8:])
+                if flags & wire.FINAL:
+                    self._write_retain(b"".join(self._retain_parts))
+                    self._retain_parts = []
+            elif kind == wire.Kind.STOPPED:
+                self._scan_stopped = True
+
+    def _write_retain(self, blob: bytes) -> None:
+        if self.retain_file is None:
+            return
+        try:
+            payload = json.loads(blob)
+            retain.save(self.retain_file, payload)
+        except (OSError, ValueError) as exc:
+            log.error("retain: cannot write %s: %s", self.retain_file, exc)
+
+    def _on_child_output(self, role: str) -> None:
+        child = self._children.get(role)
+        if child is None:
+            return
+        try:
+            data = child.stdout.read()
+        except (BlockingIOError, OSError):
+            data = None
+        if data is None:
+            return
+        if not data:  # end of file: the child is exiting
+            with contextlib.suppress(KeyError, ValueError):
+                self._selector.unregister(child.stdout)
+            return
+        child.buffer += data
+        *lines, child.buffer = child.buffer.split(b"\n")
+        for raw in lines:
+            try:
+                msg = json.loads(raw)
+            except ValueError:
+                continue
+            if "audit" in msg and self.audit is not None:
+                self.audit.write_line(str(msg["audit"]))
+            elif "listening" in msg:
+                child.listening = msg
+                self._ports[role] = msg
+            elif "failed" in msg:
+                child.failed = str(msg.get("reason", "failed"))
+
+    # -- stop -------------------------------------------------------------------------------
+    def _stop_frontends(self) -> None:
+        self._stopping = True
+        frontends = [c for r, c in self._children.items() if r != "scan"]
+        for c in frontends:
+            if c.proc.poll() is None:
+                c.proc.terminate()
+        self._wait_children(frontends)
+
+    def _stop_all(self) -> None:
+        self._stopping = True
+        scan = self._children.get("scan")
+        if scan is not None and scan.proc.poll() is None:
+            self._send_stop()
+            give_up = time.monotonic() + TERMINATE_GRACE * 3
+            while scan.proc.poll() is None and time.monotonic() < give_up:
+                self._poll(0.1)
+        self._stop_frontends()
+        self._wait_children(list(self._children.values()))
+
+    def _wait_children(self, children: list[_Child]) -> None:
+        give_up = time.monotonic() + TERMINATE_GRACE
+        for c in children:
+            try:
+                c.proc.wait(max(0.0, give_up - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                log.warning("the %s process did not stop: killed", c.role)
+                c.proc.kill()
+                c.proc.wait()
+            if c.proc.stdin is not None:
+                with contextlib.suppress(OSError):
+                    c.proc.stdin.close()
