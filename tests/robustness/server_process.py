@@ -22,7 +22,8 @@ from motion_server import config
 
 ROOT = Path(__file__).resolve().parents[2]
 ENDPOINT = re.compile(r"OPC UA on (opc\.tcp://[^ ]+/)")
-SUBSCRIPTIONS = ua.ObjectIds.Server_ServerDiagnostics_ServerDiagnosticsSummary_CurrentSubscriptionCount
+#: Server.ServerDiagnostics.ServerDiagnosticsSummary.CurrentSubscriptionCount
+SUBSCRIPTIONS = 2285
 
 
 class ServerProcess:
