@@ -71,7 +71,8 @@ class ImageView:
         self.observers: list[Callable[[Tag, Value, Value], None]] = []
         self._slot = {t.name: i for i, t in enumerate(layout.tags)}
         self._types = [t.type for t in layout.tags]
-        self._encoder = RegisterEncoder(layout.tags, self.map.word_order)
+        end = max((b.end for b in self.map.blocks), default=0)
+        self._encoder = RegisterEncoder(layout.tags, self.map.word_order, end)
         self._writes = RegisterWrites(layout.tags, self.map.word_order)
         #: this front-end's writes the scan has not applied yet: slot -> (sequence, value)
         self._pending: dict[int, tuple[int, float]] = {}

@@ -237,6 +237,7 @@ class Scan:
             return self._stopping(now)
         if self.state != ScanState.RUNNING:
             return None
+        timer = self._periodic(now)
         mode = self.mode
         if mode == ClockMode.MANUAL:
             wake = self._manual()
@@ -245,7 +246,6 @@ class Scan:
         else:
             wake = self._realtime(now)
         self._flush()
-        timer = self._periodic(now)
         if wake is None:
             return timer
         return wake if timer is None else min(wake, timer)
@@ -335,14 +335,16 @@ class Scan:
         if self.system.internal_errors:
             self._log_internal_errors()
         self.heartbeat = (self.heartbeat + 1) & 0xFFFFFFFF
-        self.filler.fill()
-        self._refill = False
-        self._dirty = True
+        # Diagnostics.CycleTime: the cycle's own work (watchdogs, instructions, kernel);
+        # copying it into the image is counted in the scan load
         spent = time.perf_counter() - t0
         self.last_cycle_time = spent
         if spent > self.max_cycle_time:
             self.max_cycle_time = spent
-        self._load_busy += spent
+        self.filler.fill()
+        self._refill = False
+        self._dirty = True
+        self._load_busy += time.perf_counter() - t0
 
     def _log_internal_errors(self) -> None:
         errors = self.system.internal_errors
@@ -356,6 +358,7 @@ class Scan:
         errors.clear()
 
     def _publish(self) -> None:
+        t0 = time.perf_counter()
         if self._refill:  # writes applied since the last cycle: what they changed
             self.filler.fill()
             self._refill = False
@@ -365,6 +368,7 @@ class Scan:
         meta[Meta.CLOCK_MODE] = int(self.mode)
         self.writer.publish(self.filler.values, meta)
         self._dirty = False
+        self._load_busy += time.perf_counter() - t0
         if self._outgoing:
             for ch, packet in self._outgoing:
                 ch.send(packet)
@@ -527,6 +531,7 @@ class Scan:
             self.load = 100.0 * self._load_busy / (now - self._load_start)
             self._load_busy = 0.0
             self._load_start = now
+            self._refill = True  # Diagnostics.ScanLoad changed
         timers.append(self._load_start + LOAD_WINDOW)
         every = self.site.retain.interval
         if self.retain_file is not None and every:

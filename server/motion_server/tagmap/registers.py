@@ -28,10 +28,10 @@ _WIDE = {
 
 class RegisterEncoder:
     """Encodes ``values`` (one float64 per tag, in the order of ``tags``) into registers
-    ``0 .. size - 1`` (registers no tag uses read 0)."""
+    ``0 .. size - 1`` (at least up to the last tag; registers no tag uses read 0)."""
 
-    def __init__(self, tags: Sequence[Tag], order: WordOrder) -> None:
-        self.size = max((t.end for t in tags), default=0)
+    def __init__(self, tags: Sequence[Tag], order: WordOrder, size: int = 0) -> None:
+        self.size = max(size, max((t.end for t in tags), default=0))
         little = order == WordOrder.LITTLE
         self._groups: list[tuple[TagType, np.ndarray, np.ndarray]] = []
         by_type: dict[TagType, list[int]] = {}
