@@ -1,9 +1,13 @@
-"""Which image slot holds which tag: one float64 per tag, in tag-map order.
+"""Which image slot holds which tag: one float64 per tag.
 
 Every value a tag can hold fits a float64 exactly (BOOL 0/1, integers up to 32 bits,
-REAL and LREAL). Both sides compute the layout from the same site map; the fingerprint
-(a hash of the names and types in slot order) is checked when a front-end connects, so
-a front-end built from another map is refused rather than misread.
+REAL and LREAL). The axis fields the kernel keeps as arrays (positions, velocities,
+following error: :data:`~motion_server.tagmap.image.AXIS_ARRAYS`) come first, one run
+per field in axis order, so the scan copies each kernel array into the image in one
+slice; every other tag follows in tag-map order. Both sides compute the layout from the
+same site map; the fingerprint (a hash of the names and types in slot order) is checked
+when a front-end connects, so a front-end built from another map is refused rather than
+misread.
 """
 
 from __future__ import annotations
@@ -11,7 +15,8 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass, field
 
-from ..tagmap.model import Tag, TagMap
+from ..tagmap.image import AXIS_ARRAYS
+from ..tagmap.model import Folder, Tag, TagMap
 
 
 @dataclass(frozen=True)
@@ -23,7 +28,17 @@ class ImageLayout:
     _slots: dict[str, int] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        tags = tuple(self.tagmap.tags)
+        axes = {owner: k for k, owner in enumerate(self.tagmap.owners(Folder.AXES))}
+        fields = {name: k for k, name in enumerate(AXIS_ARRAYS)}
+
+        def arrays(t: Tag) -> bool:
+            return t.folder == Folder.AXES and t.field in fields
+
+        first = sorted(
+            (t for t in self.tagmap.tags if arrays(t)),
+            key=lambda t: (fields[t.field], axes[t.owner]),
+        )
+        tags = (*first, *(t for t in self.tagmap.tags if not arrays(t)))
         object.__setattr__(self, "tags", tags)
         object.__setattr__(self, "_slots", {t.name: i for i, t in enumerate(tags)})
 

@@ -24,6 +24,9 @@ from ..tagmap.image import AXIS_ARRAYS, Getter, TagImage, is_static
 from ..tagmap.model import Folder, Tag
 
 
+_POSITIONS = frozenset({"ActualPosition", "CommandPosition"})
+
+
 class ImageFiller:
     """Keeps ``values`` (one float64 per slot of ``layout``) equal to what ``image``'s
     getters read, at a cost proportional to what changed."""
@@ -51,10 +54,22 @@ class ImageFiller:
                 self._outputs.setdefault(tag.owner, []).append((tag.field, slot))
             else:
                 self._each_cycle.append((slot, get))
-        self._arrays = [
-            (field, np.array(slots, dtype=np.intp), np.array(axes, dtype=np.intp))
-            for field, (slots, axes) in by_field.items()
-        ]
+        #: (field, slots, axes): the kernel array of ``field`` goes to ``slots``; a slice
+        #: when the layout gave the field one run of slots in axis order (it does for
+        #: every axis of the site), else index arrays
+        self._arrays: list[tuple[str, slice | np.ndarray, np.ndarray | None]] = []
+        n = len(ctl.axes)
+        for field, (slots, axes) in by_field.items():
+            run = slots == list(range(slots[0], slots[0] + n)) and axes == list(range(n))
+            if run:
+                self._arrays.append((field, slice(slots[0], slots[0] + n), None))
+            else:
+                self._arrays.append(
+                    (field, np.array(slots, dtype=np.intp), np.array(axes, dtype=np.intp))
+                )
+        #: rotary axes: positions are published wrapped (as ``Axis.wrap`` reads them)
+        self._rot = ctl.rotary_idx
+        self._rollover = ctl.rollover[self._rot]
         self._each_slots = np.array([s for s, _ in self._each_cycle], dtype=np.intp)
         self._each_get = [g for _, g in self._each_cycle]
         self._instances = system.instances
@@ -72,7 +87,16 @@ class ImageFiller:
         values = self.values
         ctl = self.image.system.ctl
         for field, slots, axes in self._arrays:
-            values[slots] = AXIS_ARRAYS[field](ctl)[axes]
+            if axes is None and field in _POSITIONS:
+                assert isinstance(slots, slice)
+                raw = ctl.act_pos if field == "ActualPosition" else ctl.cmd_pos
+                values[slots] = raw
+                if self._rot.size:  # fmod, then + rollover below 0: what Axis.wrap does
+                    w = np.fmod(raw[self._rot], self._rollover)
+                    values[slots.start + self._rot] = np.where(w < 0.0, w + self._rollover, w)
+                continue
+            array = AXIS_ARRAYS[field](ctl)
+            values[slots] = array if axes is None else array[axes]
         if self._each_get:
             values[self._each_slots] = [get() for get in self._each_get]
         changed = self._changed

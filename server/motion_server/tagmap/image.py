@@ -1,13 +1,13 @@
-"""The tag image: live values of a :class:`TagMap`, bound to a running :class:`MotionSystem`.
+"""The tag image: every tag of a :class:`TagMap` bound to a running :class:`MotionSystem`.
 
-Reads come from the system as the last completed cycle left it (front-ends only call in
-between cycles: asyncio is single-threaded). Register reads encode a whole block once per
-cycle and serve the following reads of that cycle from the copy; every write through the
-image invalidates the copies. Writes to instruction operands land in the
-instance's ``inputs``; the instance latches them on its own trigger edge at the next
-cycle. Clock and hand-wheel writes act at once. Errors are protocol-neutral; each
-front-end maps them to its own codes (Modbus: :class:`AddressError` and
-:class:`ReadOnlyError` -> exception 02, :class:`BadValueError` -> 03).
+This is the scan's side of the tags: a getter and (for writable tags) a setter per tag.
+The scan applies judged client writes through :meth:`TagImage.write_many` and fills the
+shared image from the getters after every cycle (:mod:`motion_server.scan.filler`);
+front-ends never touch it (they read the shared image: ``frontends/view.py``). Writes to
+instruction operands land in the instance's ``inputs``; the instance latches them on its
+own trigger edge. Clock and hand-wheel writes act at once. Tools and unit tests use it
+directly on a system, with :class:`StandaloneHost` as the clock. Errors are
+protocol-neutral (:mod:`.errors`); each front-end maps them to its own codes.
 """
 
 from __future__ import annotations
