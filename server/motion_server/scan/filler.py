@@ -23,7 +23,6 @@ from ..image.layout import ImageLayout
 from ..tagmap.image import AXIS_ARRAYS, Getter, TagImage, is_static
 from ..tagmap.model import Folder, Tag
 
-
 _POSITIONS = frozenset({"ActualPosition", "CommandPosition"})
 
 
