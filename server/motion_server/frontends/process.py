@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import itertools
 import json
 import logging
@@ -102,6 +103,10 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
         log.error("%s front-end cannot serve: %s", kind, reason)
         _say({"failed": kind, "reason": reason})
         return 3
+    # the start-up heap (asyncua's address space above all) is never scanned again: a
+    # full collection over it would stall this front-end's requests for a long moment
+    gc.collect()
+    gc.freeze()
     if kind == "modbus":
         tls_port = frontend.tls_port if frontend.tls_server is not None else 0
         port = frontend.port if frontend.server is not None else 0
