@@ -5,7 +5,7 @@
 #
 # BASE_IMAGE: any Debian-like image with python3 (>= 3.11) and its venv module. The
 # default is the official slim image; `make test-container` builds on a Debian base it
-# bootstraps locally (no registry needed). README.md, section "Container", documents the
+# bootstraps locally (no registry needed). docs/container.md documents the
 # environment variables and the site-map / credentials conventions.
 ARG BASE_IMAGE=python:3.11-slim
 
@@ -58,7 +58,7 @@ ENV PATH=/opt/motion-server/bin:$PATH \
 # at /maps/site.toml (-v ./maps:/maps:ro -e MOTION_SERVER_MAP=/maps/site.toml), or baked
 # into a derived image (COPY site.toml /maps/site.toml + ENV MOTION_SERVER_MAP=...).
 # OPC UA users: MOTION_SERVER_USERS_FILE names a users file (a mounted secret, by default
-# /run/secrets/motion_server_users when present); see README.md. Generated state (the OPC UA certificate) goes to /var/lib/motion-server.
+# /run/secrets/motion_server_users when present); see docs/container.md. Generated state (the OPC UA certificate) goes to /var/lib/motion-server.
 WORKDIR /maps
 USER motion
 EXPOSE 5020 4840

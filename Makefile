@@ -55,6 +55,8 @@ $(NODE_STAMP): $(NODE_PROJECT)/package-lock.json
 maps: $(STAMP)
 	@for f in json csv md; do $(BIN)/motion-server map --format $$f -o maps/demo-map.$$f; done
 	@$(BIN)/motion-server map --format nodeset -o maps/demo-nodeset.xml
+	@$(BIN)/motion-server map --format kepware -o maps/demo-kepware.csv
+	@$(BIN)/motion-server map --format ignition -o maps/demo-ignition.json
 
 # Build the Dockerfile and smoke-test the image with buildah (as root; see container/).
 test-container: $(STAMP)

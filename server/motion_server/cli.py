@@ -141,7 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--format",
         choices=FORMATS,
         default="json",
-        help="json (default), csv, md, nodeset (OPC UA NodeSet2 XML)",
+        help="json (default), csv, md, nodeset (OPC UA NodeSet2 XML), kepware (KEPServerEX "
+        "tag CSV), ignition (Ignition tag JSON)",
     )
     mp.add_argument("-o", "--output", help="write to this file instead of standard output")
     mp.set_defaults(func=cmd_map)

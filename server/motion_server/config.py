@@ -305,6 +305,10 @@ class ModbusSection(_Model):
     every_type_base: Annotated[int, Field(ge=100, le=60000, multiple_of=2)] = 20000
     #: watchdog blocks (``[[watchdogs]]``): safety_base + 20·k
     safety_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] = 900
+    #: axis configuration blocks (read-only, and the REAL mirrors): axis_config_base + 50·k
+    axis_config_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] = 3000
+    #: float32 (REAL) copies of the LREAL axis values, for panels that cannot read LREAL
+    real_mirrors: bool = False
     access: ModbusAccessSection = ModbusAccessSection()
     tls: ModbusTlsSection = ModbusTlsSection()
 
@@ -356,11 +360,12 @@ class OpcUaSection(_Model):
     max_sessions: Annotated[int, Field(ge=1, le=10000)] = 100
     #: transport limits (asyncua's defaults allow 100 MB messages): the largest chunk
     #: (OPC UA's minimum is 8192 bytes), chunks per message and message size we accept
-    max_chunk_size: Annotated[int, Field(ge=8192, le=1 << 24)] = 65535
+    max_chunk_size: Annotated[int, Field(ge=8192, le=1 << 24)] = 65536
     max_chunk_count: Annotated[int, Field(ge=1, le=100000)] = 64
     max_message_size: Annotated[int, Field(ge=8192, le=100 << 20)] = 4 << 20
     max_subscriptions: Annotated[int, Field(ge=1, le=10000)] = 100
-    max_session_timeout_s: Annotated[float, Field(ge=5.0, le=86400.0)] = 600.0
+    #: asyncua and node-opcua clients ask for one hour; a lower maximum makes them warn
+    max_session_timeout_s: Annotated[float, Field(ge=5.0, le=86400.0)] = 3600.0
     #: seconds a TCP connection may stay silent (no byte received) before it is closed;
     #: a connection with an activated session gets its session timeout if that is longer
     #: (conforming clients talk at least that often). 0: never close for silence
@@ -369,6 +374,18 @@ class OpcUaSection(_Model):
     max_login_failures: Annotated[int, Field(ge=1, le=1000)] = 5
     login_window_s: Annotated[float, Field(gt=0.0)] = 60.0
     login_lockout_s: Annotated[float, Field(ge=0.0)] = 30.0
+
+    @model_validator(mode="after")
+    def _consistent_limits(self) -> OpcUaSection:
+        # a peer checks that the chunks can carry the largest message (node-opcua warns)
+        if self.max_chunk_size * self.max_chunk_count < self.max_message_size:
+            raise ValueError(
+                f"max_chunk_size × max_chunk_count ({self.max_chunk_size} × "
+                f"{self.max_chunk_count} = {self.max_chunk_size * self.max_chunk_count}) is less "
+                f"than max_message_size ({self.max_message_size}): raise max_chunk_count to "
+                f"{-(-self.max_message_size // self.max_chunk_size)} or lower max_message_size"
+            )
+        return self
 
 
 class UsersFile(_Model):

@@ -106,3 +106,36 @@ def test_out_of_range_and_exceptions_with_mbpoll(mbpoll: MbPoll) -> None:
     assert r.returncode != 0 and "Illegal data address" in r.stderr
     r = mbpoll.run(mbpoll.map.tag("Clock.Mode").address, values=("9",))
     assert r.returncode != 0 and "Illegal data value" in r.stderr
+
+
+def test_a_panel_without_lreal_reads_the_real_mirror_with_mbpoll() -> None:
+    """``[modbus] real_mirrors``: mbpoll reads float32 values only (``-t 4:float``, ``-B``:
+    the most significant word first, our default word order). The jog above ends at
+    1.5 mm and 10 mm/s, both exact in float32."""
+    site = modbus_site()
+    site = site.model_copy(update={"modbus": site.modbus.model_copy(update={"real_mirrors": True})})
+    with ServerThread(site) as srv:
+        assert srv.runtime is not None
+        mb = MbPoll(srv.port, srv.runtime.tagmap)
+        mb.write("MSO_1.Axis", "1")
+        mb.trigger("MSO_1")
+        mb.step(1)
+        mb.write("MAJ_1.Axis", "1")
+        mb.write("MAJ_1.Speed", "10")
+        mb.write("MAJ_1.AccelRate", "100")
+        mb.trigger("MAJ_1")
+        mb.step(100)
+        values = {}
+        for name in ("Axis1.CommandPositionREAL", "Axis1.CommandVelocityREAL"):
+            tag = mb.map.tag(name)
+            assert tag.type == TagType.REAL and tag.address % 2 == 0
+            r = mb.run(tag.address, "-t", "4:float", "-B", "-c", "1")
+            assert r.returncode == 0, r.stderr
+            ((ref, text),) = LINE.findall(r.stdout)
+            assert int(ref) == tag.address
+            values[name] = float(text)
+        assert values == {"Axis1.CommandPositionREAL": 1.5, "Axis1.CommandVelocityREAL": 10.0}
+        # the mirror is read-only, as the LREAL it copies
+        tag = mb.map.tag("Axis1.CommandPositionREAL")
+        r = mb.run(tag.address, "-t", "4:float", "-B", values=("2.5",))
+        assert r.returncode != 0 and "Illegal data address" in r.stderr

@@ -119,3 +119,15 @@ def test_a_section_the_map_does_not_write_can_be_set() -> None:
     site = config.load(None, environ={"MOTION_SERVER_MODBUS_PORT": "0"})
     assert site.modbus.port == 0
     assert site.modbus.host == "127.0.0.1"
+
+
+def test_transport_limits_must_let_the_chunks_carry_the_largest_message() -> None:
+    """OPC UA: max_chunk_size × max_chunk_count >= max_message_size, else a peer (node-opcua)
+    warns that the chunks cannot carry the message; the defaults meet it exactly:
+    65536 × 64 = 4 MiB."""
+    defaults = config.OpcUaSection()
+    assert defaults.max_chunk_size * defaults.max_chunk_count == defaults.max_message_size
+    with pytest.raises(ValueError, match="raise max_chunk_count to 65"):
+        config.OpcUaSection(max_chunk_size=65535, max_chunk_count=64)
+    # asyncua clients ask for a one-hour session (3,600,000 ms): the maximum allows it
+    assert defaults.max_session_timeout_s >= 3600.0

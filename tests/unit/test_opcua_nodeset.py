@@ -16,6 +16,7 @@ import pytest
 from asyncua import Server, ua
 
 from motion_server import config
+from motion_server.frontends.opcua_models import load_companions
 from motion_server.tagmap import TagMap, TagType, build_tagmap, export
 
 NS = {"u": "http://opcfoundation.org/UA/2011/03/UANodeSet.xsd"}
@@ -40,10 +41,12 @@ def test_every_tag_is_declared_with_its_data_type_and_access(demo: TagMap) -> No
     root = ET.fromstring(export(demo, "nodeset"))  # raises on malformed XML
     assert root.tag == f"{{{NS['u']}}}UANodeSet"
     uris = [u.text for u in root.findall("u:NamespaceUris/u:Uri", NS)]
-    assert uris == ["urn:motion-server:demo"]
+    # the site's namespace first (ns=1 in the file), then PLCopen's (its types' supertype)
+    assert uris == ["urn:motion-server:demo", "http://PLCopen.org/OpcUa/IEC61131-3/"]
     aliases = {a.get("Alias"): a.text for a in root.findall("u:Aliases/u:Alias", NS)}
     variables = {v.get("NodeId"): v for v in root.findall("u:UAVariable", NS)}
-    declared = set(variables) | {o.get("NodeId") for o in root.findall("u:UAObject", NS)}
+    objects = root.findall("u:UAObject", NS) + root.findall("u:UAObjectType", NS)
+    declared = set(variables) | {o.get("NodeId") for o in objects}
     tags = list(demo)
     assert len(tags) > 100
     for tag in tags:
@@ -68,6 +71,7 @@ async def test_an_opc_ua_server_imports_it(demo: TagMap) -> None:
     server = Server()
     await server.init()
     try:
+        await load_companions(server)  # the nodesets it requires: DI, PLCopen
         await server.import_xml(str(STORED))
         ns = await server.get_namespace_index("urn:motion-server:demo")
         for tag in (demo.tag("MAJ_1.Speed"), demo.tag("MAJ_1.DN"), demo.tag("Clock.Cycle")):

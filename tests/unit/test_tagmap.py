@@ -88,7 +88,9 @@ def test_alignment_no_overlap_and_separate_command_and_status_bits(demo: TagMap)
 
 def test_tags_sit_in_their_blocks_and_access_follows_the_region(demo: TagMap) -> None:
     for t in demo:
-        block = demo.block(t.owner)
+        # the owner's block, or its second part (an axis's configuration block)
+        block = demo.block_at(t.address)
+        assert block is not None and block in demo.blocks_of(t.owner), t.name
         assert block.base <= t.address and t.end <= block.end
         for a in range(t.address, t.end):
             want = RegisterAccess.READ_WRITE if t.writable else RegisterAccess.READ

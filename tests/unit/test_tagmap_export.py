@@ -92,6 +92,8 @@ def test_little_word_order_is_exported() -> None:
         ("csv", "demo-map.csv"),
         ("md", "demo-map.md"),
         ("nodeset", "demo-nodeset.xml"),
+        ("kepware", "demo-kepware.csv"),
+        ("ignition", "demo-ignition.json"),
     ],
 )
 def test_checked_in_demo_exports_equal_a_fresh_export(fmt: str, name: str) -> None:
@@ -121,6 +123,7 @@ def test_csv_columns() -> None:
         "enum": "",
         "node_id": "Instructions.MAJ_1.Speed",
         "description": "speed (units/s, % of maximum, or units per master unit)",
+        "bits": "",
     }
     execute = next(r for r in rows if r["name"] == "MAJ_1.Execute")
     assert (execute["address"], execute["bit"], execute["reference"]) == ("20506", "0", "420507")

@@ -101,6 +101,7 @@ from ..safety.roles import Role, required_role
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagType
 from ..tagmap.nodeset import enum_text
 from .certificates import self_signed
+from .opcua_identity import identify
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
 from .view import ImageView, ScanUnavailable, Ticket
@@ -225,7 +226,7 @@ class OpcUaFrontend:
         iserver.create_session = self._create_session
         server.set_server_name(f"motion-server {self.image.map.site}")
         uri = self.image.map.namespace_uri
-        await server.set_application_uri(f"{uri}:server")
+        await identify(server, cfg)  # BuildInfo, certificate, its application URI
         policies = [_POLICIES[p] for p in cfg.security_policies]
         if cfg.allow_none_endpoint:
             policies.insert(0, ua.SecurityPolicyType.NoSecurity)
@@ -246,7 +247,6 @@ class OpcUaFrontend:
                     permission_ruleset=_DiscoveryOnly(),
                 )
             )
-        await self._certificate(server, f"{uri}:server")
         port = cfg.port or _free_port(cfg.host)
         server.set_endpoint(f"opc.tcp://{cfg.host}:{port}/")
         self.namespace_index = await server.register_namespace(uri)

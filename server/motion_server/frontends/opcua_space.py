@@ -1,8 +1,10 @@
 """Build the site's OPC UA namespace in an asyncua server from the tag map's node plan.
 
-All nodes are added with a few batched AddNodes/AddReferences calls on the server's
-internal session (thousands of nodes in well under a second), following
-:func:`motion_server.tagmap.nodeset.node_plan`, the same plan the NodeSet2 export uses.
+First the companion nodesets the types build on (DI, PLCopen: :mod:`.opcua_models`), then
+all nodes of :func:`motion_server.tagmap.nodeset.node_plan` (the plan the NodeSet2 export
+uses: ObjectTypes with their instance declarations, then the instances) with a few batched
+AddNodes/AddReferences calls on the server's internal session (thousands of nodes in
+well under a second).
 """
 
 from __future__ import annotations
@@ -17,12 +19,14 @@ from ..tagmap.nodeset import (
     ACCESS_READ_WRITE,
     UNECE_NAMESPACE,
     EUInfo,
+    Ext,
     NodeKind,
     NodeSpec,
     Ns0,
     enum_text,
     node_plan,
 )
+from .opcua_models import load_companions
 from .view import ImageView
 
 VARIANT_TYPES: dict[TagType, ua.VariantType] = {
@@ -50,6 +54,8 @@ def variant(tag: Tag, value: Any) -> ua.Variant:
 
 def _property_value(spec: NodeSpec) -> ua.Variant:
     v = spec.value
+    if v is None:  # a type's declaration: each instance has its own value
+        return ua.Variant()
     if spec.data_type == Ns0.RANGE:
         return ua.Variant(ua.Range(Low=v[0], High=v[1]), ua.VariantType.ExtensionObject)
     if spec.data_type == Ns0.EU_INFORMATION:
@@ -57,8 +63,8 @@ def _property_value(spec: NodeSpec) -> ua.Variant:
         eu = ua.EUInformation(
             NamespaceUri=UNECE_NAMESPACE,
             UnitId=v.unit_id,
-            DisplayName=ua.LocalizedText(v.units),
-            Description=ua.LocalizedText(v.units),
+            DisplayName=ua.LocalizedText(v.symbol),
+            Description=ua.LocalizedText(v.name),
         )
         return ua.Variant(eu, ua.VariantType.ExtensionObject)
     if spec.data_type == Ns0.ENUM_VALUE_TYPE:
@@ -70,13 +76,33 @@ def _property_value(spec: NodeSpec) -> ua.Variant:
 
 
 async def build_space(server: Server, ns: int, image: ImageView) -> dict[str, NodeSpec]:
-    """Add the site's nodes to ``server`` under namespace index ``ns``; returns the plan
-    by node id (string identifier)."""
+    """Add the site's nodes to ``server`` under namespace index ``ns`` (after the
+    companion nodesets they build on); returns the plan by node id (string identifier)."""
+    await load_companions(server)
+    namespaces = await server.get_namespace_array()
+
+    def nid(node: str | Ext | None) -> ua.NodeId:
+        if node is None:
+            return ua.NodeId(ua.ObjectIds.ObjectsFolder)
+        if isinstance(node, Ext):
+            return ua.NodeId(node.id, namespaces.index(node.uri) if node.uri else 0)
+        return ua.NodeId(node, ns)
+
     plan = node_plan(image.map)
     items: list[ua.AddNodesItem] = []
     refs: list[ua.AddReferencesItem] = []
     for spec in plan:
-        items.append(_add_item(spec, ns, image))
+        items.append(_add_item(spec, ns, image, nid))
+        if spec.modelling_rule is not None:
+            refs.append(
+                ua.AddReferencesItem(
+                    SourceNodeId=ua.NodeId(spec.node_id, ns),
+                    ReferenceTypeId=ua.NodeId(Ns0.HAS_MODELLING_RULE),
+                    IsForward=True,
+                    TargetNodeId=nid(spec.modelling_rule),
+                    TargetNodeClass=ua.NodeClass.Object,
+                )
+            )
         for target in spec.organizes:
             refs.append(
                 ua.AddReferencesItem(
@@ -95,17 +121,24 @@ async def build_space(server: Server, ns: int, image: ImageView) -> dict[str, No
     return {spec.node_id: spec for spec in plan}
 
 
-def _add_item(spec: NodeSpec, ns: int, image: ImageView) -> ua.AddNodesItem:
+def _add_item(spec: NodeSpec, ns: int, image: ImageView, nid: Any) -> ua.AddNodesItem:
     item = ua.AddNodesItem()
     item.RequestedNewNodeId = ua.NodeId(spec.node_id, ns)
     # standard properties keep their standard (namespace 0) browse names
     name_ns = 0 if spec.kind == NodeKind.PROPERTY else ns
     item.BrowseName = ua.QualifiedName(spec.browse_name, name_ns)
-    item.ParentNodeId = (
-        ua.NodeId(spec.parent, ns) if spec.parent else ua.NodeId(ua.ObjectIds.ObjectsFolder)
-    )
-    item.ReferenceTypeId = ua.NodeId(spec.reference)
-    item.TypeDefinition = ua.NodeId(spec.type_definition)
+    item.ParentNodeId = nid(spec.parent)
+    item.ReferenceTypeId = nid(spec.reference)
+    if spec.type_definition is not None:
+        item.TypeDefinition = nid(spec.type_definition)
+    if spec.kind == NodeKind.OBJECT_TYPE:
+        item.NodeClass = ua.NodeClass.ObjectType
+        tattrs = ua.ObjectTypeAttributes()
+        tattrs.DisplayName = ua.LocalizedText(spec.browse_name)
+        tattrs.Description = ua.LocalizedText(spec.description)
+        tattrs.IsAbstract = False
+        item.NodeAttributes = tattrs
+        return item
     if spec.kind in (NodeKind.FOLDER, NodeKind.OBJECT):
         item.NodeClass = ua.NodeClass.Object
         oattrs = ua.ObjectAttributes()
@@ -124,10 +157,12 @@ def _add_item(spec: NodeSpec, ns: int, image: ImageView) -> ua.AddNodesItem:
     level = ACCESS_READ_WRITE if spec.writable else ACCESS_READ
     attrs.AccessLevel = level
     attrs.UserAccessLevel = level
-    if spec.tag is not None:
+    if spec.modelling_rule is not None and spec.kind == NodeKind.VARIABLE:
+        attrs.Value = ua.Variant()  # an instance declaration: no value of its own
+    elif spec.tag is not None:
         attrs.Value = variant(spec.tag, image.read(spec.tag))
-    elif spec.browse_name == "ValueAsText":
-        owner = image.map.by_node_id(spec.parent or "")
+    elif spec.browse_name == "ValueAsText" and spec.modelling_rule is None:
+        owner = image.map.by_node_id(spec.parent if isinstance(spec.parent, str) else "")
         text = enum_text(owner, image.read(owner))
         attrs.Value = ua.Variant(ua.LocalizedText(text), ua.VariantType.LocalizedText)
     else:

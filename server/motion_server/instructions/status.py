@@ -21,7 +21,11 @@ class LogixBit(IntEnum):
 
 
 LOGIX_STATUS: tuple[StatusField, ...] = (
-    StatusField("FLAGS", TagType.UDINT, "MOTION_INSTRUCTION status word (bit numbers below)"),
+    StatusField(
+        "FLAGS",
+        TagType.UDINT,
+        "MOTION_INSTRUCTION status word: bits 31 EN, 29 DN, 28 ER, 27 PC, 26 IP, 23 AC",
+    ),
     StatusField("EN", TagType.BOOL, "enable: set on the rung's rising edge"),
     StatusField("DN", TagType.BOOL, "done: the instruction was initiated"),
     StatusField("ER", TagType.BOOL, "error: see ERR and EXERR"),

@@ -31,12 +31,12 @@ DINT, UDINT, REAL, LREAL), ``access`` (read / read_write), ``address``/``count``
 (0-based holding registers), ``node_id`` (``Instructions.MAJ_1.Speed``: the OPC UA string
 NodeId, the browse path under the site's namespace), ``units`` (engineering units from
 the axis units and the operand's quantity), ``enum`` (an IntEnum), ``minimum``/
-``maximum`` (the operand's range: EURange), ``description`` and, for instruction tags,
-``instruction`` (the type, e.g. ``MAJ``).
+``maximum`` (the operand's range), ``eu_range`` (the OPC UA EURange), ``description`` and,
+for instruction tags, ``instruction`` (the type, e.g. ``MAJ``).
 
 The register layout rules are in :mod:`.layout`; value encoding in :mod:`.codec`; the
-exports (``motion-server map --format json|csv|md``) and the JSON Schema of the
-``motion-server-map/1`` contract in :mod:`.export`.
+exports (``motion-server map --format json|csv|md|nodeset|kepware|ignition``) and the
+JSON Schema of the ``motion-server-map/1`` contract in :mod:`.export`.
 """
 
 from ..instructions.schema import TagType

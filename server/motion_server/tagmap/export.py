@@ -13,9 +13,10 @@ from importlib import resources
 from typing import Any
 
 from ..kernel.errors import ERROR_TEXT
+from .bits import bits_text, packed_words, word_bits
 from .model import MAP_FORMAT, Block, Tag, TagMap
 
-FORMATS = ("json", "csv", "md", "nodeset")
+FORMATS = ("json", "csv", "md", "nodeset", "kepware", "ignition")
 SCHEMA_FILE = "map.schema.json"
 
 #: function codes the Modbus front-end serves, and the exceptions it answers
@@ -74,6 +75,19 @@ def to_dict(tagmap: TagMap) -> dict[str, Any]:
         "tags": [tag_record(t) for t in tagmap],
         # the meaning of ERR / ErrorID values, so that clients can explain an outcome
         "errors": {str(int(code)): text for code, text in ERROR_TEXT.items()},
+        # every packed word: the status words' bits and the registers of BOOL tags
+        "packed_words": [
+            {
+                "address": w.address,
+                "count": w.count,
+                "owner": w.owner,
+                "kind": w.kind,
+                "access": w.access.value,
+                **({"tag": w.tag.name} if w.tag is not None else {}),
+                "bits": {str(n): name for n, name in sorted(w.bits.items())},
+            }
+            for w in packed_words(tagmap)
+        ],
     }
 
 
@@ -96,6 +110,7 @@ CSV_COLUMNS = (
     "enum",
     "node_id",
     "description",
+    "bits",
 )
 
 
@@ -120,6 +135,7 @@ def to_csv(tagmap: TagMap) -> str:
                 enum_text(t),
                 t.node_id,
                 t.description,
+                bits_text(word_bits(t) or {}),
             ]
         )
     return out.getvalue()
@@ -130,7 +146,7 @@ def _md_cell(text: object) -> str:
 
 
 def _md_block(tagmap: TagMap, block: Block) -> list[str]:
-    kind = f" ({block.instruction})" if block.instruction else ""
+    kind = f" ({block.instruction or block.part})" if block.instruction or block.part else ""
     lines = [
         f"### {block.owner}{kind}",
         "",
@@ -146,6 +162,8 @@ def _md_block(tagmap: TagMap, block: Block) -> list[str]:
         "|---:|---:|---:|---:|---|---|---|---|---|---|",
     ]
     for t in tagmap.owned_by(block.owner):
+        if not block.base <= t.address < block.end:
+            continue  # in the owner's other block
         span = str(t.address) if t.count == 1 else f"{t.address}–{t.end - 1}"
         lines.append(
             "| "
@@ -166,6 +184,14 @@ def _md_block(tagmap: TagMap, block: Block) -> list[str]:
             )
             + " |"
         )
+    words = [w for w in packed_words(tagmap) if block.base <= w.address < block.end]
+    if words:
+        lines.append("")
+        for w in words:
+            what = f"`{w.tag.name}`" if w.tag is not None else w.kind
+            span = str(w.address) if w.count == 1 else f"{w.address}–{w.address + w.count - 1}"
+            names = ", ".join(f"{n} {name}" for n, name in sorted(w.bits.items()))
+            lines.append(f"- Bits of {what} (register {span}): {names}.")
     return [*lines, ""]
 
 
@@ -196,10 +222,18 @@ def to_markdown(tagmap: TagMap) -> str:
 
 
 def export(tagmap: TagMap, fmt: str) -> str:
-    """The export of ``tagmap`` in ``fmt`` (json, csv, md or nodeset)."""
-    from .nodeset import to_nodeset  # NodeSet2 XML of the OPC UA namespace
+    """The export of ``tagmap`` in ``fmt`` (json, csv, md, nodeset, kepware, ignition)."""
+    from .nodeset_xml import to_nodeset  # NodeSet2 XML of the OPC UA namespace
+    from .scada import to_ignition, to_kepware  # SCADA tag imports
 
-    writers = {"json": to_json, "csv": to_csv, "md": to_markdown, "nodeset": to_nodeset}
+    writers = {
+        "json": to_json,
+        "csv": to_csv,
+        "md": to_markdown,
+        "nodeset": to_nodeset,
+        "kepware": to_kepware,
+        "ignition": to_ignition,
+    }
     try:
         return writers[fmt](tagmap)
     except KeyError:

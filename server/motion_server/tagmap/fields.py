@@ -53,7 +53,11 @@ AXIS_FIELDS: tuple[FieldSpec, ...] = (
     FieldSpec(
         "MotionStatus", TagType.UDINT, description="Logix MotionStatus " + MOTION_STATUS_BITS
     ),
-    FieldSpec("AxisFault", TagType.UDINT, description="fault bits: 0 position error, 1 profile"),
+    FieldSpec(
+        "AxisFault",
+        TagType.UDINT,
+        description="fault bits: 0 position error, 1 profile, 2 communication watchdog",
+    ),
     FieldSpec("ActualPosition", TagType.LREAL, quantity=Quantity.POSITION),
     FieldSpec("CommandPosition", TagType.LREAL, quantity=Quantity.POSITION),
     FieldSpec("ActualVelocity", TagType.LREAL, quantity=Quantity.VELOCITY),

@@ -22,6 +22,7 @@ from ..instructions import MotionSystem
 from ..instructions.schema import TagType
 from ..kernel import Axis, Controller, MotionError
 from ..kernel.group import MotionGroup
+from .axis_config import CONFIG_GETTERS, MIRRORS
 from .codec import Value, encoder
 from .errors import AddressError, ReadOnlyError
 from .fields import ClockMode
@@ -118,7 +119,9 @@ AXIS_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "CommandAcceleration": lambda ax: ax.command_acceleration,
     "PositionError": lambda ax: ax.position_error,
     "FeedbackInput": lambda ax: ax.feedback_input,
+    **CONFIG_GETTERS,
 }
+AXIS_GETTERS.update({mirror: AXIS_GETTERS[source] for mirror, source in MIRRORS.items()})
 
 
 def wrapped(ctl: Controller, positions: np.ndarray) -> np.ndarray:
@@ -147,7 +150,7 @@ AXIS_ARRAYS: dict[str, Callable[[Controller], np.ndarray]] = {
 
 #: fields whose value never changes while the server runs (configuration)
 STATIC_FIELDS: dict[Folder, frozenset[str]] = {
-    Folder.AXES: frozenset({"Number", "Type"}),
+    Folder.AXES: frozenset({"Number", "Type", *CONFIG_GETTERS}),
     Folder.GROUPS: frozenset({"Number", "CoarseUpdatePeriod", "AxisCount"}),
     Folder.DIAGNOSTICS: frozenset(
         {"VersionMajor", "VersionMinor", "VersionPatch", "AxisCount", "GroupCount"}

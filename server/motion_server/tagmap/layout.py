@@ -10,6 +10,8 @@ Diagnostics    50                         up to register 99
 groups         ``[modbus] group_base``    100 + 20·k (k-th group of the site map)
 watchdogs      ``[modbus] safety_base``   900 + 20·k (k-th ``[[watchdogs]]`` entry)
 axes           ``[modbus] axis_base``     1000 + 50·k (k-th axis of the site map)
+axis config    ``[modbus] axis_config_    3000 + 50·k: the k-th axis's configuration
+               base``                     (read-only), then its REAL mirrors
 instructions   ``[modbus] instruction_    5000 + 100·k (k-th declared instance)
                base``
 every_type     ``[modbus] every_type_     20000 + 100·(code − 1): ``<TYPE>_1`` at a block
@@ -40,6 +42,8 @@ from typing import TYPE_CHECKING
 
 from ..instructions import Instruction, Kind, Operand, Quantity, StatusField, TagType, catalog
 from ..instructions.registry import type_code
+from ..kernel.config import DEFAULT_PERIOD, AxisConfig
+from .axis_config import CONFIG_FIELDS, mirror_fields
 from .fields import (
     AXIS_FIELDS,
     DIAGNOSTICS_FIELDS,
@@ -52,6 +56,7 @@ from .fields import (
     units_of,
 )
 from .model import MAX_ADDRESS, Access, Block, Folder, Tag, TagMap, TagMapError, WordOrder
+from .units import axis_range, fixed_range, narrowed
 
 if TYPE_CHECKING:
     from ..config import InstanceSection, SiteMap
@@ -66,6 +71,9 @@ INSTRUCTION_STRIDE = 100
 RESERVED_OWNERS = ("Clock", "Diagnostics")
 
 Problems = list[tuple[tuple[int | str, ...], str]]
+#: the operands naming an instance's own axis and its master, in order of preference
+OWN_AXIS = ("Axis", "SlaveAxis", "Slave")
+MASTER_AXIS = ("MasterAxis", "Master", "Master1")
 
 
 @dataclass(frozen=True)
@@ -81,6 +89,7 @@ class _Item:
     units: str = ""
     minimum: float | None = None
     maximum: float | None = None
+    eu_range: tuple[float, float] | None = None
 
 
 class _Allocator:
@@ -139,6 +148,7 @@ def _place(
     items: Sequence[_Item],
     instruction: str = "",
     node_prefix: str = "",
+    part: str = "",
 ) -> tuple[Block, list[Tag]]:
     _, cmd_start, cmd_end = block_size(items)
     size = max(cmd_end, 1)
@@ -165,40 +175,91 @@ def _place(
             minimum=item.minimum,
             maximum=item.maximum,
             instruction=instruction,
+            eu_range=item.eu_range,
         )
         for item, address, bit in placed
     ]
-    block = Block(owner, folder, base, base + span, base + cmd_start, base + cmd_end, instruction)
+    block = Block(
+        owner, folder, base, base + span, base + cmd_start, base + cmd_end, instruction, part
+    )
     return block, tags
 
 
-def _spec_items(specs: Iterable[FieldSpec], axis_units: str = "") -> list[_Item]:
-    return [
-        _Item(
-            s.name,
-            s.type,
-            s.writable,
-            s.quantity,
-            s.enum,
-            s.description,
-            s.units or units_of(s.quantity, axis_units),
+def _spec_items(
+    specs: Iterable[FieldSpec],
+    axis: AxisConfig | None = None,
+    period: float = DEFAULT_PERIOD,
+    owner: str = "",
+    static: bool = False,
+) -> list[_Item]:
+    """Items of non-instruction fields; ``axis``: the owner's axis (units, ranges);
+    ``static``: configuration values, whose range is [0, value]."""
+    items = []
+    for s in specs:
+        span: tuple[float, float] | None = None
+        if s.type.is_float:
+            if static and axis is not None:
+                value = _config_value(axis, s.name)
+                span = (0.0, value) if value is not None else None
+            elif axis is not None:
+                span = axis_range(s.quantity, axis, period, reported=True, field=s.name)
+            else:
+                span = fixed_range(owner, s.name, period)
+        items.append(
+            _Item(
+                s.name,
+                s.type,
+                s.writable,
+                s.quantity,
+                s.enum,
+                s.description,
+                s.units or units_of(s.quantity, axis.units if axis else ""),
+                eu_range=span,
+            )
         )
-        for s in specs
-    ]
+    return items
 
 
-def instruction_items(cls: type[Instruction], units: dict[str, str] | None = None) -> list[_Item]:
+def _config_value(cfg: AxisConfig, name: str) -> float | None:
+    snake = "".join("_" + c.lower() if c.isupper() else c for c in name).lstrip("_")
+    value = getattr(cfg, snake, None)
+    return float(value) if isinstance(value, int | float) else None
+
+
+def instruction_items(
+    cls: type[Instruction],
+    units: dict[str, str] | None = None,
+    axes: dict[str, AxisConfig] | None = None,
+    period: float = DEFAULT_PERIOD,
+) -> list[_Item]:
     """The tags of one instruction type: its status fields (read) and its trigger and
-    operands (read/write). ``units`` gives axis units by operand-name prefix (``""`` for
-    the instruction's own axis, ``"Master"`` for operands named Master...)."""
+    operands (read/write). ``units`` gives axis units and ``axes`` the axis
+    configuration by operand-name prefix (``""`` for the instruction's own axis,
+    ``"Master"`` for operands named Master...)."""
     units = units or {}
+    axes = axes or {}
+
+    def key(op: Operand | StatusField) -> str:
+        return "Master" if op.name.startswith("Master") else ""
 
     def unit(op: Operand | StatusField) -> str:
-        axis_units = units.get("Master" if op.name.startswith("Master") else "", "")
-        return units_of(op.quantity, axis_units)
+        return units_of(op.quantity, units.get(key(op), ""))
+
+    def span(op: Operand | StatusField) -> tuple[float, float] | None:
+        if not op.type.is_float:
+            return None
+        cfg = axes.get(key(op))
+        found = axis_range(op.quantity, cfg, period, reported=False) if cfg else None
+        if isinstance(op, StatusField):
+            return found
+        if found is None:
+            if op.minimum is None or op.maximum is None:
+                return None
+            return float(op.minimum), float(op.maximum)
+        return narrowed(found, op.minimum, op.maximum)
 
     items = [
-        _Item(f.name, f.type, False, f.quantity, f.enum, f.description, unit(f))
+        _Item(f.name, f.type, False, f.quantity, f.enum, f.description, unit(f), eu_range=span(f))
         for f in cls.status_fields()
     ]
     for op in cls.input_operands():
@@ -216,9 +277,28 @@ def instruction_items(cls: type[Instruction], units: dict[str, str] | None = Non
                 unit(op),
                 op.minimum,
                 op.maximum,
+                span(op),
             )
         )
     return items
+
+
+def _instance_axes(inst: InstanceSection, configs: dict[int, AxisConfig]) -> dict[str, AxisConfig]:
+    """The instance's own axis (key ``""``) and its master (``"Master"``), from its
+    configured operands (see :mod:`.units` for the rule)."""
+    cls = catalog()[inst.type]
+    values = {op.name: inst.operands.get(op.name, op.default) for op in cls.OPERANDS}
+    axes = {op.name: int(values[op.name]) for op in cls.OPERANDS if op.kind == Kind.AXIS}
+    own = next((axes[n] for n in OWN_AXIS if n in axes), None)
+    if own is None and axes:
+        own = next(iter(axes.values()))
+    master = next((axes[n] for n in MASTER_AXIS if n in axes), None)
+    out: dict[str, AxisConfig] = {}
+    if own is not None and own in configs:
+        out[""] = configs[own]
+    if master is not None and master in configs:
+        out["Master"] = configs[master]
+    return out
 
 
 def _instance_units(inst: InstanceSection, axis_units: dict[int, str]) -> dict[str, str]:
@@ -226,14 +306,15 @@ def _instance_units(inst: InstanceSection, axis_units: dict[int, str]) -> dict[s
     cls = catalog()[inst.type]
     values = {op.name: inst.operands.get(op.name, op.default) for op in cls.OPERANDS}
     axes = {op.name: int(values[op.name]) for op in cls.OPERANDS if op.kind == Kind.AXIS}
-    own = next((axes[n] for n in ("Axis", "SlaveAxis") if n in axes), None)
+    own = next((axes[n] for n in OWN_AXIS if n in axes), None)
     if own is None and axes:
         own = next(iter(axes.values()))
+    master = next((axes[n] for n in MASTER_AXIS if n in axes), None)
     out: dict[str, str] = {}
     if own is not None:
         out[""] = axis_units.get(own, "")
-    if "MasterAxis" in axes:
-        out["Master"] = axis_units.get(axes["MasterAxis"], "")
+    if master is not None:
+        out["Master"] = axis_units.get(master, "")
     return out
 
 
@@ -261,13 +342,15 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
         tags.extend(new)
         return block.end
 
+    group_configs = site.group_configs()
+    base_period = min((g.coarse_update_period for g in group_configs), default=DEFAULT_PERIOD)
     add(
         _place(
             "Clock",
             Folder.CLOCK,
             CLOCK_BASE,
             DIAGNOSTICS_BASE - CLOCK_BASE,
-            _spec_items(clock_fields(site.controller.remote_clock)),
+            _spec_items(clock_fields(site.controller.remote_clock), None, base_period, "Clock"),
             node_prefix="Clock",
         ),
         ("controller",),
@@ -278,14 +361,18 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
             Folder.DIAGNOSTICS,
             DIAGNOSTICS_BASE,
             50,
-            _spec_items(DIAGNOSTICS_FIELDS),
+            _spec_items(DIAGNOSTICS_FIELDS, None, base_period, "Diagnostics"),
             node_prefix="Diagnostics",
         ),
         ("controller",),
     )
+    period_of: dict[int, float] = {}
+    for gc in group_configs:
+        for number in gc.axes:
+            period_of[number] = gc.coarse_update_period
     base = mb.group_base
-    for gi, g in enumerate(site.groups):
-        items = _spec_items(GROUP_FIELDS)
+    for gi, (g, gc) in enumerate(zip(site.groups, group_configs, strict=True)):
+        items = _spec_items(GROUP_FIELDS, None, gc.coarse_update_period, g.name)
         items += _spec_items(group_member(k + 1) for k in range(len(g.axes)))
         base = add(_place(g.name, Folder.GROUPS, base, GROUP_STRIDE, items), ("groups", gi))
     base = mb.safety_base
@@ -298,9 +385,20 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
         specs = list(AXIS_FIELDS)
         if cfg.type.name == "FEEDBACK_ONLY" and cfg.feedback_signal.name == "INPUT":
             specs.append(FEEDBACK_INPUT)
-        block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, _spec_items(specs, cfg.units))
+        period = period_of.get(cfg.number, DEFAULT_PERIOD)
+        items = _spec_items(specs, cfg, period)
+        block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items)
         base = add(block, ("axes", ai))
+    base = mb.axis_config_base
+    for ai, (a, cfg) in enumerate(zip(site.axes, configs, strict=True)):
+        period = period_of.get(cfg.number, DEFAULT_PERIOD)
+        items = _spec_items(CONFIG_FIELDS, cfg, period, static=True)
+        if mb.real_mirrors:
+            items += _spec_items(mirror_fields(AXIS_FIELDS), cfg, period)
+        block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items, part="configuration")
+        base = add(block, ("modbus", "axis_config_base") if ai == 0 else ("axes", ai))
     axis_units = {c.number: c.units for c in configs}
+    by_number = {c.number: c for c in configs}
     declared = {inst.name: i for i, inst in enumerate(site.instructions.instances)}
     base = mb.instruction_base
     for inst in site.instances():
@@ -309,7 +407,10 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
             ("instructions", "instances", i) if i is not None else ("instructions", "every_type")
         )
         cls = catalog()[inst.type]
-        items = instruction_items(cls, _instance_units(inst, axis_units))
+        own_axes = _instance_axes(inst, by_number)
+        own = own_axes.get("")
+        period = period_of.get(own.number, DEFAULT_PERIOD) if own else DEFAULT_PERIOD
+        items = instruction_items(cls, _instance_units(inst, axis_units), own_axes, period)
         explicit = inst.modbus_base
         if i is None:
             # an every_type instance: a fixed block per type, stable as types are added
@@ -350,6 +451,7 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
         word_order=WordOrder(mb.word_order),
         tags=tuple(tags),
         blocks=tuple(b for b, _ in blocks),
+        source=site,
     )
     return tagmap, problems
 

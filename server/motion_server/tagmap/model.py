@@ -11,6 +11,7 @@ import builtins
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from enum import IntEnum, StrEnum
+from typing import Any
 
 from ..instructions.schema import Quantity, TagType
 
@@ -74,7 +75,8 @@ class Tag:
     significant) of the register at ``address``. ``node_id`` is the OPC UA string NodeId
     (``Instructions.MAJ_1.Speed``), ``units`` the engineering units of analog values,
     ``enum`` the enumeration the value follows (if any), ``minimum``/``maximum`` the range
-    an operand is judged against at execution (the EURange of analog operands).
+    an operand is judged against at execution, ``eu_range`` the span an analog value takes
+    in normal operation (OPC UA EURange, from the axis limits: :mod:`.units`).
     """
 
     name: str
@@ -95,6 +97,7 @@ class Tag:
     maximum: float | None = None
     #: instruction type of the owner (instruction tags only)
     instruction: str = ""
+    eu_range: tuple[float, float] | None = None
 
     @property
     def writable(self) -> bool:
@@ -115,6 +118,7 @@ class Block:
 
     ``[base, end)`` is all valid (unused registers read 0); ``[command_start,
     command_end)`` is the writable region (empty when the owner has no writable tags).
+    ``part`` names a second block of the same owner (an axis's ``configuration``).
     """
 
     owner: str
@@ -124,6 +128,7 @@ class Block:
     command_start: int
     command_end: int
     instruction: str = ""
+    part: str = ""
 
     @property
     def size(self) -> int:
@@ -140,6 +145,8 @@ class TagMap:
     word_order: WordOrder
     tags: tuple[Tag, ...]
     blocks: tuple[Block, ...]
+    #: the site map it was computed from (exports read initial values from it)
+    source: Any = field(default=None, repr=False, compare=False)
     _by_name: dict[str, Tag] = field(init=False, repr=False)
     _by_node: dict[str, Tag] = field(init=False, repr=False)
     _starts: list[int] = field(init=False, repr=False)
@@ -181,10 +188,15 @@ class TagMap:
         return None
 
     def block(self, owner: str) -> Block:
+        """The main block of ``owner`` (not a second ``part`` such as an axis's
+        configuration block: :meth:`blocks_of` lists those too)."""
         for b in self.blocks:
-            if b.owner == owner:
+            if b.owner == owner and not b.part:
                 return b
         raise UnknownTagError(f"no block {owner!r} in the map of site {self.site}")
+
+    def blocks_of(self, owner: str) -> list[Block]:
+        return [b for b in self.blocks if b.owner == owner]
 
     def at(self, address: int) -> list[Tag]:
         """The tags that occupy register ``address`` (several BOOLs share one)."""

@@ -1,22 +1,37 @@
-"""The OPC UA node tree of a tag map, and its NodeSet2 XML export.
+"""The OPC UA node tree of a tag map: types and instances (the NodeSet2 writer is in
+:mod:`.nodeset_xml`).
 
-:func:`node_plan` lists every node of the site's namespace once: the folders ``Clock``,
-``Diagnostics``, ``Groups``, ``Axes``, ``Instructions`` under the Objects folder; one
-object per axis, group and instruction instance; one variable per tag (NodeId =
-``tag.node_id``, e.g. ``Instructions.MAG_1.Ratio``); the properties of analog and
-enumerated variables. Both the OPC UA front-end and ``motion-server map --format nodeset``
-are built from it, so the served tree and the export cannot differ.
+:func:`node_plan` lists every node of the site's namespace once. Both the OPC UA
+front-end and ``motion-server map --format nodeset`` are built from it, so the served tree
+and the export cannot differ.
 
-Shapes:
+Types (string NodeIds under ``Types.``):
 
-- an instruction instance is an object shaped like an OPC 30000 function block: its
-  variables are its components, and two folders ``InputVariables`` (the trigger and the
-  operands, writable) and ``OutputVariables`` (the status, read-only) organize them;
-- REAL/LREAL values with a quantity or units are ``AnalogItemType`` variables with the
-  ``EURange`` (the operand's range, else the type's) and ``EngineeringUnits`` (UNECE
-  code where one is known, else -1, and the units as display name) properties;
-- enumerated values are ``MultiStateValueDiscreteType`` variables with ``EnumValues``
-  (value, name) and ``ValueAsText``;
+- one ObjectType per instruction type, ``<TYPE>_Type`` (``MAG_Type``, ``MC_GearIn_Type``),
+  a subtype of OPC 30000's ``CtrlFunctionBlockType`` (PLCopen IEC 61131-3 companion
+  specification); its trigger and operands are instance declarations referenced with
+  ``HasInputVar``, its status outputs with ``HasOutputVar`` (ModellingRule Mandatory);
+- ``MotionAxisType`` and ``MotionGroupType`` (subtypes of BaseObjectType) with the axis and
+  group fields as components (Mandatory where every axis or group has the field,
+  Optional otherwise: a hand wheel's ``FeedbackInput``, a group's ``Member<k>``).
+
+Instances: the folders ``Clock``, ``Diagnostics``, ``Groups``, ``Axes``, ``Instructions``,
+``Safety`` under the Objects folder; one object per axis, group, watchdog and instruction
+instance, typed by its ObjectType; one variable per tag (NodeId = ``tag.node_id``, e.g.
+``Instructions.MAG_1.Ratio``), referenced from an instruction instance with
+``HasInputVar``/``HasOutputVar`` as its type declares it, from other objects with
+``HasComponent``. An instruction instance also keeps two folders, ``InputVariables`` and
+``OutputVariables``, that organize the same variables for clients that do not follow the
+PLCopen reference types.
+
+Variables:
+
+- REAL/LREAL values with a quantity or units are analog: ``AnalogItemType`` with
+  ``EURange`` (from the axis limits, :mod:`.units`) and ``EngineeringUnits``
+  (``EUInformation`` with the UNECE code); those without a range (gear ratios) are
+  ``BaseAnalogType`` with ``EngineeringUnits`` only;
+- enumerated values are ``MultiStateValueDiscreteType`` with ``EnumValues`` and
+  ``ValueAsText``;
 - every other value is a ``BaseDataVariableType``.
 
 DataTypes: BOOL Boolean, SINT SByte, INT Int16, DINT Int32, UDINT UInt32, REAL Float,
@@ -25,14 +40,16 @@ LREAL Double. Access level: CurrentRead, plus CurrentWrite for writable tags.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
-from xml.sax.saxutils import escape
 
 from ..instructions.schema import Quantity, TagType
+from .companion import CTRL_FUNCTION_BLOCK_TYPE, HAS_INPUT_VAR, HAS_OUTPUT_VAR, PLCOPEN_URI
 from .model import Folder, Tag, TagMap
+from .units import RATIO_UNIT, UNECE_NAMESPACE, unit_of
+
+__all__ = ["UNECE_NAMESPACE"]
 
 
 class Ns0(IntEnum):
@@ -47,13 +64,17 @@ class Ns0(IntEnum):
     DOUBLE = 11
     LOCALIZED_TEXT = 21
     ORGANIZES = 35
+    HAS_MODELLING_RULE = 37
     HAS_TYPE_DEFINITION = 40
+    HAS_SUBTYPE = 45
     HAS_PROPERTY = 46
     HAS_COMPONENT = 47
     BASE_OBJECT_TYPE = 58
     FOLDER_TYPE = 61
     BASE_DATA_VARIABLE_TYPE = 63
     PROPERTY_TYPE = 68
+    MANDATORY = 78
+    OPTIONAL = 80
     OBJECTS_FOLDER = 85
     RANGE = 884
     RANGE_XML = 885
@@ -63,7 +84,25 @@ class Ns0(IntEnum):
     ENUM_VALUE_TYPE = 7594
     ENUM_VALUE_TYPE_XML = 7616
     MULTI_STATE_VALUE_DISCRETE_TYPE = 11238
+    BASE_ANALOG_TYPE = 15318
 
+
+@dataclass(frozen=True)
+class Ext:
+    """A node of another namespace: its namespace URI ("" = the OPC UA base namespace)
+    and numeric identifier."""
+
+    uri: str
+    id: int
+
+
+def ns0(node: Ns0) -> Ext:
+    return Ext("", int(node))
+
+
+CTRL_FUNCTION_BLOCK = Ext(PLCOPEN_URI, CTRL_FUNCTION_BLOCK_TYPE)
+INPUT_VAR = Ext(PLCOPEN_URI, HAS_INPUT_VAR)
+OUTPUT_VAR = Ext(PLCOPEN_URI, HAS_OUTPUT_VAR)
 
 DATA_TYPES: dict[TagType, Ns0] = {
     TagType.BOOL: Ns0.BOOLEAN,
@@ -75,29 +114,14 @@ DATA_TYPES: dict[TagType, Ns0] = {
     TagType.LREAL: Ns0.DOUBLE,
 }
 
-#: UNECE Recommendation 20 common codes of the units the tag map produces
-UNECE_CODES = {
-    "mm": "MMT",
-    "m": "MTR",
-    "deg": "DD",
-    "rad": "C81",
-    "s": "SEC",
-    "ms": "C26",
-    "%": "P1",
-    "mm/s": "C16",
-    "m/s": "MTS",
-    "deg/s": "E96",
-    "rad/s": "2A",
-    "m/s²": "MSK",
-    "rad/s²": "2B",
-}
-UNECE_NAMESPACE = "http://www.opcfoundation.org/UA/units/un/cefact"
 ACCESS_READ = 1
 ACCESS_READ_WRITE = 3
-_DOUBLE_MAX = sys.float_info.max
 ANALOG_QUANTITIES = frozenset(
     {Quantity.POSITION, Quantity.VELOCITY, Quantity.ACCELERATION, Quantity.JERK, Quantity.RATIO}
 )
+TYPES = "Types"
+AXIS_TYPE = f"{TYPES}.MotionAxisType"
+GROUP_TYPE = f"{TYPES}.MotionGroupType"
 
 
 class NodeKind(IntEnum):
@@ -105,79 +129,128 @@ class NodeKind(IntEnum):
     OBJECT = 1
     VARIABLE = 2
     PROPERTY = 3
+    OBJECT_TYPE = 4
 
 
 @dataclass(frozen=True)
 class EUInfo:
-    """The EngineeringUnits property value."""
+    """The EngineeringUnits property value: the units as the tag map names them, their
+    UNECE symbol (DisplayName) and name (Description), and the UnitId (-1: no code)."""
 
     units: str
     unit_id: int
+    symbol: str = ""
+    name: str = ""
+
+
+def eu_info(units: str) -> EUInfo:
+    unit = unit_of(units)
+    if unit is None:
+        return EUInfo(units, -1, units, units)
+    return EUInfo(units, unit.unit_id, unit.symbol, unit.name)
 
 
 @dataclass(frozen=True)
 class NodeSpec:
-    """One node of the site's namespace. ``parent`` None = the Objects folder;
+    """One node of the site's namespace. ``parent``: a node of the site (its string
+    id), another namespace's node (:class:`Ext`), or None = the Objects folder;
     ``reference`` is the reference type from the parent; ``organizes`` lists node ids the
-    node organizes besides its children (the function-block variable groups)."""
+    node organizes besides its children (the function-block variable groups);
+    ``modelling_rule`` marks an instance declaration of a type."""
 
     node_id: str
-    parent: str | None
+    parent: str | Ext | None
     browse_name: str
     kind: NodeKind
-    reference: Ns0
-    type_definition: Ns0
+    reference: Ext
+    type_definition: Ext | str | None
     tag: Tag | None = None
     data_type: Ns0 = Ns0.BOOLEAN
     value: Any = None
     value_rank: int = -1
     description: str = ""
     organizes: tuple[str, ...] = field(default=())
+    modelling_rule: Ext | None = None
 
     @property
     def writable(self) -> bool:
-        return self.tag is not None and self.tag.writable
+        return self.tag is not None and self.tag.writable and self.modelling_rule is None
 
 
 def unit_id(units: str) -> int:
-    """The OPC UA UnitId of a UNECE code (characters packed into an integer), -1 if unknown."""
-    code = UNECE_CODES.get(units)
-    if code is None:
-        return -1
-    out = 0
-    for ch in code:
-        out = (out << 8) | ord(ch)
-    return out
+    """The OPC UA UnitId of one of our unit strings, -1 if it has no UNECE code."""
+    return eu_info(units).unit_id
 
 
 def is_analog(tag: Tag) -> bool:
     return tag.type.is_float and (bool(tag.units) or tag.quantity in ANALOG_QUANTITIES)
 
 
-def eu_range(tag: Tag) -> tuple[float, float]:
-    """(low, high) of the EURange: the operand's range, else the type's (finite)."""
-    lo, hi = tag.type.bounds
-    low = tag.minimum if tag.minimum is not None else max(lo, -_DOUBLE_MAX)
-    high = tag.maximum if tag.maximum is not None else min(hi, _DOUBLE_MAX)
-    return float(low), float(high)
+def engineering_units(tag: Tag) -> EUInfo | None:
+    """The EngineeringUnits of an analog tag (None: it has no units)."""
+    if tag.units:
+        return eu_info(tag.units)
+    if tag.quantity == Quantity.RATIO:
+        return EUInfo(RATIO_UNIT.symbol, RATIO_UNIT.unit_id, RATIO_UNIT.symbol, RATIO_UNIT.name)
+    return None
+
+
+def eu_range(tag: Tag) -> tuple[float, float] | None:
+    """(low, high) of the EURange (:mod:`.units`), None when the tag has none."""
+    return tag.eu_range
+
+
+def variable_type(tag: Tag) -> Ns0:
+    if tag.enum is not None:
+        return Ns0.MULTI_STATE_VALUE_DISCRETE_TYPE
+    if is_analog(tag):
+        return Ns0.ANALOG_ITEM_TYPE if tag.eu_range is not None else Ns0.BASE_ANALOG_TYPE
+    return Ns0.BASE_DATA_VARIABLE_TYPE
 
 
 def parent_of(tag: Tag) -> str:
     return tag.node_id.rsplit(".", 1)[0]
 
 
+def type_of_instruction(instruction: str) -> str:
+    return f"{TYPES}.{instruction}_Type"
+
+
+def type_of(folder: Folder, tags: list[Tag]) -> str | Ext:
+    """The type definition of the object owning ``tags``."""
+    if folder == Folder.INSTRUCTIONS:
+        return type_of_instruction(tags[0].instruction)
+    if folder == Folder.AXES:
+        return AXIS_TYPE
+    if folder == Folder.GROUPS:
+        return GROUP_TYPE
+    return ns0(Ns0.BASE_OBJECT_TYPE)
+
+
+def var_reference(tag: Tag) -> Ext:
+    """The reference from an object to its variable."""
+    if tag.folder == Folder.INSTRUCTIONS:
+        return INPUT_VAR if tag.writable else OUTPUT_VAR
+    return ns0(Ns0.HAS_COMPONENT)
+
+
 def node_plan(tagmap: TagMap) -> list[NodeSpec]:
-    """Every node of the site's namespace, parents before children."""
-    out: list[NodeSpec] = []
-    for folder in Folder:
-        out.append(
-            NodeSpec(
-                folder.value, None, folder.value, NodeKind.FOLDER, Ns0.ORGANIZES, Ns0.FOLDER_TYPE
-            )
-        )
+    """Every node of the site's namespace, types first, parents before children."""
     owners: dict[str, list[Tag]] = {}
     for tag in tagmap:
         owners.setdefault(parent_of(tag), []).append(tag)
+    out = _types(owners)
+    for folder in Folder:
+        out.append(
+            NodeSpec(
+                folder.value,
+                None,
+                folder.value,
+                NodeKind.FOLDER,
+                ns0(Ns0.ORGANIZES),
+                ns0(Ns0.FOLDER_TYPE),
+            )
+        )
     for parent, tags in owners.items():
         if "." not in parent:  # Clock and Diagnostics tags sit in their folders
             continue
@@ -190,8 +263,8 @@ def node_plan(tagmap: TagMap) -> list[NodeSpec]:
                 folder_name,
                 name,
                 NodeKind.OBJECT,
-                Ns0.ORGANIZES,
-                Ns0.BASE_OBJECT_TYPE,
+                ns0(Ns0.ORGANIZES),
+                type_of(tags[0].folder, tags),
                 description=desc,
             )
         )
@@ -204,60 +277,115 @@ def node_plan(tagmap: TagMap) -> list[NodeSpec]:
                         parent,
                         group,
                         NodeKind.FOLDER,
-                        Ns0.HAS_COMPONENT,
-                        Ns0.FOLDER_TYPE,
+                        ns0(Ns0.HAS_COMPONENT),
+                        ns0(Ns0.FOLDER_TYPE),
                         organizes=members,
                     )
                 )
     for parent, tags in owners.items():
-        ref = Ns0.ORGANIZES if "." not in parent else Ns0.HAS_COMPONENT
         for tag in tags:
-            out += _variable(tag, parent, ref)
+            ref = ns0(Ns0.ORGANIZES) if "." not in parent else var_reference(tag)
+            out += _variable(tag, tag.node_id, parent, ref)
     return out
 
 
-def _variable(tag: Tag, parent: str, ref: Ns0) -> list[NodeSpec]:
-    dtype = DATA_TYPES[tag.type]
-    if tag.enum is not None:
-        typedef = Ns0.MULTI_STATE_VALUE_DISCRETE_TYPE
-    elif is_analog(tag):
-        typedef = Ns0.ANALOG_ITEM_TYPE
-    else:
-        typedef = Ns0.BASE_DATA_VARIABLE_TYPE
+def _types(owners: dict[str, list[Tag]]) -> list[NodeSpec]:
+    """The ObjectTypes and their instance declarations."""
+    by_type: dict[str, tuple[Ext, list[list[Tag]]]] = {}
+    for tags in owners.values():
+        folder = tags[0].folder
+        if folder == Folder.INSTRUCTIONS:
+            type_id, supertype = type_of_instruction(tags[0].instruction), CTRL_FUNCTION_BLOCK
+        elif folder in (Folder.AXES, Folder.GROUPS):
+            type_id = AXIS_TYPE if folder == Folder.AXES else GROUP_TYPE
+            supertype = ns0(Ns0.BASE_OBJECT_TYPE)
+        else:
+            continue
+        by_type.setdefault(type_id, (supertype, []))[1].append(tags)
+    out: list[NodeSpec] = []
+    for type_id, (supertype, instances) in sorted(by_type.items()):
+        name = type_id.removeprefix(f"{TYPES}.")
+        instruction = instances[0][0].instruction
+        desc = (
+            f"{instruction} instruction (OPC 30000 function block)"
+            if instruction
+            else f"a motion {'axis' if type_id == AXIS_TYPE else 'group'}"
+        )
+        out.append(
+            NodeSpec(
+                type_id,
+                supertype,
+                name,
+                NodeKind.OBJECT_TYPE,
+                ns0(Ns0.HAS_SUBTYPE),
+                None,
+                description=desc,
+            )
+        )
+        fields: dict[str, Tag] = {}
+        counts: dict[str, int] = {}
+        for tags in instances:
+            for tag in tags:
+                fields.setdefault(tag.field, tag)
+                counts[tag.field] = counts.get(tag.field, 0) + 1
+        for fname, tag in fields.items():
+            rule = Ns0.MANDATORY if counts[fname] == len(instances) else Ns0.OPTIONAL
+            out += _variable(
+                tag, f"{type_id}.{fname}", type_id, var_reference(tag), ns0(rule), declaration=True
+            )
+    return out
+
+
+def _variable(
+    tag: Tag,
+    node_id: str,
+    parent: str,
+    ref: Ext,
+    rule: Ext | None = None,
+    declaration: bool = False,
+) -> list[NodeSpec]:
+    typedef = variable_type(tag)
     var = NodeSpec(
-        tag.node_id,
+        node_id,
         parent,
         tag.field,
         NodeKind.VARIABLE,
         ref,
-        typedef,
+        ns0(typedef),
         tag=tag,
-        data_type=dtype,
+        data_type=DATA_TYPES[tag.type],
         description=tag.description,
+        modelling_rule=rule,
     )
     props: list[NodeSpec] = []
 
     def prop(name: str, data_type: Ns0, value: Any, rank: int = -1) -> None:
         props.append(
             NodeSpec(
-                f"{tag.node_id}.{name}",
-                tag.node_id,
+                f"{node_id}.{name}",
+                node_id,
                 name,
                 NodeKind.PROPERTY,
-                Ns0.HAS_PROPERTY,
-                Ns0.PROPERTY_TYPE,
+                ns0(Ns0.HAS_PROPERTY),
+                ns0(Ns0.PROPERTY_TYPE),
                 data_type=data_type,
                 value=value,
                 value_rank=rank,
+                modelling_rule=ns0(Ns0.MANDATORY) if rule is not None else None,
             )
         )
 
-    if typedef == Ns0.ANALOG_ITEM_TYPE:
-        prop("EURange", Ns0.RANGE, eu_range(tag))
-        prop("EngineeringUnits", Ns0.EU_INFORMATION, EUInfo(tag.units, unit_id(tag.units)))
+    if typedef in (Ns0.ANALOG_ITEM_TYPE, Ns0.BASE_ANALOG_TYPE):
+        # a type's declaration carries no value: each instance has its axis's units
+        span = tag.eu_range
+        if span is not None:
+            prop("EURange", Ns0.RANGE, None if declaration else span)
+        eu = engineering_units(tag)
+        if eu is not None:
+            prop("EngineeringUnits", Ns0.EU_INFORMATION, None if declaration else eu)
     elif typedef == Ns0.MULTI_STATE_VALUE_DISCRETE_TYPE:
         prop("EnumValues", Ns0.ENUM_VALUE_TYPE, tuple(tag.enum_members().items()), rank=1)
-        prop("ValueAsText", Ns0.LOCALIZED_TEXT, "")
+        prop("ValueAsText", Ns0.LOCALIZED_TEXT, None if declaration else "")
     return [var, *props]
 
 
@@ -269,131 +397,8 @@ def enum_text(tag: Tag, value: Any) -> str:
     return str(value)
 
 
-# -- NodeSet2 XML ------------------------------------------------------------------------------
-
-_XML_TYPES = "http://opcfoundation.org/UA/2008/02/Types.xsd"
-_ALIASES = {
-    "Boolean": Ns0.BOOLEAN,
-    "SByte": Ns0.SBYTE,
-    "Int16": Ns0.INT16,
-    "Int32": Ns0.INT32,
-    "UInt32": Ns0.UINT32,
-    "Float": Ns0.FLOAT,
-    "Double": Ns0.DOUBLE,
-    "LocalizedText": Ns0.LOCALIZED_TEXT,
-    "Range": Ns0.RANGE,
-    "EUInformation": Ns0.EU_INFORMATION,
-    "EnumValueType": Ns0.ENUM_VALUE_TYPE,
-    "Organizes": Ns0.ORGANIZES,
-    "HasTypeDefinition": Ns0.HAS_TYPE_DEFINITION,
-    "HasProperty": Ns0.HAS_PROPERTY,
-    "HasComponent": Ns0.HAS_COMPONENT,
-}
-_ALIAS_OF = {v: k for k, v in _ALIASES.items()}
-
-
-def _nid(node_id: str) -> str:
-    return escape(f"ns=1;s={node_id}")
-
-
-def _ref_name(ref: Ns0) -> str:
-    return _ALIAS_OF.get(ref, f"i={int(ref)}")
-
-
 def to_nodeset(tagmap: TagMap) -> str:
-    """The site's namespace as a NodeSet2 XML document (deterministic)."""
-    plan = node_plan(tagmap)
-    organized_by: dict[str, list[str]] = {}
-    for spec in plan:
-        for target in spec.organizes:
-            organized_by.setdefault(target, []).append(spec.node_id)
-    lines = [
-        '<?xml version="1.0" encoding="utf-8"?>',
-        '<UANodeSet xmlns="http://opcfoundation.org/UA/2011/03/UANodeSet.xsd"'
-        ' xmlns:uax="http://opcfoundation.org/UA/2008/02/Types.xsd">',
-        f"  <NamespaceUris><Uri>{escape(tagmap.namespace_uri)}</Uri></NamespaceUris>",
-        "  <Aliases>",
-        *(f'    <Alias Alias="{k}">i={int(v)}</Alias>' for k, v in _ALIASES.items()),
-        "  </Aliases>",
-    ]
-    for spec in plan:
-        lines += _xml_node(spec, organized_by.get(spec.node_id, []))
-    lines.append("</UANodeSet>")
-    return "\n".join(lines) + "\n"
+    """The site's namespace as NodeSet2 XML (:func:`.nodeset_xml.to_nodeset`)."""
+    from .nodeset_xml import to_nodeset as write
 
-
-def _xml_node(spec: NodeSpec, organized_by: list[str]) -> list[str]:
-    is_var = spec.kind in (NodeKind.VARIABLE, NodeKind.PROPERTY)
-    element = "UAVariable" if is_var else "UAObject"
-    parent = _nid(spec.parent) if spec.parent else f"i={int(Ns0.OBJECTS_FOLDER)}"
-    attrs = f'NodeId="{_nid(spec.node_id)}" BrowseName="1:{escape(spec.browse_name)}"'
-    if spec.kind == NodeKind.PROPERTY:
-        attrs = f'NodeId="{_nid(spec.node_id)}" BrowseName="{escape(spec.browse_name)}"'
-    if is_var:
-        attrs += f' ParentNodeId="{parent}" DataType="{_ALIAS_OF[spec.data_type]}"'
-        if spec.value_rank != -1:
-            attrs += f' ValueRank="{spec.value_rank}"'
-        level = ACCESS_READ_WRITE if spec.writable else ACCESS_READ
-        attrs += f' AccessLevel="{level}" UserAccessLevel="{level}"'
-    else:
-        attrs += f' ParentNodeId="{parent}"'
-    out = [f"  <{element} {attrs}>", f"    <DisplayName>{escape(spec.browse_name)}</DisplayName>"]
-    if spec.description:
-        out.append(f"    <Description>{escape(spec.description)}</Description>")
-    out.append("    <References>")
-    typedef = f"i={int(spec.type_definition)}"
-    out.append(f'      <Reference ReferenceType="HasTypeDefinition">{typedef}</Reference>')
-    out.append(
-        f'      <Reference ReferenceType="{_ref_name(spec.reference)}" IsForward="false">'
-        f"{parent}</Reference>"
-    )
-    for source in organized_by:
-        back = _nid(source)
-        out.append(
-            f'      <Reference ReferenceType="Organizes" IsForward="false">{back}</Reference>'
-        )
-    for target in spec.organizes:
-        out.append(f'      <Reference ReferenceType="Organizes">{_nid(target)}</Reference>')
-    out.append("    </References>")
-    if spec.kind == NodeKind.PROPERTY:
-        # one element a line: importers such as asyncua's read an element without text
-        # before its first child as an empty value
-        value = _xml_value(spec).replace("><uax:", ">\n      <uax:")
-        out.append(f"    <Value>\n      {value}\n    </Value>")
-    out.append(f"  </{element}>")
-    return out
-
-
-def _xml_value(spec: NodeSpec) -> str:
-    v = spec.value
-    if spec.data_type == Ns0.RANGE:
-        body = f"<uax:Range><uax:Low>{v[0]!r}</uax:Low><uax:High>{v[1]!r}</uax:High></uax:Range>"
-        return _extension(Ns0.RANGE_XML, body)
-    if spec.data_type == Ns0.EU_INFORMATION:
-        body = (
-            f"<uax:EUInformation><uax:NamespaceUri>{UNECE_NAMESPACE}</uax:NamespaceUri>"
-            f"<uax:UnitId>{v.unit_id}</uax:UnitId>"
-            f"<uax:DisplayName><uax:Text>{escape(v.units)}</uax:Text></uax:DisplayName>"
-            f"<uax:Description><uax:Text>{escape(v.units)}</uax:Text></uax:Description>"
-            "</uax:EUInformation>"
-        )
-        return _extension(Ns0.EU_INFORMATION_XML, body)
-    if spec.data_type == Ns0.ENUM_VALUE_TYPE:
-        items = "".join(
-            _extension(
-                Ns0.ENUM_VALUE_TYPE_XML,
-                f"<uax:EnumValueType><uax:Value>{value}</uax:Value>"
-                f"<uax:DisplayName><uax:Text>{escape(name)}</uax:Text></uax:DisplayName>"
-                "</uax:EnumValueType>",
-            )
-            for name, value in v
-        )
-        return f"<uax:ListOfExtensionObject>{items}</uax:ListOfExtensionObject>"
-    return f"<uax:LocalizedText><uax:Text>{escape(str(v))}</uax:Text></uax:LocalizedText>"
-
-
-def _extension(encoding: Ns0, body: str) -> str:
-    return (
-        f"<uax:ExtensionObject><uax:TypeId><uax:Identifier>i={int(encoding)}</uax:Identifier>"
-        f"</uax:TypeId><uax:Body>{body}</uax:Body></uax:ExtensionObject>"
-    )
+    return write(tagmap)
