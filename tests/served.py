@@ -65,7 +65,9 @@ class Served:
             text = self.log()[after:]
             m = MODBUS.findall(text)
             u = OPCUA.findall(text)
-            if (m or not self.want_modbus) and (u or not self.want_opcua):
+            # the supervisor says "serving" once it heard every front-end (at start)
+            started = after or "motion_server.supervisor: serving:" in text
+            if started and (m or not self.want_modbus) and (u or not self.want_opcua):
                 if m:
                     self.modbus_port = int(m[-1])
                 if u:

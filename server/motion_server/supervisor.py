@@ -249,20 +249,40 @@ class Supervisor:
         raise StartError(f"the scan did not start within {SCAN_START_TIMEOUT:.0f} s")
 
     def _wait_listening(self) -> bool:
+        """Until every front-end listens. One that reports it cannot serve (a port in
+        use) stops the server; one that dies otherwise is started again, as later."""
         give_up = time.monotonic() + FRONTEND_START_TIMEOUT
         while time.monotonic() < give_up:
             self._poll(0.2)
-            children = [self._children[r] for r in self.roles]
-            failed = [c for c in children if c.failed or c.proc.poll() is not None]
+            failed = [c for c in self._children.values() if c.failed]
             if failed or self._stopping:
                 for c in failed:
-                    why = c.failed or _describe(c.proc.wait())
-                    log.error("motion-server: cannot serve %s: %s", c.role, why)
+                    log.error("motion-server: cannot serve %s: %s", c.role, c.failed)
                 self._stop_all()
                 return self._stopping and not failed
-            if all(c.listening for c in children):
+            self._reap_frontends()
+            now = time.monotonic()
+            for role, when in list(self._due.items()):
+                if now >= when:
+                    del self._due[role]
+                    self._start_frontend(role)
+            children = [self._children.get(r) for r in self.roles]
+            if all(c is not None and c.listening for c in children):
+                log.info("serving: %s", self._where())
                 return True
         raise StartError(f"the front-ends did not listen within {FRONTEND_START_TIMEOUT:.0f} s")
+
+    def _where(self) -> str:
+        parts = []
+        for role, msg in self._ports.items():
+            if role == "modbus":
+                if msg.get("port"):
+                    parts.append(f"Modbus TCP port {msg['port']}")
+                if msg.get("tls_port"):
+                    parts.append(f"Modbus/TCP Security port {msg['tls_port']}")
+            else:
+                parts.append(f"OPC UA {msg.get('endpoint', '')}")
+        return ", ".join(parts) or "no front-end"
 
     # -- watch ------------------------------------------------------------------------------
     def _watch(self) -> int:

@@ -45,10 +45,12 @@ certificates are accepted without a trust list (a simulator's choice; see README
 
 Publishing: every ``1/publish_rate_hz`` seconds the tags whose value changed (analog
 values: by more than ``deadband``) are written to their nodes: the newest snapshot is
-compared with the values last published for every tag at once (numpy), and only the
-changed ones are set. A pass yields to the event loop after ``chunk_size`` node updates
-or ``PUBLISH_SLICE_S`` of work, whichever comes first, so requests run in between (the
-motion cycle runs in another process and never waits for this one). A node's value is
+compared with the values last published for every tag at once (numpy), and the changed
+nodes get their values all at once, from that one snapshot (a Read never sees nodes of
+two cycles). The monitored items are then notified in slices that yield to the event
+loop after ``chunk_size`` notifications or ``PUBLISH_SLICE_S`` of work, whichever comes
+first, so requests run in between (the motion cycle runs in another process and never
+waits for this one). A node's value is
 set as asyncua's ``write_attribute_value`` sets it (value, then the data-change callbacks
 of its monitored items), without looking the node up again or re-checking the variant
 type the publisher built. Monitored items created with
@@ -131,6 +133,8 @@ class _Published:
     text_node: ua.NodeId | None = None  # ValueAsText of an enumerated value
     #: the node's Value attribute in asyncua's address space (set once serving)
     attval: Any = None
+    #: the Value attribute of its ValueAsText node
+    text_attval: Any = None
 
 
 def _is_loopback(host: str) -> bool:
@@ -511,6 +515,10 @@ class OpcUaFrontend:
                 ua.NodeId(text, ns) if text in space else None,
                 node.attributes.get(ua.AttributeIds.Value) if node is not None else None,
             )
+            if pub.text_node is not None:
+                text_node = nodes.get(pub.text_node)
+                if text_node is not None:
+                    pub.text_attval = text_node.attributes.get(ua.AttributeIds.Value)
             self._published.append(pub)
             self._by_node[tag.node_id] = pub
             self._by_owner.setdefault(tag.owner, []).append(pub)
@@ -519,21 +527,54 @@ class OpcUaFrontend:
         self._analog = np.array([p.is_float for p in self._published], dtype=bool)
 
     async def _set(self, pub: _Published, value: Any, now: datetime) -> None:
+        """Set one node's value and notify its monitored items."""
+        dv = self._store(pub, value, now)
+        if dv is None:
+            await self._write_slow(pub, value, now)
+            return
+        await self._notify(pub, dv)
+
+    def _store(self, pub: _Published, value: Any, now: datetime) -> ua.DataValue | None:
+        """Set the node's value (and its ValueAsText) at once, without yielding; the
+        data-change notifications follow (:meth:`_notify`). None when the node needs
+        asyncua's own write path (:meth:`_write_slow`)."""
+        att, text = pub.attval, pub.text_attval
+        if att is None or att.value_setter is not None:
+            return None
+        if pub.text_node is not None and (text is None or text.value_setter is not None):
+            return None
+        pub.last = value
+        dv = ua.DataValue(variant(pub.tag, value), SourceTimestamp=now, ServerTimestamp=now)
+        # what AddressSpace.write_attribute_value does for a value of the right type
+        att.value = dv
+        att.value_callback = None
+        if text is not None:
+            label = ua.LocalizedText(enum_text(pub.tag, value))
+            text.value = ua.DataValue(ua.Variant(label, ua.VariantType.LocalizedText))
+            text.value_callback = None
+        self.updates += 1
+        return dv
+
+    async def _notify(self, pub: _Published, dv: ua.DataValue) -> None:
+        att = pub.attval
+        for handle, callback in list(att.datachange_callbacks.items()):
+            try:
+                await callback(handle, dv)
+            except Exception:
+                log.exception("OPC UA: data-change callback of %s failed", pub.tag.name)
+        text = pub.text_attval
+        if text is not None and text.datachange_callbacks:
+            for handle, callback in list(text.datachange_callbacks.items()):
+                try:
+                    await callback(handle, text.value)
+                except Exception:
+                    log.exception("OPC UA: data-change callback of %s failed", pub.tag.name)
+
+    async def _write_slow(self, pub: _Published, value: Any, now: datetime) -> None:
         assert self._server is not None
         pub.last = value
         dv = ua.DataValue(variant(pub.tag, value), SourceTimestamp=now, ServerTimestamp=now)
-        att = pub.attval
-        if att is not None and att.value_setter is None:
-            # what AddressSpace.write_attribute_value does for a value of the right type
-            att.value = dv
-            att.value_callback = None
-            for handle, callback in list(att.datachange_callbacks.items()):
-                try:
-                    await callback(handle, dv)
-                except Exception:
-                    log.exception("OPC UA: data-change callback of %s failed", pub.tag.name)
-        else:
-            await self._server.write_attribute_value(pub.node_id, dv)
+        await self._server.write_attribute_value(pub.node_id, dv)
         self.updates += 1
         if pub.text_node is not None:
             text = ua.Variant(
@@ -547,26 +588,39 @@ class OpcUaFrontend:
             return await self._publish_pass()
 
     async def _publish_pass(self) -> int:
+        """One pass: every changed node gets its value from one snapshot at once (a Read
+        never sees nodes of two cycles), then the monitored items are notified in slices
+        that yield to requests."""
         deadband = self.config.deadband
-        slices = _Slices(self.config.chunk_size)
         values = self.image.values()
         last = self._last
         moved = values != last
         if deadband:
             moved &= ~(self._analog & (np.abs(values - last) <= deadband))
         now = _now()
-        changed = 0
         pubs = self._published
         typed = self.image.typed
+        stored: list[tuple[_Published, ua.DataValue]] = []
+        slow: list[tuple[_Published, Any]] = []
         for k in np.flatnonzero(moved).tolist():
             raw = float(values[k])
             last[k] = raw
-            await self._set(pubs[k], typed(k, raw), now)
-            changed += 1
-            if await slices.after_update():
-                now = _now()
+            value = typed(k, raw)
+            dv = self._store(pubs[k], value, now)
+            if dv is None:
+                slow.append((pubs[k], value))
+            else:
+                stored.append((pubs[k], dv))
+        slices = _Slices(self.config.chunk_size)
+        for pub, dv in stored:
+            if pub.attval.datachange_callbacks:
+                await self._notify(pub, dv)
+                await slices.after_update()
+        for pub, value in slow:
+            await self._write_slow(pub, value, now)
+            await slices.after_update()
         self.passes += 1
-        return changed
+        return len(stored) + len(slow)
 
     async def _publish_loop(self) -> None:
         period = 1.0 / self.config.publish_rate_hz
