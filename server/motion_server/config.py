@@ -175,13 +175,14 @@ class ModbusAccessSection(_Model):
     """Modbus access control (``[modbus.access]``): which client networks may connect
     (``allow``; empty = everyone), read-only mode, per-network write rules (the first
     rule whose networks hold the client decides; no rule = every writable tag),
-    connection limit and idle timeout (seconds without a request; 0 = none)."""
+    connection limit and idle timeout (seconds without a complete request before a
+    connection is closed; default 60, 0 = never)."""
 
     allow: list[str] = Field(default_factory=list)
     read_only: bool = False
     rules: list[WriteRule] = Field(default_factory=list)
     max_connections: Annotated[int, Field(ge=1, le=10000)] = 64
-    idle_timeout: Annotated[float, Field(ge=0.0)] = 0.0
+    idle_timeout: Annotated[float, Field(ge=0.0)] = 60.0
 
     @field_validator("allow")
     @classmethod

@@ -94,8 +94,11 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
     try:
         await frontend.start()
     except (OSError, RuntimeError) as exc:
-        # a port in use, an address not on this host (pymodbus says so with a RuntimeError)
-        if isinstance(exc, OSError):
+        # a port in use or an address not on this host (asyncio names the address), a host
+        # name that does not resolve (socket.gaierror names nothing), a file (TLS)
+        if isinstance(exc, socket.gaierror):
+            reason = f"{exc.strerror or exc} ({_where(site, kind)})"
+        elif isinstance(exc, OSError):
             where = f": {exc.filename}" if exc.filename else ""
             reason = f"{exc.strerror or exc}{where}"
         else:
