@@ -106,6 +106,7 @@ class MotionServer:
         cmd += ["--clock", clock, "--modbus-port", "0", "--ready-file", "ready.json"]
         cmd += ["--no-opcua"] if opcua is False else ["--opcua-port", "0"]
         cmd += list(args)
+        (work / "ready.json").unlink(missing_ok=True)  # left by a server that was killed
         with (work / "server.log").open("ab") as log:
             proc = subprocess.Popen(
                 cmd,

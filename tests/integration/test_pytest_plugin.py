@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from motion_server.testing import MotionServer
+
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "testing-with-pytest.md"
 
@@ -133,3 +135,16 @@ def test_the_plugin_reads_its_ini_option_and_reports_a_dead_server(
         ]
     )
     result.stdout.fnmatch_lines(["*the scan process died (killed by SIGKILL)*"])
+
+
+def test_a_stale_ready_file_is_not_taken_for_the_new_server(tmp_path: Path) -> None:
+    """A server killed in the same directory left its ready file: the next start waits
+    for its own."""
+    (tmp_path / "ready.json").write_text('{"pid": 1, "modbus": {"port": 1}}')
+    server = MotionServer.start(tmp_path, opcua=False)
+    try:
+        assert server.info["pid"] == server.pid
+        assert server.modbus_port not in (0, 1)
+        assert server.read("Diagnostics.Ready") is True
+    finally:
+        assert server.stop() == 0, server.log_tail()
