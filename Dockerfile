@@ -62,9 +62,12 @@ ENV PATH=/opt/motion-server/bin:$PATH \
 WORKDIR /maps
 USER motion
 EXPOSE 5020 4840
-# Healthy while the controller heartbeat is readable over Modbus and (unless the clock is
-# manual) keeps counting.
-HEALTHCHECK --interval=15s --timeout=10s --start-period=10s --retries=3 \
-    CMD ["python", "/opt/motion-server/container/heartbeat.py", "--quiet"]
+# Healthy while the controller says Diagnostics.Ready over Modbus, its heartbeat (unless
+# the clock is manual) keeps counting, and the OPC UA port (when the site map serves OPC
+# UA) accepts connections. The first check exports the tag map (it loads the server's
+# code: seconds on a busy machine) and keeps it for the next ones.
+HEALTHCHECK --interval=15s --timeout=30s --start-period=60s --retries=3 \
+    CMD ["python", "/opt/motion-server/container/heartbeat.py", "--quiet", \
+        "--opcua-port", "auto", "--map-cache", "/tmp/motion-server-healthcheck.json"]
 ENTRYPOINT ["motion-server"]
 CMD ["run"]

@@ -4,7 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint typecheck unit bench maps tools node-tools clean test-container
+.PHONY: run test lint typecheck unit bench maps tools node-tools clean test-container \
+	test-compose
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -61,6 +62,11 @@ maps: $(STAMP)
 # Build the Dockerfile and smoke-test the image with buildah (as root; see container/).
 test-container: $(STAMP)
 	PYTHON=$(BIN)/python container/test-container.sh
+
+# Run compose.yaml (server + bench) with podman-compose, then log in over OPC UA to the
+# image started with no secret (as root; installs podman when missing; see container/).
+test-compose: $(STAMP)
+	PYTHON=$(BIN)/python container/test-compose.sh
 
 bench: $(STAMP)
 	@for b in bench/*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done

@@ -1,22 +1,39 @@
-"""Read the controller heartbeat of a motion-server over Modbus TCP; exit 0 when healthy.
+"""Read the readiness and heartbeat of a motion-server over Modbus TCP; exit 0 when healthy.
 
 The container HEALTHCHECK, the compose bench client and `make test-container` use it.
-The heartbeat (the ``Diagnostics.Heartbeat`` tag, incremented every cycle) and its
-register address come from the tag map's JSON export
-(``motion-server map --format json``, contract "motion-server-map/1"), never from a
-constant here. Healthy: the heartbeat can be read twice and has increased in between —
-or stood still while the server's clock is in manual mode (``Clock.Mode`` = 1), where
-cycles only run when a client asks for them.
+The tags (``Diagnostics.Ready``: 1 while the controller runs, 0 while it starts or
+stops; ``Diagnostics.Heartbeat``: incremented every cycle) and their register addresses
+come from the tag map's JSON export (``motion-server map --format json``, contract
+"motion-server-map/1"), never from a constant here. Healthy: the controller says it is
+ready (maps without the Ready tag skip this) and the heartbeat, read twice, has increased
+in between — or stood still while the server's clock is in manual mode
+(``Clock.Mode`` = 1), where cycles only run when a client asks for them.
+
+``--wait SECONDS`` tries again (every half second) until the server is healthy or the
+time is up: a client that starts with the server (a compose bench) waits for it this way,
+whatever its container engine does with ``depends_on`` conditions. The Modbus port of
+``motion-server run`` opens only once the controller runs, so until then the connection
+is refused at once.
 
 Without ``--map-json`` the export is produced by running ``motion-server map`` with this
 interpreter, which sees the same site map and environment as the server (in the
 container: ``MOTION_SERVER_MAP`` and the ``MOTION_SERVER_<SECTION>_<FIELD>`` variables).
+That takes seconds (it loads the server's code); ``--map-cache PATH`` keeps the export
+and the ports there for the next checks, as long as the site map file and the
+``MOTION_SERVER_*`` variables are the same (the image's HEALTHCHECK uses it).
+
+``--opcua-port auto`` (or a port number) also requires the OPC UA port to accept a
+connection when the site map serves OPC UA: its front-end builds its address space
+after the Modbus one listens, seconds later on a big map.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
+import os
+import socket
 import struct
 import subprocess
 import sys
@@ -27,6 +44,9 @@ MAP_FORMAT = "motion-server-map/1"
 #: the heartbeat tag: the first of these names the map has (``--tag`` picks another)
 HEARTBEAT_TAGS = ("Diagnostics.Heartbeat", "Controller.Heartbeat")
 CLOCK_MODE_TAG = "Clock.Mode"
+READY_TAG = "Diagnostics.Ready"
+#: seconds between two attempts with ``--wait``
+RETRY_PAUSE = 0.5
 
 #: tag type -> (struct code, registers)
 TYPES: dict[str, tuple[str, int]] = {
@@ -62,6 +82,45 @@ def load_map(path: str | None) -> dict[str, Any]:
     return data
 
 
+def cache_key() -> str:
+    """What the exported map and the default port depend on: this interpreter, the
+    ``MOTION_SERVER_*`` variables and the site map file they name (its size and time)."""
+    env = sorted((k, v) for k, v in os.environ.items() if k.startswith("MOTION_SERVER_"))
+    site = os.environ.get("MOTION_SERVER_MAP", "")
+    stamp = ""
+    if site:
+        try:
+            st = os.stat(site)
+            stamp = f"{st.st_mtime_ns}:{st.st_size}"
+        except OSError:
+            stamp = "missing"
+    text = json.dumps([sys.executable, env, site, stamp])
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def cached_map_and_ports(path: str) -> tuple[dict[str, Any], tuple[int, int]]:
+    """The map export and :func:`site_ports`, from the cache file at ``path`` when it was
+    made for the same :func:`cache_key`, else made now and kept there (atomically)."""
+    key = cache_key()
+    try:
+        with open(path, encoding="utf-8") as f:
+            cached = json.load(f)
+        if cached.get("key") == key and cached["map"].get("format") == MAP_FORMAT:
+            modbus, opcua = cached["ports"]
+            return cached["map"], (int(modbus), int(opcua))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        pass  # none yet, or unusable: made again
+    tag_map, ports = load_map(None), site_ports()
+    tmp = f"{path}.{os.getpid()}.tmp"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump({"key": key, "ports": list(ports), "map": tag_map}, f)
+        os.replace(tmp, path)
+    except OSError:
+        pass  # a cache that cannot be written only costs time
+    return tag_map, ports
+
+
 def find_tag(tag_map: dict[str, Any], name: str) -> dict[str, Any] | None:
     for tag in tag_map["tags"]:
         if tag["name"] == name:
@@ -91,11 +150,13 @@ def encode(value: float, tag_type: str, word_order: str) -> list[int]:
     return words
 
 
-def default_port() -> int:
-    """The Modbus port of the site map this interpreter sees (with the environment)."""
+def site_ports() -> tuple[int, int]:
+    """The Modbus port and the OPC UA port (0 when OPC UA is not served) of the site map
+    this interpreter sees, with the environment."""
     from motion_server import config
 
-    return int(config.load().modbus.port)
+    site = config.load()
+    return int(site.modbus.port), int(site.opcua.port) if site.opcua.enabled else 0
 
 
 class Reader:
@@ -150,10 +211,14 @@ class Reader:
 def check(
     reader: Reader, interval: float, require_increase: bool, names: tuple[str, ...] = HEARTBEAT_TAGS
 ) -> str:
-    """Read the heartbeat twice ``interval`` apart; a message when healthy, else raise."""
+    """Check readiness, then read the heartbeat twice ``interval`` apart; a message when
+    healthy, else raise."""
     heartbeat = next((tag for n in names if (tag := find_tag(reader.map, n))), None)
     if heartbeat is None:
         raise Unhealthy(f"the tag map has no {' or '.join(names)}")
+    ready = find_tag(reader.map, READY_TAG)
+    if ready is not None and not reader.read(ready):
+        raise Unhealthy(f"{READY_TAG} is 0 at {reader.where}: the controller starts or stops")
     name = heartbeat["name"]
     first = reader.read(heartbeat)
     time.sleep(interval)
@@ -173,7 +238,18 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--host", default="127.0.0.1", help="server address (default 127.0.0.1)")
     p.add_argument("--port", type=int, help="Modbus port (default: the site map's)")
+    p.add_argument(
+        "--opcua-port",
+        default="",
+        help="also require this OPC UA port to accept a connection; 'auto': the site "
+        "map's when it serves OPC UA (default: not checked)",
+    )
     p.add_argument("--map-json", help="tag map JSON export (default: run motion-server map)")
+    p.add_argument(
+        "--map-cache",
+        metavar="PATH",
+        help="without --map-json: keep the export (and the default port) in this file",
+    )
     p.add_argument("--interval", type=float, default=0.5, help="seconds between the reads")
     p.add_argument("--timeout", type=float, default=3.0, help="Modbus request timeout (s)")
     p.add_argument(
@@ -182,20 +258,66 @@ def main(argv: list[str] | None = None) -> int:
         help="fail when the heartbeat stands still, even in manual clock mode",
     )
     p.add_argument("--tag", help=f"heartbeat tag (default: {' or '.join(HEARTBEAT_TAGS)})")
+    p.add_argument(
+        "--wait",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="try again until healthy, for at most this long (default 0: one attempt)",
+    )
     p.add_argument("--quiet", action="store_true", help="print nothing when healthy")
     args = p.parse_args(argv)
-    try:
-        tag_map = load_map(args.map_json)
-        port = args.port if args.port is not None else default_port()
-        with Reader(tag_map, args.host, port, args.timeout) as reader:
-            names = (args.tag,) if args.tag else HEARTBEAT_TAGS
-            message = check(reader, args.interval, args.require_increase, names)
-    except Exception as exc:  # a health check reports, it never shows a traceback
+    try:  # the map and the ports do not depend on the server: found once
+        auto = args.opcua_port == "auto"
+        if args.map_cache and not args.map_json:
+            tag_map, (port, opcua_port) = cached_map_and_ports(args.map_cache)
+        else:
+            tag_map = load_map(args.map_json)
+            need = args.port is None or auto
+            port, opcua_port = site_ports() if need else (args.port, 0)
+        if args.port is not None:
+            port = args.port
+        if not auto:
+            opcua_port = int(args.opcua_port or 0)
+    except Exception as exc:
         print(f"unhealthy: {exc}", file=sys.stderr)
         return 1
+    give_up = time.monotonic() + args.wait
+    attempts = 0
+    while True:
+        attempts += 1
+        try:
+            message = attempt(args, tag_map, port, opcua_port)
+            break
+        except Exception as exc:  # a health check reports, it never shows a traceback
+            if time.monotonic() + RETRY_PAUSE > give_up:
+                tried = f" (after {attempts} attempts in {args.wait:g} s)" if args.wait else ""
+                print(f"unhealthy: {exc}{tried}", file=sys.stderr)
+                return 1
+            time.sleep(RETRY_PAUSE)
     if not args.quiet:
         print(f"healthy: {message}")
     return 0
+
+
+def attempt(args: argparse.Namespace, tag_map: dict[str, Any], port: int, opcua_port: int) -> str:
+    """One health check with the command-line settings; raises when unhealthy."""
+    with Reader(tag_map, args.host, port, args.timeout) as reader:
+        names = (args.tag,) if args.tag else HEARTBEAT_TAGS
+        message = check(reader, args.interval, args.require_increase, names)
+    if opcua_port:
+        check_listening(args.host, opcua_port, args.timeout)
+        message += f", OPC UA port {opcua_port} listening"
+    return message
+
+
+def check_listening(host: str, port: int, timeout: float) -> None:
+    """:class:`Unhealthy` unless ``host:port`` accepts a TCP connection."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise Unhealthy(f"OPC UA port {host}:{port} does not accept connections ({exc})") from None
 
 
 if __name__ == "__main__":

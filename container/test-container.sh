@@ -21,25 +21,11 @@
 # KEEP_WORK=1 (keep the scratch directory for inspection).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. container/lib.sh
 
-export BUILDAH_ISOLATION=chroot
 PYTHON=${PYTHON:-.venv/bin/python}
 IMAGE=localhost/motion-server:test
-BASE_REPO=localhost/motion-server-base
-# The base recipe: change any of these and the cache key changes with them.
-BASE_SUITE=bookworm
-BASE_VARIANT=minbase
-BASE_PACKAGES=python3,python3-venv,ca-certificates,netbase
-BASE_RECIPE_VERSION=1
-BUILD_CA=/run/motion-server-build/ca.crt # where the host CA bundle appears in the build
-
-T0=$SECONDS
-step() { printf '\n== [%s] %s (%ds)\n' "$1" "$2" $((SECONDS - T0)); }
-info() { printf '   %s\n' "$*"; }
-fail() {
-    printf 'test-container: FAILED: %s\n' "$*" >&2
-    exit 1
-}
+ct_init test-container
 
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/motion-server-container.XXXXXX")
 CONTAINER=""
@@ -69,142 +55,22 @@ BUILDAH=(buildah)
 
 # --- 1. tools ------------------------------------------------------------------------
 step 1/5 "tools"
-[ "$(id -u)" = 0 ] || fail "needs root (buildah and debootstrap run as root here)"
-missing=()
-command -v buildah >/dev/null || missing+=(buildah)
-command -v debootstrap >/dev/null || missing+=(debootstrap)
-[ -e /usr/share/keyrings/debian-archive-keyring.gpg ] || missing+=(debian-archive-keyring)
-if [ ${#missing[@]} -gt 0 ]; then
-    info "installing ${missing[*]} (apt-get)"
-    DEBIAN_FRONTEND=noninteractive apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
-fi
+ct_tools buildah:buildah debootstrap:debootstrap \
+    /usr/share/keyrings/debian-archive-keyring.gpg:debian-archive-keyring
 info "$(buildah --version), $(debootstrap --version)"
 [ -x "$PYTHON" ] || fail "no host interpreter at $PYTHON (run through make, or set PYTHON)"
-
-# An image store of our own (images, layer cache), apart from anything else on the machine
-# that uses buildah: pruning it touches nothing but ours. overlay where it can mount, else
-# vfs (copies instead of mounting layers: slower, works everywhere).
-store() { # driver
-    BUILDAH=(buildah --storage-driver "$1" --root "/var/lib/containers/motion-server-$1"
-        --runroot "/run/containers/motion-server-$1")
-}
-case "${STORAGE_DRIVER:-auto}" in
-vfs | overlay) store "$STORAGE_DRIVER" ;;
-*)
-    store overlay
-    probe=$("${BUILDAH[@]}" from scratch 2>/dev/null) || probe=""
-    if [ -z "$probe" ] || ! "${BUILDAH[@]}" mount "$probe" >/dev/null 2>&1; then
-        info "overlay storage unusable here: using vfs"
-        [ -z "$probe" ] || "${BUILDAH[@]}" rm "$probe" >/dev/null 2>&1 || true
-        probe=""
-        store vfs
-    fi
-    [ -z "$probe" ] || "${BUILDAH[@]}" rm "$probe" >/dev/null 2>&1 || true
-    ;;
-esac
-unset STORAGE_DRIVER
-info "image store: ${BUILDAH[*]:1}"
+ct_store
 
 # --- 2. base image -------------------------------------------------------------------
 step 2/5 "base image"
-ARCH=$(dpkg --print-architecture 2>/dev/null || echo amd64)
-KEY=$(printf '%s\n' "$BASE_SUITE" "$BASE_VARIANT" "$BASE_PACKAGES" "$ARCH" \
-    "$BASE_RECIPE_VERSION" | sha256sum | cut -c1-12)
-BASE_IMAGE="$BASE_REPO:$BASE_SUITE-$KEY"
-
-debian_mirror() {
-    # the URI the host's apt uses for "$BASE_SUITE" (one-line or deb822 sources)
-    python3 - "$BASE_SUITE" <<'EOF'
-import glob, re, sys
-suite = sys.argv[1]
-found = []
-for path in ["/etc/apt/sources.list", *sorted(glob.glob("/etc/apt/sources.list.d/*"))]:
-    try:
-        text = open(path, encoding="utf-8").read()
-    except OSError:
-        continue
-    if path.endswith(".list"):
-        for line in text.splitlines():
-            m = re.match(r"\s*deb\s+(?:\[[^\]]*\]\s+)?(\S+)\s+(\S+)", line)
-            if m and m.group(2) == suite:
-                found.append(m.group(1))
-    elif path.endswith(".sources"):
-        for para in re.split(r"\n\s*\n", text):
-            fields = {}
-            for line in para.splitlines():
-                if ":" in line and not line.lstrip().startswith("#"):
-                    k, v = line.split(":", 1)
-                    fields[k.strip().lower()] = v.split()
-            if "deb" in fields.get("types", []) and suite in fields.get("suites", []):
-                found.extend(fields.get("uris", []))
-print(next((u for u in found if u.startswith(("http://", "https://"))), ""))
-EOF
-}
-
-if "${BUILDAH[@]}" inspect --type image "$BASE_IMAGE" >/dev/null 2>&1; then
-    info "cached: $BASE_IMAGE"
-else
-    MIRROR=${DEBIAN_MIRROR:-$(debian_mirror || true)}
-    MIRROR=${MIRROR:-http://deb.debian.org/debian}
-    info "debootstrap --variant=$BASE_VARIANT $BASE_SUITE from $MIRROR (about a minute)"
-    ROOTFS="$WORK/rootfs"
-    if ! debootstrap --variant="$BASE_VARIANT" --include="$BASE_PACKAGES" --arch="$ARCH" \
-        "$BASE_SUITE" "$ROOTFS" "$MIRROR" >"$WORK/debootstrap.log" 2>&1; then
-        tail -20 "$WORK/debootstrap.log" >&2
-        fail "debootstrap (log above)"
-    fi
-    rm -rf "$ROOTFS"/var/cache/apt/archives/*.deb "$ROOTFS"/var/lib/apt/lists/* \
-        "$ROOTFS"/var/log/*.log "$ROOTFS"/var/cache/debconf/*-old
-    # a tarball keeps owners and modes (buildah copy of a directory would make every file
-    # root:root, e.g. /etc/shadow loses its shadow group)
-    tar -C "$ROOTFS" --numeric-owner -cf "$WORK/rootfs.tar" .
-    ctr=$("${BUILDAH[@]}" from scratch)
-    "${BUILDAH[@]}" add "$ctr" "$WORK/rootfs.tar" / >/dev/null
-    "${BUILDAH[@]}" config --env LANG=C.UTF-8 --cmd python3 \
-        --label "org.opencontainers.image.description=Debian $BASE_SUITE $BASE_VARIANT + $BASE_PACKAGES" \
-        "$ctr"
-    "${BUILDAH[@]}" commit --quiet --rm "$ctr" "$BASE_IMAGE" >/dev/null
-    rm -rf "$ROOTFS" "$WORK/rootfs.tar"
-    # older recipes of the base are dead weight now
-    for old in $("${BUILDAH[@]}" images --format '{{.Name}}:{{.Tag}}'); do
-        if [[ "$old" == "$BASE_REPO:"* && "$old" != "$BASE_IMAGE" ]]; then
-            "${BUILDAH[@]}" rmi "$old" >/dev/null 2>&1 || true
-        fi
-    done
-    info "committed $BASE_IMAGE"
-fi
+ct_base_image
 
 # --- 3. build ------------------------------------------------------------------------
 step 3/5 "build the Dockerfile on $BASE_IMAGE"
-pip_setting() { # the host's pip setting: environment first, then pip's config files
-    local env_name=$1 key=$2 value
-    value=${!env_name:-}
-    if [ -z "$value" ]; then
-        value=$("$PYTHON" -m pip config get "$key" 2>/dev/null || true)
-    fi
-    printf '%s' "$value"
-}
-CA=$(pip_setting PIP_CERT global.cert)
-for candidate in "$CA" "${SSL_CERT_FILE:-}" /etc/ssl/certs/ca-certificates.crt; do
-    if [ -n "$candidate" ] && [ -f "$candidate" ]; then
-        CA=$candidate
-        break
-    fi
-done
+ct_pip_settings
 build_args=(--build-arg "BASE_IMAGE=$BASE_IMAGE")
-if [ -f "$CA" ]; then
-    info "pip trusts the host CA bundle $CA"
-    build_args+=(--volume "$CA:$BUILD_CA:ro" --build-arg "PIP_CERT=$BUILD_CA")
-fi
-INDEX=$(pip_setting PIP_INDEX_URL global.index-url)
-case "$INDEX" in
-http://* | https://*)
-    info "pip index $INDEX"
-    build_args+=(--build-arg "PIP_INDEX_URL=$INDEX")
-    ;;
-*) info "pip index: PyPI" ;; # (file:// indexes of the host do not exist in the build)
-esac
+[ -z "$CA" ] || build_args+=(--volume "$CA:$BUILD_CA:ro" --build-arg "PIP_CERT=$BUILD_CA")
+[ -z "$INDEX" ] || build_args+=(--build-arg "PIP_INDEX_URL=$INDEX")
 if ! "${BUILDAH[@]}" bud --isolation chroot --format docker --layers "${build_args[@]}" \
     -f Dockerfile -t "$IMAGE" . >"$WORK/build.log" 2>&1; then
     tail -30 "$WORK/build.log" >&2
@@ -273,9 +139,14 @@ info "bad map rejected: $(grep -m1 'bad.toml:3' <<<"$out")"
 
 # --- 5. run --------------------------------------------------------------------------
 step 5/5 "run the server in the image"
-PORT=$("$PYTHON" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+free_port() {
+    "$PYTHON" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+# chroot isolation shares the host's network: free ports of the host for both protocols
+PORT=$(free_port)
+OPCUA_PORT=$(free_port)
 LOG="$WORK/server.log"
-in_image --env MOTION_SERVER_MODBUS_PORT="$PORT" \
+in_image --env MOTION_SERVER_MODBUS_PORT="$PORT" --env MOTION_SERVER_OPCUA_PORT="$OPCUA_PORT" \
     --env MOTION_SERVER_CONTROLLER_STATUS_LOG_INTERVAL=1 \
     "$CONTAINER" -- motion-server run >"$LOG" 2>&1 &
 RUNNER_PID=$!
@@ -312,6 +183,7 @@ wait_for() { # pattern, seconds
     fail "no '$1' in the server log within $2 s"
 }
 wait_for ' cycle [0-9]* t=' 30
+wait_for "OPC UA on opc.tcp://[^ ]*:$OPCUA_PORT/" 120 # after Modbus: its address space first
 info "pid $SERVER_PID, Modbus port $PORT: $(grep -m1 ' cycle [0-9]* t=' "$LOG" | cut -d' ' -f5-9)"
 
 in_image "$CONTAINER" -- motion-server map --format json >"$WORK/map.json" ||
@@ -326,7 +198,8 @@ counted=$((counted))
 ((counted >= 125 && counted <= 375)) || fail "heartbeat counted $counted cycles in 0.5 s, not ~250"
 info "from the host: $out ($counted cycles, 250 expected)"
 # the image's HEALTHCHECK command, as the engine would run it inside the container
-out=$(in_image --env MOTION_SERVER_MODBUS_PORT="$PORT" "$CONTAINER" -- \
+out=$(in_image --env MOTION_SERVER_MODBUS_PORT="$PORT" --env MOTION_SERVER_OPCUA_PORT="$OPCUA_PORT" \
+    "$CONTAINER" -- \
     $(cfg '{{range $i, $a := .Docker.Config.Healthcheck.Test}}{{if $i}}{{$a}} {{end}}{{end}}')) ||
     fail "the image's healthcheck: $out"
 info "HEALTHCHECK in the image: exit 0 ${out:-(quiet)}"
@@ -367,7 +240,7 @@ SERVER_PID=""
 }
 grep -q 'programmed stop complete after 10 cycles (0.020 s simulated)' "$LOG" ||
     fail "SIGTERM: no programmed stop of the jog in 10 cycles: $(grep 'programmed stop' "$LOG")"
-grep -q 'motion_server: stopped' "$LOG" || fail "no clean stop on SIGTERM"
+grep -q 'motion_server.supervisor: stopped' "$LOG" || fail "no clean stop on SIGTERM"
 info "SIGTERM: $(grep -m1 'programmed stop complete' "$LOG" | cut -d' ' -f5-)"
 
 printf '\ntest-container: OK (%ds)\n' $((SECONDS - T0))

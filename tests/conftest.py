@@ -17,6 +17,9 @@ from motion_server.kernel import AxisConfig, AxisType
 
 from .support import make_system
 
+#: pytester: runs pytest on throwaway test files (the pytest plugin's own tests)
+pytest_plugins = ["pytester"]
+
 settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from . import __version__, config
 from .launch import setup_logging
+from .safety.first_user import FirstUserError, ensure_user
 from .safety.retain import RetainError
 from .supervisor import Supervisor
 from .tagmap import FORMATS, build_tagmap, export
@@ -52,9 +53,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise SystemExit(f"motion-server: {exc}") from None
         site = site.model_copy(update={"controller": controller})
+    serve_opcua = site.opcua.enabled and not args.no_opcua
     try:
         users = config.opcua_users(site)  # fail early on a broken users secret file
-    except config.SiteMapError as exc:
+        if serve_opcua:
+            users = ensure_user(site.opcua, users)  # none configured: the generated admin
+    except (config.SiteMapError, FirstUserError) as exc:
         raise SystemExit(f"motion-server: {exc}") from None
     log.info("OPC UA users: %d", len(users))
     log.info("site map %s", site.source)
@@ -64,6 +68,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         fresh=args.fresh,
         modbus=False if args.no_modbus else None,
         opcua=False if args.no_opcua else None,
+        users=users if serve_opcua else [],
+        ready_file=Path(args.ready_file) if args.ready_file else None,
     )
     try:
         return supervisor.run()
@@ -134,6 +140,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--opcua-port", type=int, help="OPC UA port, 0 = ephemeral (site map: [opcua] port)"
     )
     run.add_argument("--no-opcua", action="store_true", help="do not serve OPC UA")
+    run.add_argument(
+        "--ready-file",
+        metavar="PATH",
+        help="once every front-end listens, write a JSON file there (pid, ports, endpoint); "
+        "removed when the server stops",
+    )
     run.set_defaults(func=cmd_run)
     mp = sub.add_parser("map", help="export the tag map (Modbus registers, OPC UA nodes)")
     mp.add_argument("map", nargs="?", help="site map (TOML)")

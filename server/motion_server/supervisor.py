@@ -22,6 +22,15 @@ Then it watches them:
 
 The supervisor also owns the files several processes feed: the audit log (the
 front-ends send it their lines) and the retain file (the scan sends its payload).
+
+With a ready file (``motion-server run --ready-file PATH``), once every front-end listens
+it writes there, atomically, a JSON object for test benches and tools::
+
+    {"format": "motion-server-ready/1", "pid": 4242, "site": "demo",
+     "modbus": {"host": "127.0.0.1", "port": 5020, "tls_port": 0},
+     "opcua": {"host": "127.0.0.1", "port": 4840, "endpoint": "opc.tcp://..."}}
+
+(a protocol not served is absent), and removes it when the server begins to stop.
 """
 
 from __future__ import annotations
@@ -37,9 +46,10 @@ import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import IO, Any
 
-from .config import SiteMap, opcua_users
+from .config import OpcUaUser, SiteMap, opcua_users
 from .image import wire
 from .image.buffer import create_shared, image_bytes
 from .image.layout import ImageLayout
@@ -62,6 +72,8 @@ RESTART_FIRST = 0.5
 RESTART_LONGEST = 30.0
 #: a front-end that ran this long before dying restarts with the first delay again
 RESTART_RESET = 60.0
+#: the ``format`` of the ready file
+READY_FORMAT = "motion-server-ready/1"
 
 
 class StartError(RuntimeError):
@@ -104,6 +116,8 @@ class Supervisor:
         fresh: bool = False,
         modbus: bool | None = None,
         opcua: bool | None = None,
+        users: list[OpcUaUser] | None = None,
+        ready_file: Path | None = None,
     ) -> None:
         self.site = site
         self.log_level = log_level
@@ -115,7 +129,12 @@ class Supervisor:
             self.roles["opcua"] = OPCUA
         self.layout = ImageLayout(build_tagmap(site))
         self.size = image_bytes(self.layout.size)
-        self.users = opcua_users(site) if "opcua" in self.roles else []
+        if "opcua" not in self.roles:
+            self.users: list[OpcUaUser] = []
+        else:
+            self.users = opcua_users(site) if users is None else users
+        self.ready_file = ready_file
+        self._ready_written = False
         self.audit = AuditLog.from_config(site.audit, site.data_dir, lambda: 0)
         self.retain_file = retain.retain_path(site) if site.retain.enabled else None
         self.restarts = 0
@@ -146,6 +165,7 @@ class Supervisor:
             self._stop_all()
             return 1
         finally:
+            self._remove_ready()
             signal.set_wakeup_fd(previous)
             for sig, handler in handlers.items():
                 signal.signal(sig, handler)
@@ -186,6 +206,7 @@ class Supervisor:
             self._start_frontend(role)
         if not self._wait_listening():
             return 1
+        self._write_ready()
         return self._watch()
 
     def _spawn(self, role: str, argv: list[str], spec: LaunchSpec) -> _Child:
@@ -381,6 +402,7 @@ class Supervisor:
         if not self._stopping:
             log.info("stop requested: programmed stop of every group")
             self._stopping = True
+            self._remove_ready()
 
     def _on_control(self) -> list[wire.Kind]:
         kinds: list[wire.Kind] = []
@@ -445,6 +467,48 @@ class Supervisor:
                 self._ports[role] = msg
             elif "failed" in msg:
                 child.failed = str(msg.get("reason", "failed"))
+
+    # -- the ready file ---------------------------------------------------------------------
+    def _write_ready(self) -> None:
+        """Every front-end listens: say where, atomically (a file renamed into place)."""
+        if self.ready_file is None:
+            return
+        info: dict[str, Any] = {
+            "format": READY_FORMAT,
+            "pid": os.getpid(),
+            "site": self.site.site.name,
+        }
+        if "modbus" in self.roles:
+            at = self._ports.get("modbus", {})
+            info["modbus"] = {
+                "host": self.site.modbus.host,
+                "port": int(at.get("port", 0)),
+                "tls_port": int(at.get("tls_port", 0)),
+            }
+        if "opcua" in self.roles:
+            at = self._ports.get("opcua", {})
+            info["opcua"] = {
+                "host": self.site.opcua.host,
+                "port": int(at.get("port", 0)),
+                "endpoint": str(at.get("endpoint", "")),
+            }
+        path = self.ready_file
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        try:
+            tmp.write_text(json.dumps(info, indent=2) + "\n", "utf-8")
+            os.replace(tmp, path)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+            raise StartError(f"cannot write the ready file {path}: {exc.strerror or exc}") from None
+        self._ready_written = True
+        log.info("ready: %s", path)
+
+    def _remove_ready(self) -> None:
+        if self._ready_written and self.ready_file is not None:
+            self._ready_written = False
+            with contextlib.suppress(FileNotFoundError):
+                self.ready_file.unlink()
 
     # -- stop -------------------------------------------------------------------------------
     def _stop_frontends(self) -> None:

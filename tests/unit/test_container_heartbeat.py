@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
+import socket
 import struct
 import sys
 from pathlib import Path
@@ -70,18 +72,154 @@ MAP: dict[str, Any] = {
 class FakeReader:
     """Answers reads of the two tags from scripted values."""
 
-    def __init__(self, heartbeats: list[int], clock_mode: int) -> None:
+    def __init__(self, heartbeats: list[int], clock_mode: int, ready: int | None = None) -> None:
         self.map = MAP
+        if ready is not None:
+            self.map = {**MAP, "tags": [*MAP["tags"], READY]}
         self.where = "fake:5020"
         self.heartbeats = heartbeats
         self.clock_mode = clock_mode
+        self.ready = ready
         self.names: list[str] = []
 
     def read(self, tag: dict[str, Any]) -> int:
         self.names.append(tag["name"])
         if tag["name"] == "Clock.Mode":
             return self.clock_mode
+        if tag["name"] == "Diagnostics.Ready":
+            assert self.ready is not None
+            return self.ready
         return self.heartbeats.pop(0)
+
+
+READY = {
+    "name": "Diagnostics.Ready",
+    "type": "BOOL",
+    "modbus": {"address": 30, "count": 1, "bit": 0},
+}
+
+
+def test_a_controller_that_is_not_ready_is_unhealthy_whatever_its_heartbeat() -> None:
+    reader = FakeReader([100, 350], clock_mode=0, ready=0)
+    with pytest.raises(hb.Unhealthy, match=r"Diagnostics\.Ready is 0 at fake:5020"):
+        hb.check(reader, 0.0, require_increase=False)
+    assert reader.names == ["Diagnostics.Ready"]  # the heartbeat was not even read
+
+
+def test_ready_and_counting_is_healthy_and_ready_is_read_first() -> None:
+    reader = FakeReader([100, 350], clock_mode=0, ready=1)
+    assert "100 -> 350" in hb.check(reader, 0.0, require_increase=True)
+    assert reader.names[0] == "Diagnostics.Ready"
+    reader = FakeReader([7, 7], clock_mode=1, ready=1)
+    assert "manual clock" in hb.check(reader, 0.0, require_increase=False)
+
+
+def test_wait_tries_again_until_healthy(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    path = tmp_path / "map.json"
+    path.write_text(json.dumps(MAP))
+    answers: list[str | Exception] = [hb.Unhealthy("not yet"), hb.Unhealthy("not yet"), "fine"]
+
+    def attempt(*_: Any) -> str:
+        answer = answers.pop(0)
+        if isinstance(answer, Exception):
+            raise answer
+        return answer
+
+    monkeypatch.setattr(hb, "attempt", attempt)
+    monkeypatch.setattr(hb, "RETRY_PAUSE", 0.01)
+    assert hb.main(["--map-json", str(path), "--port", "1", "--wait", "5"]) == 0
+    assert answers == []
+
+
+class FakeTime:
+    """time.monotonic and time.sleep of a clock that moves only when slept on."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.now += seconds
+
+
+def test_wait_gives_up_with_the_last_reason(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "map.json"
+    path.write_text(json.dumps(MAP))
+    tries: list[float] = []
+    clock = FakeTime()
+
+    def attempt(*_: Any) -> str:
+        tries.append(clock.now)
+        raise hb.Unhealthy(f"try {len(tries)} refused")
+
+    monkeypatch.setattr(hb, "attempt", attempt)
+    monkeypatch.setattr(hb, "time", clock)
+    assert hb.main(["--map-json", str(path), "--port", "1", "--wait", "1.2"]) == 1
+    # 0.5 s apart while another pause still ends within 1.2 s: at 0, 0.5 and 1.0 s
+    assert tries == [0.0, 0.5, 1.0]
+    err = capsys.readouterr().err
+    assert err == "unhealthy: try 3 refused (after 3 attempts in 1.2 s)\n"
+
+
+def test_the_map_cache_is_reused_while_nothing_it_depends_on_changed(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    made: list[str] = []
+
+    def load_map(path: str | None) -> dict[str, Any]:
+        assert path is None
+        made.append("map")
+        return MAP
+
+    def site_ports() -> tuple[int, int]:
+        made.append("ports")
+        return 5020 + len(made), 4840
+
+    monkeypatch.setattr(hb, "load_map", load_map)
+    monkeypatch.setattr(hb, "site_ports", site_ports)
+    for name in [n for n in os.environ if n.startswith("MOTION_SERVER_")]:
+        monkeypatch.delenv(name)
+    cache = str(tmp_path / "cache.json")
+    assert hb.cached_map_and_ports(cache) == (MAP, (5022, 4840))
+    assert made == ["map", "ports"]
+    assert hb.cached_map_and_ports(cache) == (MAP, (5022, 4840))  # from the file
+    assert made == ["map", "ports"]
+    # another setting: made again
+    monkeypatch.setenv("MOTION_SERVER_MODBUS_PORT", "1502")
+    assert hb.cached_map_and_ports(cache) == (MAP, (5024, 4840))
+    assert hb.cached_map_and_ports(cache) == (MAP, (5024, 4840))
+    assert len(made) == 4
+    # the site map file it names, then that file changed
+    site = tmp_path / "site.toml"
+    site.write_text("[[axes]]\n")
+    monkeypatch.setenv("MOTION_SERVER_MAP", str(site))
+    hb.cached_map_and_ports(cache)
+    assert len(made) == 6
+    hb.cached_map_and_ports(cache)
+    assert len(made) == 6
+    site.write_text("[[axes]]\nname = 'A'\n")
+    hb.cached_map_and_ports(cache)
+    assert len(made) == 8
+    # a damaged cache file is made again, not trusted
+    Path(cache).write_text("{not json")
+    hb.cached_map_and_ports(cache)
+    assert len(made) == 10
+    assert json.loads(Path(cache).read_text())["map"] == MAP
+
+
+def test_the_opcua_port_must_accept_a_connection() -> None:
+    with socket.socket() as listening:
+        listening.bind(("127.0.0.1", 0))
+        listening.listen()
+        port = listening.getsockname()[1]
+        hb.check_listening("127.0.0.1", port, 1.0)
+    # the same port, closed now: refused
+    with pytest.raises(hb.Unhealthy, match=f"OPC UA port 127.0.0.1:{port} does not accept"):
+        hb.check_listening("127.0.0.1", port, 1.0)
 
 
 def test_a_counting_heartbeat_is_healthy() -> None:

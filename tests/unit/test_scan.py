@@ -207,3 +207,18 @@ def test_the_scan_refuses_what_a_front_end_should_never_send() -> None:
         assert ticket.ack is not None and ticket.ack.result == wire.Result.REFUSED
         assert rt.system.instances["MAJ_1"].inputs["Speed"] != 42.0
         assert ch.number == 3
+
+
+def test_a_clock_step_during_the_programmed_stop_is_answered_at_once() -> None:
+    """The programmed stop runs its own cycles; a Clock.Step written meanwhile is
+    answered (NOT_RUN) instead of waiting for cycles that will never come."""
+    rt = Runtime(site())
+    rt.image.write_many([("MSO_1.Axis", 1), ("MSO_1.Execute", True)])
+    rt.cycle(2)
+    rt.image.write_many([("MAJ_1.Axis", 1), ("MAJ_1.Speed", 400.0), ("MAJ_1.Execute", True)])
+    rt.cycle(50)
+    rt.image.write("Clock.StepCycles", 10)
+    rt.request_stop()  # the stop begins with the next pass, the one the write causes
+    ticket = rt.image.write("Clock.Step", True)
+    assert ticket.ack is not None and ticket.ack.result == wire.Result.NOT_RUN
+    assert rt.scan.finished and rt.ctl.axis(1).command_velocity == 0.0

@@ -165,8 +165,8 @@ class Scan:
 
     def start(self, now: float) -> None:
         """Publish the first image and begin running (the controller is ready)."""
+        self.state = ScanState.RUNNING  # before the fill: Diagnostics.Ready shows it
         self.filler.fill_all()
-        self.state = ScanState.RUNNING
         self.rebase(now)
         self._publish()
         log.info(
@@ -203,6 +203,11 @@ class Scan:
     @property
     def finished(self) -> bool:
         return self.state == ScanState.STOPPED
+
+    @property
+    def ready(self) -> bool:
+        """``Diagnostics.Ready``: the controller runs (not starting, stopping or stopped)."""
+        return self.state == ScanState.RUNNING
 
     # -- the host protocol of the tag image -------------------------------------------------
     def set_mode(self, mode: ClockMode) -> None:
@@ -452,7 +457,11 @@ class Scan:
         self.meta[Meta.APPLIED + ch.number] = batch.seq
         self.writes_applied += 1
         self._dirty = True
-        if self._pending_cycles > before:
+        if self._pending_cycles > before and self.state == ScanState.STOPPING:
+            # a Clock.Step while the programmed stop runs: no cycles for clients any more
+            self._pending_cycles = 0
+            self._ack(ch, batch.seq, wire.Result.NOT_RUN)
+        elif self._pending_cycles > before:
             self._waiting.append((ch, batch.seq, self.ctl.tick + self._pending_cycles))
         else:
             self._ack(ch, batch.seq, wire.Result.APPLIED)
@@ -491,6 +500,7 @@ class Scan:
         self._ack_waiting(wire.Result.NOT_RUN)
         self._stops = self.ctl.set_mode(OperatingMode.PROGRAM)
         self._stop_cycles = 0
+        self._refill = True  # Diagnostics.Ready falls with this publish
         self._publish()
 
     def _stopping(self, now: float) -> float | None:
@@ -517,6 +527,7 @@ class Scan:
             log.warning("programmed stop not complete after %.0f s simulated", SHUTDOWN_STOP_LIMIT)
         self.save_retained()
         self.state = ScanState.STOPPED
+        self._refill = True
         self._publish()
         control = self.channels.get(CONTROL)
         if control is not None:

@@ -121,6 +121,11 @@ DIAGNOSTICS_FIELDS: tuple[FieldSpec, ...] = (
         TagType.UDINT,
         description="front-end processes restarted after they died (motion went on)",
     ),
+    FieldSpec(
+        "Ready",
+        TagType.BOOL,
+        description="1 while the controller runs (the scan cycles); 0 while it starts or stops",
+    ),
 )
 
 

@@ -48,6 +48,10 @@ class Host(Protocol):
     queued_writes: int
     restarts: int
 
+    @property
+    def ready(self) -> bool:
+        """True while the controller runs (cycles are being run, or run on request)."""
+
     def set_mode(self, mode: ClockMode) -> None: ...
 
     def request_cycles(self, count: int) -> None: ...
@@ -72,6 +76,7 @@ class StandaloneHost:
         self.load = 0.0
         self.queued_writes = 0
         self.restarts = 0
+        self.ready = True
 
     def set_mode(self, mode: ClockMode) -> None:
         self.mode = mode
@@ -427,6 +432,7 @@ class TagImage:
             "ScanLoad": lambda: host.load,
             "QueuedWrites": lambda: host.queued_writes & _UINT32,
             "FrontendRestarts": lambda: host.restarts & _UINT32,
+            "Ready": lambda: host.ready,
         }
         self._get[tag.name] = getters[tag.field]
 

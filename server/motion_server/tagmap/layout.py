@@ -25,7 +25,9 @@ blocks after it. Overlapping blocks are a site-map error naming the field.
 
 Inside a block: first the read-only status region (a register of status BOOLs, bit 0 =
 first BOOL, then the status words), then, from an even register, the writable command
-region (a register of command BOOLs — the trigger is bit 0 — then the operands). 32 and
+region (a register of command BOOLs — the trigger is bit 0 — then the operands). The
+Diagnostics block alone has its register of BOOLs after its words (``Ready`` was added
+after them, which kept their registers). 32 and
 64-bit values start on even registers; a 16-bit value may fill the hole an alignment
 left. Command and status bits never share a register. Every register of a block is valid:
 unused ones read 0; writes to the read-only part answer a Modbus exception.
@@ -113,30 +115,40 @@ class _Allocator:
         return self.next - words
 
 
-def _region(alloc: _Allocator, items: Sequence[_Item]) -> list[tuple[_Item, int, int | None]]:
-    """Place a region's items: (item, address, bit)."""
+def _region(
+    alloc: _Allocator, items: Sequence[_Item], bools_last: bool = False
+) -> list[tuple[_Item, int, int | None]]:
+    """Place a region's items: (item, address, bit). The registers of BOOLs come first,
+    or after the words with ``bools_last``."""
     placed: list[tuple[_Item, int, int | None]] = []
-    bools = [i for i in items if i.type == TagType.BOOL]
-    for k in range(0, len(bools), 16):
-        reg = alloc.take(1)
-        placed += [(item, reg, bit) for bit, item in enumerate(bools[k : k + 16])]
+
+    def place_bools() -> None:
+        bools = [i for i in items if i.type == TagType.BOOL]
+        for k in range(0, len(bools), 16):
+            reg = alloc.take(1)
+            placed.extend((item, reg, bit) for bit, item in enumerate(bools[k : k + 16]))
+
+    if not bools_last:
+        place_bools()
     for item in items:
         if item.type != TagType.BOOL:
             placed.append((item, alloc.take(item.type.words), None))
+    if bools_last:
+        place_bools()
     return placed
 
 
-def block_size(items: Sequence[_Item]) -> tuple[int, int, int]:
+def block_size(items: Sequence[_Item], bools_last: bool = False) -> tuple[int, int, int]:
     """(status end, command start, command end) offsets of a block holding ``items``."""
     alloc = _Allocator(0)
-    _region(alloc, [i for i in items if not i.writable])
+    _region(alloc, [i for i in items if not i.writable], bools_last)
     status_end = alloc.next
     writable = [i for i in items if i.writable]
     if not writable:
         return status_end, status_end, status_end
     start = status_end + status_end % 2
     alloc = _Allocator(start)
-    _region(alloc, writable)
+    _region(alloc, writable, bools_last)
     return status_end, start, alloc.next
 
 
@@ -149,12 +161,13 @@ def _place(
     instruction: str = "",
     node_prefix: str = "",
     part: str = "",
+    bools_last: bool = False,
 ) -> tuple[Block, list[Tag]]:
-    _, cmd_start, cmd_end = block_size(items)
+    _, cmd_start, cmd_end = block_size(items, bools_last)
     size = max(cmd_end, 1)
     span = -(-size // stride) * stride
-    placed = _region(_Allocator(base), [i for i in items if not i.writable])
-    placed += _region(_Allocator(base + cmd_start), [i for i in items if i.writable])
+    placed = _region(_Allocator(base), [i for i in items if not i.writable], bools_last)
+    placed += _region(_Allocator(base + cmd_start), [i for i in items if i.writable], bools_last)
     prefix = node_prefix or f"{folder.value}.{owner}"
     tags = [
         Tag(
@@ -363,6 +376,8 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
             50,
             _spec_items(DIAGNOSTICS_FIELDS, None, base_period, "Diagnostics"),
             node_prefix="Diagnostics",
+            # Ready came after the words: they keep their registers
+            bools_last=True,
         ),
         ("controller",),
     )
