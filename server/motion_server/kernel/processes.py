@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from .enums import AbortReason, ProcessKind, ProcessState
 from .errors import MotionError
-from .profiles import Limits, Profile
+from .profiles import Limits, OnlineProfile, TrapezoidProfile, profile_for
 
 if TYPE_CHECKING:
     from .controller import Controller
@@ -75,7 +75,8 @@ class Process:
 
 
 class ProfiledProcess(Process):
-    """A process driven by one ruckig :class:`Profile`."""
+    """A process driven by one profile: ruckig's when jerk-limited, the closed-form
+    trapezoid otherwise (:func:`.profiles.profile_for`)."""
 
     def __init__(
         self,
@@ -87,7 +88,7 @@ class ProfiledProcess(Process):
     ) -> None:
         super().__init__(owner)
         self.limits = limits.validated()
-        self.profile = Profile(dt, velocity, acceleration)
+        self.profile: OnlineProfile = profile_for(self.limits, dt, velocity, acceleration)
         self.velocity = velocity
         self.acceleration = acceleration
 
@@ -114,6 +115,7 @@ class ProfiledProcess(Process):
         saved = dict(vars(self))
         try:
             self.limits = limits.validated()
+            self._fit_profile()
             if speed is None:
                 self._retarget()
             else:
@@ -121,6 +123,15 @@ class ProfiledProcess(Process):
         except MotionError:
             vars(self).update(saved)
             raise
+
+    def _fit_profile(self) -> None:
+        """New limits may change the kind of profile (jerk-limited or trapezoidal): the
+        new one starts where the old one is."""
+        prof = self.profile
+        if isinstance(prof, TrapezoidProfile) != self.limits.trapezoidal:
+            self.profile = profile_for(
+                self.limits, prof.dt, prof.velocity, prof.acceleration, prof.position
+            )
 
     def change_speed(self, speed: float) -> None:
         raise NotImplementedError
