@@ -5,25 +5,29 @@ An axis's command position is its ``base`` plus the displacement of every active
 velocities add). A process that ends folds its displacement into ``base``. Instructions
 keep a reference to the process they started and poll its ``state``; the kernel never
 calls back into instructions.
+
+A process steps against a :class:`~.state.StepContext` (the shared arrays), never the
+controller: gears read their masters there.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Protocol
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from .enums import AbortReason, ProcessKind, ProcessState
 from .errors import MotionError
 from .profiles import Limits, OnlineProfile, TrapezoidProfile, profile_for
-
-if TYPE_CHECKING:
-    from .controller import Controller
+from .state import StepContext
 
 
 class Lane(Protocol):
     """A fast lane stepping processes as arrays (:mod:`.lanes`)."""
 
     def evict(self, p: Process) -> None: ...
+
+    def sync(self, p: Process) -> None: ...
 
 
 class Process:
@@ -54,7 +58,7 @@ class Process:
     def active(self) -> bool:
         return self.state == ProcessState.ACTIVE
 
-    def step(self, ctl: Controller, dt: float) -> None:
+    def step(self, ctx: StepContext, dt: float) -> None:
         raise NotImplementedError
 
     @property
@@ -72,6 +76,30 @@ class Process:
     def finish(self) -> None:
         if self.state == ProcessState.ACTIVE:
             self.state = ProcessState.DONE
+
+    def fail(self, code: int) -> None:
+        """The process cannot go on: ERROR with ``code`` (the kernel ramps its velocity
+        down)."""
+        if self.lane is not None:
+            self.lane.evict(self)
+        self.state = ProcessState.ERROR
+        self.error_code = int(code)
+
+
+#: builds a process from the velocity and acceleration of what it replaces
+ProcessFactory = Callable[[float, float], Process]
+
+
+class Pending:
+    """A buffered command: started by the kernel once the axis's active motion is done."""
+
+    def __init__(self, make: ProcessFactory, owner: object = None) -> None:
+        self.make = make
+        self.owner = owner
+        self.process: Process | None = None
+        self.cancelled = False
+        #: set when the command could not start (cancelled with an error)
+        self.error_code = 0
 
 
 class ProfiledProcess(Process):
@@ -92,7 +120,7 @@ class ProfiledProcess(Process):
         self.velocity = velocity
         self.acceleration = acceleration
 
-    def step(self, ctl: Controller, dt: float) -> None:
+    def step(self, ctx: StepContext, dt: float) -> None:
         self.profile.step()
         self.position = self.profile.position
         self.velocity = self.profile.velocity
@@ -253,9 +281,9 @@ class StopRamp(ProfiledProcess):
     def _retarget(self) -> None:
         self.profile.to_velocity(0.0, self.limits)
 
-    def step(self, ctl: Controller, dt: float) -> None:
-        if not math.isinf(self.limits.ruckig_jerk):
-            super().step(ctl, dt)  # jerk-limited: ruckig plans it
+    def step(self, ctx: StepContext, dt: float) -> None:
+        if not self.limits.trapezoidal:
+            super().step(ctx, dt)  # jerk-limited: ruckig plans it
             return
         # Trapezoidal (every MGS stop, MAS without jerk): the velocity drops by exactly
         # deceleration x dt per cycle and reaches rest in ceil(|v| / (d dt)) cycles. Done
