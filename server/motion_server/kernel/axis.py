@@ -111,10 +111,13 @@ class Axis:
         self._after_stop = action
         self._s.after_stop[self.index] = int(action)
 
-    def motion_changed(self) -> None:
-        """The kernel changed this axis's processes (or stepped them in Python)."""
+    def motion_changed(self, busy: bool | None = None) -> None:
+        """The kernel changed this axis's processes (or stepped them in Python); ``busy``
+        when the caller knows whether one is active."""
         s = self._s
-        s.busy[self.index] = any(p.active for p in self.processes)
+        if busy is None:
+            busy = any(p.active for p in self.processes)
+        s.busy[self.index] = busy
         s.dirty.add(self.index)
 
     # -- kinematic values (views into the shared arrays) -----------------------------------

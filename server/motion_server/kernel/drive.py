@@ -102,12 +102,17 @@ class DriveModel:
 
     def repair_actuals(self, idx: np.ndarray) -> list[int]:
         """Axes of ``idx`` whose drive state is not finite (the drive overflowed), held at
-        their command, at rest. (Screen with ``actuals_finite`` first.)"""
+        their command, at rest: within the positions whose encoder count is a finite
+        number, so that the axis does not overflow again. (Screen with
+        ``actuals_finite`` first.)"""
         s = self.s
         ok = np.isfinite(s.act_x[idx]) & np.isfinite(s.act_pos[idx]) & np.isfinite(s.act_vel[idx])
         bad = idx[~ok]
+        reach = 0.5 * np.finfo(float).max / s.cpu[bad]
         here = s.drv_cmd[bad]
-        for a in (s.act_x, s.act_pos, s.cmd_pos):
+        here = np.where(np.isfinite(here), np.clip(here, -reach, reach), 0.0)
+        here = np.round(here * s.cpu[bad]) / s.cpu[bad]
+        for a in (s.act_x, s.act_pos, s.cmd_pos, s.drv_cmd):
             a[bad] = here
         for a in (s.act_vel, s.cmd_vel, s.cmd_acc):
             a[bad] = 0.0

@@ -372,6 +372,7 @@ class GearProcess(Process):
         return self.locked or super().reached
 
     def _lock(self) -> None:
+        self.offer_pending = True
         self.at_lock = self.position
         for c in self._c:
             c.lock()

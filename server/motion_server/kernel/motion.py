@@ -46,6 +46,7 @@ class Motion:
         self.groups = list(groups)
         self.lanes_enabled = lanes
         self.lanes = {g.number: GroupLanes(g) for g in groups}
+        self._offer_to = self.lanes if lanes else {}
         #: masters and slaves changed: the composition order is recomputed at the next step
         self.order_dirty = True
         #: unexpected failures since the host last took them
@@ -68,17 +69,16 @@ class Motion:
 
     def offer(self, ax: Axis) -> None:
         """After a change or a composition: one active process on a driven axis, with
-        nothing buffered, may go to a fast lane."""
+        nothing buffered, may go to a fast lane, if something happened to it since it was
+        last offered (``Process.offer_pending``)."""
         procs = ax.processes
-        if (
-            self.lanes_enabled
-            and len(procs) == 1
-            and ax.buffered is None
-            and procs[0].active
-            and procs[0].lane is None
-            and self.s.drive_on[ax.index]
-        ):
-            self.lanes[ax.group].offer(ax)
+        if len(procs) == 1 and ax.buffered is None:
+            p = procs[0]
+            if p.offer_pending and p.lane is None and p.state is ProcessState.ACTIVE:
+                lanes = self._offer_to.get(ax.group)
+                if lanes is not None and self.s.drive_on.item(ax.index):
+                    p.offer_pending = False
+                    lanes.offer(ax, p)
 
     def coupling_changed(self) -> None:
         """Call after adding or removing a process that has masters."""
@@ -258,7 +258,7 @@ class Motion:
             s.cmd_pos[i] = ax.base + p.position
             s.cmd_vel[i] = p.velocity
             s.cmd_acc[i] = p.acceleration
-            ax.motion_changed()
+            ax.motion_changed(True)
             return
         keep: list[Process] = []
         landing: float | None = None

@@ -20,6 +20,7 @@ from .enums import AbortReason, ProcessKind, ProcessState
 from .errors import MotionError
 from .profiles import Limits, OnlineProfile, TrapezoidProfile, profile_for
 from .state import StepContext
+from .trapezoid import judge_ramp
 
 
 class Lane(Protocol):
@@ -39,6 +40,9 @@ class Process:
     #: the fast lane stepping this process (:mod:`.lanes`); while set, ``position``,
     #: ``velocity`` and ``acceleration`` are stale until the lane evicts it
     lane: Lane | None = None
+    #: the process may have entered a state a lane steps (it started, left its lane,
+    #: reached its speed, locked): the kernel offers it to the lanes once, then clears it
+    offer_pending: bool = True
 
     def __init__(self, owner: Any = None) -> None:
         self.owner = owner
@@ -140,6 +144,7 @@ class ProfiledProcess(Process):
         profile cannot be planned nothing changes and MotionError is raised."""
         if self.lane is not None:
             self.lane.evict(self)
+        self.offer_pending = True
         saved = dict(vars(self))
         try:
             self.limits = limits.validated()
@@ -193,8 +198,9 @@ class JogProcess(ProfiledProcess):
 
     def _after_step(self) -> None:
         # A jog never finishes by itself; "at speed" is InVelocity for PLCopen.
-        if self.profile.finished:
+        if self.profile.finished and not self.at_speed:
             self.at_speed = True
+            self.offer_pending = True
 
     def change_speed(self, speed: float) -> None:
         """Keep the direction, change the magnitude (MCD)."""
@@ -271,10 +277,21 @@ class StopRamp(ProfiledProcess):
         stopping: bool = True,
     ) -> None:
         big = max(abs(velocity), 1e-9) * 2.0
-        limits = Limits(big, deceleration, deceleration, jerk)
-        super().__init__(dt, limits, velocity, acceleration if jerk else 0.0, owner)
+        limits = Limits(big, deceleration, deceleration, jerk).validated()
+        a0 = acceleration if jerk else 0.0
+        if limits.trapezoidal:
+            # stepped in closed form (below), no planner: the ramp is judged as a plan
+            # would judge it (a ramp beyond the longest profile is refused)
+            Process.__init__(self, owner)
+            self.limits = limits
+            self.profile = TrapezoidProfile(dt, velocity, a0)
+            self.velocity = velocity
+            self.acceleration = a0
+            judge_ramp(velocity, deceleration)
+        else:
+            super().__init__(dt, limits, velocity, a0, owner)
+            self._retarget()
         self.stopping = stopping
-        self._retarget()
         if velocity == 0.0 and acceleration == 0.0:
             self.finish()
 

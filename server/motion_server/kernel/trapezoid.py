@@ -78,6 +78,23 @@ class Plan:
         return self.pos[s] + tau * (v + tau * self.half[s]), v + tau * self.acc[s], self.acc[s]
 
 
+def _too_long(duration: float) -> MotionError:
+    return MotionError(
+        ErrorCode.PROFILE_FAILED,
+        f"the profile would last {duration:g} s (more than {MAX_DURATION:g} s) for these limits",
+    )
+
+
+def judge_ramp(velocity: float, deceleration: float) -> None:
+    """Refuse a ramp from ``velocity`` to rest that no plan could hold, as
+    :func:`plan_velocity` would (too long, or beyond any float), without building one."""
+    duration = abs(velocity) / deceleration
+    if not math.isfinite(duration) or duration > MAX_DURATION:
+        raise _too_long(duration)
+    if not math.isfinite(duration * velocity):
+        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
+
+
 def _build(
     dt: float,
     p0: float,
@@ -100,10 +117,7 @@ def _build(
         v = v + duration * a
         t = t + duration
     if not math.isfinite(t) or t > MAX_DURATION:
-        raise MotionError(
-            ErrorCode.PROFILE_FAILED,
-            f"the profile would last {t:g} s (more than {MAX_DURATION:g} s) for these limits",
-        )
+        raise _too_long(t)
     if not all(math.isfinite(x) for x in (p, v, *pos, *vel)):
         raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
     return Plan(

@@ -82,6 +82,7 @@ class Lane:
         if p.lane is not self:
             return
         p.lane = None
+        p.offer_pending = True
         k = self._slot.pop(id(p), None)
         if k is not None:
             self._store(p, k)

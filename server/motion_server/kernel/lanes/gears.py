@@ -180,7 +180,11 @@ class FractionLane(LevelledLane):
         pos = a["at_lock"][level] + n / a["cpu_s"][level]
         ratio = a["ratio"][level]
         vel = ratio * v
-        acc = ratio * a_arr[mi] if a_arr is not None else ratio * (v - a["v_prev"][level]) / dt
+        # _Coupling.acceleration: ratio x (a master acceleration, or its velocity difference)
+        if a_arr is not None:
+            acc = ratio * a_arr[mi]
+        else:
+            acc = ratio * ((v - a["v_prev"][level]) / dt)
         a["v_prev"][level] = v
         a["counts"][level] = n
         a["pos"][level] = pos

@@ -18,7 +18,7 @@ from ..axis import Axis
 from ..enums import MasterReference
 from ..gearing import GearProcess
 from ..group import MotionGroup
-from ..processes import Process
+from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from .base import Compose, Lane, LevelledLane
 from .gears import CatchUpLane, FractionLane, GearLane, gear_source
@@ -55,19 +55,42 @@ class GroupLanes:
     def __len__(self) -> int:
         return sum(len(lane) for lane in self.all)
 
-    def offer(self, ax: Axis) -> None:
-        """``ax`` has one active process and nothing buffered: admit it to the lane of its
-        state, if there is one."""
-        p = ax.processes[0]
-        for lane in (self.cruise, self.profiles, self.stops):
-            if lane.accepts(p):
-                lane.admit(p, ax)
-                return
-        if type(p) is GearProcess and p.single is not None:
-            for follower in self.followers[gear_source(p)]:
+    def offer(self, ax: Axis, p: Process) -> None:
+        """``p`` is the only, active process of ``ax`` and nothing is buffered: admit it
+        to the lane of its state, if there is one."""
+        kind = type(p)
+        if kind is JogProcess:
+            if CruiseLane.accepts(p):
+                self.cruise.admit(p, ax)
+            elif ProfileLane.accepts(p):
+                self.profiles.admit(p, ax)
+        elif kind is MoveProcess:
+            if ProfileLane.accepts(p):
+                self.profiles.admit(p, ax)
+        elif kind is StopRamp:
+            if StopLane.accepts(p):
+                self.stops.admit(p, ax)
+        elif kind is GearProcess:
+            self._offer_follower(p, ax)
+
+    def _offer_follower(self, p: Process, ax: Axis) -> None:
+        assert isinstance(p, GearProcess)
+        if p.single is not None:
+            source = gear_source(p)
+            if source == MasterReference.COMMAND and not self._master_settled(p.single.index):
+                return  # its master is composed in Python: so must it be (see rebuild)
+            for follower in self.followers[source]:
                 if follower.accepts(p):
                     follower.admit(p, ax)
                     return
+
+    def _master_settled(self, index: int) -> bool:
+        """The master at ``index`` is composed before any follower steps: in another group,
+        without motion, or in a lane (its level is decided at the rebuild)."""
+        master = self.group.by_index.get(index)
+        if master is None or (not master.processes and master.buffered is None):
+            return True
+        return len(master.processes) == 1 and master.processes[0].lane is not None
 
     def rebuild(self, s: AxisArrays, axes: Sequence[Axis]) -> None:
         """Apply the changes of membership; order the command followers by level."""
@@ -86,6 +109,10 @@ class GroupLanes:
         self.schedule = schedule
         laned = {id(ax) for lane in self.all for ax in lane.axes}
         self.python_order = [ax for ax in self.group.order if id(ax) not in laned]
+        for ax in self.python_order:
+            # membership changed: a follower's master may have joined a lane
+            for p in ax.processes:
+                p.offer_pending = True
         self.dirty = False  # evictions while levelling set it: they are rebuilt above
 
     def _order_command_followers(self, axes: Sequence[Axis]) -> None:
