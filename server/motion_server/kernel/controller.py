@@ -23,7 +23,7 @@ goes wrong in a step ends it: a process that raises is contained by
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Iterable, Sequence
+from collections.abc import Callable, Collection, Iterable, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -107,6 +107,17 @@ class Controller:
         self.mdsc = MasterDrivenControl(self.motion)
         self.tick = 0
         self.mode = OperatingMode.RUN
+        #: per group: compose one axis in Python now (and offer it to the lanes)
+        self._composers = {g.number: self._composer(g.period) for g in self.groups}
+
+    def _composer(self, dt: float) -> Callable[[Axis], None]:
+        motion = self.motion
+
+        def compose(ax: Axis) -> None:
+            motion.compose(ax, dt)
+            motion.offer(ax)
+
+        return compose
 
     @staticmethod
     def _check_unique(values: Iterable[object], what: str) -> None:
@@ -177,6 +188,9 @@ class Controller:
     def master_arrays(self, reference: MasterReference) -> MasterArrays:
         return self.arrays.master_arrays(reference)
 
+    def read_master(self, index: int, reference: MasterReference) -> tuple[float, float]:
+        return self.arrays.read_master(index, reference)
+
     def index_of(self, number: int) -> int:
         return self.arrays.index_of(number)
 
@@ -208,11 +222,7 @@ class Controller:
         lanes = motion.lanes[g.number]
         if lanes.dirty:
             lanes.rebuild(s, self.axes)
-
-        def compose(ax: Axis) -> None:
-            motion.compose(ax, dt)
-            motion.offer(ax)
-
+        compose = self._composers[g.number]
         lanes.step(s, dt, compose)
         for ax in lanes.python_order:
             if ax.processes or ax.buffered is not None:
@@ -220,12 +230,14 @@ class Controller:
         if not s.commands_finite():
             for i in self.drive.repair_commands(g.idx):
                 self._numeric_fault(self.axes[i], "command", "the composed command is not finite")
-        self.drive.follow(g.servo_idx, dt, servo=True)
+        beyond = self.drive.follow(g.servo_idx, dt, servo=True)
         self.drive.follow(g.virtual_idx, dt, servo=False)
         if not s.actuals_finite():
-            for i in self.drive.repair_actuals(g.idx):
+            repaired = self.drive.repair_actuals(g.idx)
+            for i in repaired:
                 self._numeric_fault(self.axes[i], "drive model", "the drive state is not finite")
-        for i in self.drive.following_errors(g.servo_idx):
+            beyond = [i for i in beyond if i not in repaired]  # held at their command
+        for i in beyond:
             self.fault(self.axes[i], AxisFault.POSITION_ERROR)
         if g.after_stops:
             due, g.after_stops = after_stops_due(s, g, dt)

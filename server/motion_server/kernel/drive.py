@@ -37,12 +37,14 @@ class _Partition:
         "all",
         "decay",
         "dt",
+        "limit",
         "n_off",
         "n_on",
         "n_watched",
         "off",
         "on",
         "version",
+        "watch_all",
         "watched",
     )
 
@@ -57,6 +59,10 @@ class _Partition:
         self.off: Index = compact(off_idx)
         self.watched: Index = compact(watched)
         self.n_on, self.n_off, self.n_watched = on_idx.size, off_idx.size, watched.size
+        #: every axis that is on has a following-error limit: the check reads the
+        #: drive update's own arrays
+        self.watch_all = watched.size == on_idx.size
+        self.limit = s.fe_limit[on_idx] if self.watch_all else s.fe_limit[watched]
         #: exp(-w dt) of the axes that are on, for the period ``dt`` (set on first use)
         self.decay = np.zeros(0)
         self.dt = 0.0
@@ -119,11 +125,13 @@ class DriveModel:
         return [int(i) for i in bad]
 
     # -- drives ---------------------------------------------------------------------------
-    def follow(self, idx: np.ndarray, dt: float, servo: bool) -> None:
-        """One cycle of the drives of ``idx`` (all servo or all virtual)."""
+    def follow(self, idx: np.ndarray, dt: float, servo: bool) -> list[int]:
+        """One cycle of the drives of ``idx`` (all servo or all virtual). Returns the servo
+        axes whose following error now exceeds their limit (to be faulted)."""
         if idx.size == 0:
-            return
+            return []
         s = self.s
+        beyond: list[int] = []
         part = self._partition(idx)
         on_idx, off_idx = part.on, part.off
         if part.n_on:
@@ -144,7 +152,10 @@ class DriveModel:
                 s.act_x[on_idx] = x
                 s.act_vel[on_idx] = slope + (de0 - w * b * dt) * decay
                 cpu = s.cpu[on_idx]
-                s.act_pos[on_idx] = np.round(x * cpu) / cpu
+                q = (x * cpu).round() / cpu
+                s.act_pos[on_idx] = q
+                if part.n_watched:
+                    beyond = self._following_errors(part, c1, q)
             else:
                 s.act_x[on_idx] = s.cmd_pos[on_idx]
                 s.act_pos[on_idx] = s.cmd_pos[on_idx]
@@ -159,7 +170,7 @@ class DriveModel:
             x = s.act_x[off_idx] + 0.5 * (v0 + v1) * dt
             if servo:
                 cpu = s.cpu[off_idx]
-                q = np.round(x * cpu) / cpu
+                q = (x * cpu).round() / cpu
             else:
                 q = x
             s.act_x[off_idx] = x
@@ -170,24 +181,25 @@ class DriveModel:
             s.cmd_vel[off_idx] = v1
             s.cmd_acc[off_idx] = 0.0
         s.drv_cmd[part.all] = s.cmd_pos[part.all]
+        return beyond
 
-    def following_errors(self, idx: np.ndarray) -> list[int]:
-        """Axes of ``idx`` whose |command - actual| exceeds their following error limit."""
-        if idx.size == 0:
-            return []
-        part = self._partition(idx)
-        if not part.n_watched:
-            return []
-        watched = part.watched
-        s = self.s
-        err = np.abs(s.cmd_pos[watched] - s.act_pos[watched])
-        over = err > s.fe_limit[watched]
-        if not over.any():
+    def _following_errors(self, part: _Partition, c1: np.ndarray, q: np.ndarray) -> list[int]:
+        """Axes whose |command - actual| exceeds their following error limit, from the
+        servo update's command ``c1`` and new actual ``q`` of the axes that are on."""
+        if part.watch_all:
+            over = np.abs(c1 - q) > part.limit
+            rows_of = part.on
+        else:
+            s = self.s
+            w = part.watched
+            over = np.abs(s.cmd_pos[w] - s.act_pos[w]) > part.limit
+            rows_of = w
+        if not np.count_nonzero(over):
             return []
         rows = np.flatnonzero(over)
-        if isinstance(watched, slice):
-            return [int(watched.start + r) for r in rows]
-        return [int(watched[r]) for r in rows]
+        if isinstance(rows_of, slice):
+            return [int(rows_of.start + r) for r in rows]
+        return [int(rows_of[r]) for r in rows]
 
     # -- feedback -------------------------------------------------------------------------
     def sample_feedback(self, ax: Axis, time: float, dt: float) -> str | None:

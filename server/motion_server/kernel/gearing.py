@@ -223,6 +223,10 @@ class CatchUp:
     def step(self, target_v: float, target_a: float, dt: float) -> bool:
         raise NotImplementedError
 
+    def judge(self, target_v: float) -> None:
+        """Raise MotionError if the ramp from where it starts to ``target_v`` cannot be
+        planned (checked when the gear is built, so a refused gear changes nothing)."""
+
 
 class RateRamp(CatchUp):
     """Trapezoidal velocity profile: the velocity moves toward the target by at most
@@ -275,6 +279,13 @@ class JerkRamp(CatchUp):
         a0 = max(-lim, min(lim, acceleration))
         self._profile = Profile(self._dt, velocity, a0)
         self._target = None
+
+    def judge(self, target_v: float) -> None:
+        """Plan the first step's profile on a copy (ruckig refuses limits such as a jerk
+        of 1e-300 only when it plans)."""
+        prof = Profile(self._dt, self._profile.velocity, self._profile.acceleration)
+        big = 2.0 * max(abs(target_v), abs(prof.velocity)) + 1.0
+        prof.to_velocity(target_v, Limits(big, self.accel, self.decel, self.jerk))
 
     def step(self, target_v: float, target_a: float, dt: float) -> bool:
         prof = self._profile
@@ -342,13 +353,14 @@ class GearProcess(Process):
         #: the gear's own displacement when it locked
         self.at_lock = 0.0
         self.locked = False
-        remember_direction(slave, self.direction)
         if ramp is None:
             self._lock()
         else:
             ramp.start(velocity, acceleration)
+            ramp.judge(sum(c.velocity() for c in self._c))
             self.velocity = velocity
             self.acceleration = acceleration
+        remember_direction(slave, self.direction)  # once nothing can refuse the gear
 
     @property
     def phase(self) -> GearPhase:

@@ -69,14 +69,12 @@ def link_reference(master: Axis, reference: MasterReference) -> MasterReference:
 
 def master_position(ctx: StepContext, master: Axis, reference: MasterReference) -> float:
     """Unwound position of the master as the link reads it."""
-    pos, _, _ = ctx.master_arrays(link_reference(master, reference))
-    return float(pos[master.index])
+    return ctx.read_master(master.index, link_reference(master, reference))[0]
 
 
 def master_speed(ctx: StepContext, master: Axis, reference: MasterReference) -> float:
     """The master's forward speed (units/s) as the link reads it; reverse counts as 0."""
-    _, vel, _ = ctx.master_arrays(link_reference(master, reference))
-    return max(float(vel[master.index]), 0.0)
+    return max(ctx.read_master(master.index, link_reference(master, reference))[1], 0.0)
 
 
 class MasterProfile:

@@ -88,21 +88,25 @@ class Motion:
         """Order each group's axes so that masters compose before their slaves."""
         for g in self.groups:
             order: list[Axis] = []
+            placed: set[int] = set()
             for ax in g.axes:
-                self._visit(ax, g.number, order, ())
+                self._visit(ax, g.number, order, placed, ())
             g.order = order
             self.lanes[g.number].dirty = True
         self.order_dirty = False
 
-    def _visit(self, ax: Axis, group: int, order: list[Axis], path: tuple[int, ...]) -> None:
-        if ax in order or ax.number in path:
+    def _visit(
+        self, ax: Axis, group: int, order: list[Axis], placed: set[int], path: tuple[int, ...]
+    ) -> None:
+        if ax.index in placed or ax.number in path:
             return
         for p in ax.processes:
             for m in p.masters:
                 master = self._by_number.get(m)
                 if master is not None and master.group == group:
-                    self._visit(master, group, order, (*path, ax.number))
+                    self._visit(master, group, order, placed, (*path, ax.number))
         order.append(ax)
+        placed.add(ax.index)
 
     def would_cycle(self, slave: int, masters: Collection[int]) -> bool:
         """True if making ``slave`` follow ``masters`` closes a loop of master/slave links."""

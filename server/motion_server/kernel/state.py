@@ -7,7 +7,8 @@ and MotionStatus bits, kept current per axis only when they may have changed: ``
 
 Motion processes step against this state through :class:`StepContext`: the arrays they
 read and :meth:`AxisArrays.master_arrays`, the one place that says where a master's
-position is read (command or actual, :class:`~.enums.MasterReference`).
+position is read (command or actual, :class:`~.enums.MasterReference`);
+:meth:`AxisArrays.read_master` reads one master through it.
 """
 
 from __future__ import annotations
@@ -52,6 +53,8 @@ class StepContext(Protocol):
     conversion: np.ndarray
 
     def master_arrays(self, reference: MasterReference) -> MasterArrays: ...
+
+    def read_master(self, index: int, reference: MasterReference) -> tuple[float, float]: ...
 
     def index_of(self, number: int) -> int: ...
 

@@ -162,8 +162,11 @@ class GroupLanes:
         self.depth = depth
 
     def step(self, s: AxisArrays, dt: float, compose: Compose) -> None:
-        self.cruise.step(s)
-        self.profiles.step(s, compose)
-        self.stops.step(s, dt, compose)
+        if self.cruise.members:
+            self.cruise.step(s)
+        if self.profiles.members:
+            self.profiles.step(s, compose)
+        if self.stops.members:
+            self.stops.step(s, dt, compose)
         for lane, level in self.schedule:
             lane.step(s, level, dt, compose)
