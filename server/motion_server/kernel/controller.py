@@ -51,8 +51,7 @@ from .state import AxisArrays, MasterArrays
 
 __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArrays"]
 
-_ACCEL_BIT = 1
-_DECEL_BIT = 2
+_DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 
 
 class ConfigError(ValueError):
@@ -109,6 +108,11 @@ class Controller:
         self.mode = OperatingMode.RUN
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g.period) for g in self.groups}
+        self._status_views = (
+            _readonly(s.axis_state),
+            _readonly(s.plcopen_state),
+            _readonly(s.fault),
+        )
 
     def _composer(self, dt: float) -> Callable[[Axis], None]:
         motion = self.motion
@@ -243,6 +247,8 @@ class Controller:
             due, g.after_stops = after_stops_due(s, g, dt)
             for ax in due:
                 action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
+                if ax.state != AxisState.SERVO_CONTROL:
+                    continue  # (leaving Servo Control drops the action; kept for safety)
                 event = (
                     PowerEvent.STOPPED_DISABLE
                     if action == AfterStop.DISABLE
@@ -271,7 +277,9 @@ class Controller:
         """AxisState, PLCopenState, MotionStatus and AxisFault of every axis as integer
         arrays (axis index order), equal to the axes' properties at any moment between
         kernel calls. Costs Python work only for axes whose processes, power state or
-        latches changed since the last call, and a few array operations."""
+        latches changed since the last call, and a few array operations. The first
+        three arrays are read-only views of the kernel's own (valid until the next call
+        into the kernel); MotionStatus is computed afresh."""
         s = self.arrays
         if s.dirty:
             axes = self.axes
@@ -280,11 +288,12 @@ class Controller:
                 s.plcopen_state[i] = int(ax.plcopen_state)
                 s.motion_bits[i] = ax.process_bits()
             s.dirty.clear()
+        # the Accel and Decel bits: the sign of velocity x acceleration (Axis.motion_status)
         prod = s.cmd_vel * s.cmd_acc
-        accel = np.where(prod > 0.0, _ACCEL_BIT, np.where(prod < 0.0, _DECEL_BIT, 0))
-        status = s.motion_bits | accel
+        status = s.motion_bits + (prod > 0.0)
+        status += (prod < 0.0) * _DECEL_BIT
         return StatusArrays(
-            _readonly(s.axis_state), _readonly(s.plcopen_state), status, _readonly(s.fault)
+            self._status_views[0], self._status_views[1], status, self._status_views[2]
         )
 
     # -- power ------------------------------------------------------------------------------
