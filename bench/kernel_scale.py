@@ -1,104 +1,163 @@
-"""Kernel step cost for 32, 256 and 1024 axes with half of them geared.
+"""Kernel step cost for 32, 256 and 1024 axes: the steady state and the worst cases.
 
-Each case: N/2 virtual masters jogging at constant speed and N/2 servo slaves geared to
-them with MAG (real ratio, command reference, clutch disabled), every slave's drive
-simulated; one group at a 1 ms coarse update period. The benchmark steps the bare kernel
-(``Controller.step``) and prints, per step, the CPU time of the stepping thread (the cost
-on one core, which other processes on a shared machine do not inflate) and the wall
-time, and the CPU share of the 1 ms period against the target: 256 axes under 25 %.
+Every case starts from N/2 virtual masters and N/2 servo slaves geared to them (real
+ratio 0.5 on the master's command position, clutch disabled: what MAG builds), every
+slave's drive simulated, one group at a 1 ms coarse update period, decelerations and
+accelerations of 1,000 mm/s² where a case ramps:
 
-Each size runs twice in the same process, side by side: with the fast lanes (the
-default: steady jogs and locked gears stepped as arrays, ``kernel/lanes.py``) and with
-every axis composed in Python (``Controller(lanes=False)``, the reference); the ratio is
-the lanes' gain.
+- ``steady``: masters jogging at 100 mm/s, slaves locked (2000 steps);
+- ``stop``: from ``steady``, MGS Fast Stop: every axis ramps to rest (100 steps);
+- ``accel``: masters at rest, slaves locked to them; MAJ from rest to 100 mm/s on every
+  master, the slaves follow (100 steps);
+- ``clutch``: masters jogging at 100 mm/s; MAG with the clutch enabled on every slave: the
+  slaves catch up at 1,000 mm/s² from rest, then lock (60 steps);
+- ``s-curve``: ``accel`` with a jerk limit of 20,000 mm/s³: ruckig plans each master's
+  ramp, in Python (what it costs per axis; no lane).
 
-    python bench/kernel_scale.py [--cycles 2000]
+The commands go to the kernel directly (the processes the instructions build); the
+benchmark prints, per step of ``Controller.step``, the CPU time of the stepping thread
+(the cost on one core, which other processes on a shared machine do not inflate): mean,
+p99 and max over the case's steps, and the CPU share of the 1 ms period (target: 256
+axes under 25 % in every case); then the CPU time of the command itself, once. Each case
+runs twice in the same process, side by side: with the fast lanes (the default,
+``kernel/lanes/``) and with every axis composed in Python (``Controller(lanes=False)``,
+the reference the lanes are tested against bit for bit).
+
+    python bench/kernel_scale.py [--sizes 32 256 1024] [--cases steady stop ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
+from collections.abc import Callable
 
-from motion_server.instructions import MotionSystem
-from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
+from motion_server.kernel import (
+    AxisConfig,
+    AxisType,
+    Controller,
+    GroupConfig,
+    JogProcess,
+    Limits,
+    ProcessKind,
+    ProgrammedStopMode,
+)
+from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference, RateRamp
 
 PERIOD = 0.001
 TARGET_SHARE = 0.25
+SPEED = 100.0
+RATE = 1000.0
+JERK = 20_000.0
+#: MAG's real ratio 0.5 as it builds it: 50000 / 100000 (five decimals)
+RATIO = (50_000, 100_000)
 
 
-def build(n_axes: int, lanes: bool = True) -> MotionSystem:
+def controller(n_axes: int, lanes: bool) -> Controller:
     half = n_axes // 2
     axes = [
         AxisConfig(k + 1, f"M{k + 1}", AxisType.VIRTUAL, max_velocity=1000.0,
-                   max_acceleration=1e5, max_deceleration=1e5)
+                   max_acceleration=RATE, max_deceleration=RATE)
         for k in range(half)
     ] + [
         AxisConfig(half + k + 1, f"S{k + 1}", AxisType.SERVO, max_velocity=1000.0,
-                   max_acceleration=1e5, max_deceleration=1e5, following_error_limit=50.0)
+                   max_acceleration=RATE, max_deceleration=RATE, following_error_limit=50.0)
         for k in range(half)
     ]  # fmt: skip
     group = GroupConfig(1, "G", tuple(a.number for a in axes), PERIOD)
     ctl = Controller(axes, [group], lanes=lanes)
-    system = MotionSystem(ctl)
-    mso = system.add("MSO", "MSO")
-    maj = system.add("MAJ", "MAJ", {"Speed": 100.0, "AccelRate": 1e5, "DecelRate": 1e5})
-    mag = system.add("MAG", "MAG", {"Ratio": 0.5, "MasterReference": 1, "Clutch": 1})
+    for ax in ctl.axes:
+        ctl.servo_on(ax)
+    return ctl
 
-    def fire(inst: object, **operands: float) -> None:
-        inst.inputs.update(operands)  # type: ignore[attr-defined]
-        inst.inputs["Execute"] = True  # type: ignore[attr-defined]
-        system.cycle()
-        inst.inputs["Execute"] = False  # type: ignore[attr-defined]
-        system.cycle()
 
-    for a in axes:
-        fire(mso, Axis=a.number)
+def jog(ctl: Controller, jerk: float = 0.0) -> None:
+    """MAJ at 100 mm/s on every master (from wherever it is)."""
+    for ax in ctl.axes[: len(ctl.axes) // 2]:
+        ctl.start(
+            ax,
+            lambda v, a: JogProcess(PERIOD, SPEED, Limits(SPEED, RATE, RATE, jerk), v, a),
+            replace=(ProcessKind.JOG,),
+        )
+
+
+def gear(ctl: Controller, clutch: bool) -> None:
+    """MAG on every slave, to its master's command position."""
+    half = len(ctl.axes) // 2
     for k in range(half):
-        fire(maj, Axis=k + 1)
-        fire(mag, SlaveAxis=half + k + 1, MasterAxis=k + 1)
-    # run until every jog is at speed, so the measured steps are steady state
-    system.cycle(50)
-    assert all(ctl.axis(half + k + 1).active() for k in range(half)), "gearing not active"
-    return system
+        slave = ctl.axes[half + k]
+        term = GearTerm(k + 1, MasterReference.COMMAND, *RATIO)
+
+        def make(v: float, a: float, slave: object = slave, term: GearTerm = term) -> GearProcess:
+            ramp = RateRamp(RATE) if clutch else None
+            return GearProcess(ctl, slave, (term,), ramp, v, a)  # type: ignore[arg-type]
+
+        ctl.start(slave, make, replace=(ProcessKind.GEAR,))
 
 
-def measure(n_axes: int, cycles: int, lanes: bool) -> tuple[float, float, float]:
-    """(mean CPU, p99 CPU, mean wall) seconds per step."""
-    ctl = build(n_axes, lanes).ctl
-    cpu, wall = [], []
-    for _ in range(cycles):
-        t0, c0 = time.perf_counter(), time.thread_time()
+def stop(ctl: Controller) -> None:
+    ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+
+
+#: case -> (set-up, command, steps measured after the command)
+CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None], int]] = {
+    "steady": (lambda c: (jog(c), gear(c, False)), lambda c: None, 2000),
+    "stop": (lambda c: (jog(c), gear(c, False)), stop, 100),
+    "accel": (lambda c: gear(c, False), jog, 100),
+    "clutch": (jog, lambda c: gear(c, True), 60),
+    "s-curve": (lambda c: gear(c, False), lambda c: jog(c, JERK), 100),
+}
+
+
+def measure(case: str, n_axes: int, lanes: bool) -> tuple[list[float], float]:
+    """CPU seconds of each step after the command, and of the command."""
+    setup, command, steps = CASES[case]
+    ctl = controller(n_axes, lanes)
+    setup(ctl)
+    ctl.run(150)  # jogs at speed, gears locked
+    c0 = time.thread_time()
+    command(ctl)
+    command_cpu = time.thread_time() - c0
+    cpu = []
+    for _ in range(steps):
+        c0 = time.thread_time()
         ctl.step()
         cpu.append(time.thread_time() - c0)
-        wall.append(time.perf_counter() - t0)
-    cpu.sort()
-    return statistics.fmean(cpu), cpu[int(0.99 * (len(cpu) - 1))], statistics.fmean(wall)
+    return cpu, command_cpu
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--cycles", type=int, default=2000)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[32, 256, 1024])
+    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     args = ap.parse_args()
+    print(f"load average {os.getloadavg()[0]:.2f}")
     print(
-        f"{'axes':>6} {'geared':>7} {'lanes':>6} {'cpu mean us':>12} {'cpu p99 us':>11} "
-        f"{'wall mean us':>13} {'cpu share of 1 ms':>18}"
+        f"{'case':>8} {'axes':>5} {'lanes':>5} {'cpu mean us':>11} {'p99 us':>8} {'max us':>8} "
+        f"{'share of 1 ms':>13} {'command us':>10}"
     )
-    for n in (32, 256, 1024):
-        means = {}
-        for lanes in (False, True):
-            mean, p99, wall = measure(n, args.cycles, lanes)
-            means[lanes] = mean
-            share = mean / PERIOD
-            mark = ""
-            if n == 256 and lanes:
-                mark = "  target < 25 %: " + ("met" if share < TARGET_SHARE else "MISSED")
-            print(
-                f"{n:>6} {n // 2:>7} {'on' if lanes else 'off':>6} {mean * 1e6:>12.1f} "
-                f"{p99 * 1e6:>11.1f} {wall * 1e6:>13.1f} {share:>17.1%}{mark}"
-            )
-        print(f"{'':>6} lanes cut the step to {means[True] / means[False]:.2f} of the reference")
+    for case in args.cases:
+        for n in args.sizes:
+            means = {}
+            for lanes in (False, True):
+                cpu, command_cpu = measure(case, n, lanes)
+                mean = statistics.fmean(cpu)
+                means[lanes] = mean
+                ordered = sorted(cpu)
+                p99 = ordered[int(0.99 * (len(ordered) - 1))]
+                share = mean / PERIOD
+                mark = ""
+                if n == 256 and lanes and case != "s-curve":
+                    mark = "  target 25 %: " + ("met" if share <= TARGET_SHARE else "MISSED")
+                print(
+                    f"{case:>8} {n:>5} {'on' if lanes else 'off':>5} {mean * 1e6:>11.1f} "
+                    f"{p99 * 1e6:>8.1f} {ordered[-1] * 1e6:>8.1f} {share:>12.1%} "
+                    f"{command_cpu * 1e6:>10.0f}{mark}"
+                )
+            print(f"{'':>14} lanes: {means[True] / means[False]:.2f} of the reference")
+    print(f"load average {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -149,6 +149,7 @@ def test_every_packed_word_lists_its_bits(demo: TagMap) -> None:
         str(AxisFault.POSITION_ERROR.bit_length() - 1): "PositionError",
         str(AxisFault.PROFILE.bit_length() - 1): "Profile",
         str(WATCHDOG_FAULT.bit_length() - 1): "CommunicationWatchdog",
+        str(AxisFault.NUMERIC.bit_length() - 1): "Numeric",
     }
     motion = words[(demo.tag("Axis2.MotionStatus").address, "MotionStatus")]
     assert motion["bits"]["12"] == "GearingLock" and motion["bits"]["4"] == "Gearing"

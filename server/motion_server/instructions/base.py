@@ -11,7 +11,7 @@ from __future__ import annotations
 from enum import IntEnum, StrEnum
 from typing import Any, ClassVar
 
-from ..kernel import Axis, Controller, ErrorCode, MotionError
+from ..kernel import Axis, Controller, ErrorCode, MotionError, TransitionError
 from ..kernel.group import MotionGroup
 from .schema import Kind, Operand, StatusField, TagType, coerce
 from .status import LOGIX_STATUS, PLCOPEN_STATUS, LogixBit
@@ -20,10 +20,6 @@ from .status import LOGIX_STATUS, PLCOPEN_STATUS, LogixBit
 class Dialect(StrEnum):
     LOGIX = "logix"
     PLCOPEN = "plcopen"
-
-
-class TransitionError(RuntimeError):
-    """An event that the state table does not allow in the current state."""
 
 
 class Outputs(dict[str, Any]):
@@ -311,10 +307,7 @@ class PLCopenBlock(Instruction):
     def fire(self, event: BlockEvent) -> None:
         nxt = BLOCK_TRANSITIONS.get((self.state, event))
         if nxt is None:
-            raise TransitionError(
-                f"{self.TYPE} {self.name}: no transition for {event.name} in "
-                f"state {self.state.name}"
-            )
+            raise TransitionError(f"{self.TYPE} {self.name}", self.state, event)
         self.state = nxt
         self._shown = False
         if nxt != BlockState.BUSY:

@@ -1,11 +1,16 @@
 """The pure motion kernel: no asyncio, sockets, clocks or logging configuration here.
 
 ``Controller.step()`` advances one cycle; same inputs give bit-identical traces.
+
+Imports point one way, from the leaves up: ``enums``, ``errors``, ``config``, ``limits``
+-> ``trapezoid``, ``profiles``, ``state`` -> ``processes`` -> ``axis`` -> ``gearing``,
+``gear_in_pos``, ``master_driven``, ``group`` -> ``lanes`` -> ``drive``, ``motion`` ->
+``power`` -> ``mdac_links`` -> ``controller``.
 """
 
 from .axis import Axis
 from .config import AxisConfig, GroupConfig
-from .controller import ConfigError, Controller, Pending
+from .controller import ConfigError, Controller, StatusArrays
 from .enums import (
     AbortReason,
     AfterStop,
@@ -13,15 +18,17 @@ from .enums import (
     AxisState,
     AxisType,
     FeedbackSignal,
+    MasterReference,
     MotionStatusBit,
     PLCopenState,
     ProcessKind,
     ProcessState,
     ProgrammedStopMode,
 )
-from .errors import ErrorCode, MotionError, error_text
+from .errors import ErrorCode, MotionError, TransitionError, error_text
 from .group import GroupState, GroupStop, MotionGroup
-from .processes import JogProcess, MoveProcess, Process, StopRamp
+from .power import PowerEvent
+from .processes import JogProcess, MoveProcess, Pending, Process, StopRamp
 from .profiles import Limits, Profile
 
 __all__ = [
@@ -41,17 +48,21 @@ __all__ = [
     "GroupStop",
     "JogProcess",
     "Limits",
+    "MasterReference",
     "MotionError",
     "MotionGroup",
     "MotionStatusBit",
     "MoveProcess",
     "PLCopenState",
     "Pending",
+    "PowerEvent",
     "Process",
     "ProcessKind",
     "ProcessState",
     "Profile",
     "ProgrammedStopMode",
+    "StatusArrays",
     "StopRamp",
+    "TransitionError",
     "error_text",
 ]

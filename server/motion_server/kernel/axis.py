@@ -1,15 +1,18 @@
 """An axis: configuration, power state and its motion processes.
 
-Positions, velocities and drive state live in the controller's numpy arrays (the hot
-path touches every axis each cycle); :class:`Axis` reads them through ``index``. The
-PLCopen state and the Logix MotionStatus bits are derived here from the power state and
-the processes: they are never stored.
+Positions, velocities and drive state live in the shared :class:`~.state.AxisArrays`
+(the hot path touches every axis each cycle); :class:`Axis` reads them through ``index``.
+The PLCopen state and the Logix MotionStatus bits are derived here from the power state and
+the processes: they are never stored as the truth. The status arrays published by the
+front-ends are caches of these derivations: every attribute that feeds them marks the
+axis ``dirty`` when it changes (the kernel marks it when its processes change), so
+:meth:`Controller.status_arrays <.controller.Controller.status_arrays>` re-derives only
+those axes.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from .config import AxisConfig
 from .enums import (
@@ -21,41 +24,110 @@ from .enums import (
     ProcessKind,
     ProgrammedStopMode,
 )
-from .processes import Process
+from .processes import Pending, Process
+from .state import AxisArrays
 
-if TYPE_CHECKING:
-    from .controller import Controller, Pending
+_ACCEL = 1 << MotionStatusBit.ACCEL
+_DECEL = 1 << MotionStatusBit.DECEL
+_BITS: dict[ProcessKind, int] = {
+    ProcessKind.MOVE: 1 << MotionStatusBit.MOVE,
+    ProcessKind.JOG: 1 << MotionStatusBit.JOG,
+    ProcessKind.GEAR: 1 << MotionStatusBit.GEARING,
+}
 
 
 class Axis:
-    def __init__(self, ctl: Controller, config: AxisConfig, index: int) -> None:
-        self._ctl = ctl
+    def __init__(self, arrays: AxisArrays, config: AxisConfig, index: int) -> None:
+        self._s = arrays
         self.config = config
         self.index = index
         self.number = config.number
         self.name = config.name
         self.type = config.type
-        self.state = AxisState.AXIS_READY
-        self.fault = 0
-        self.homed = False
+        self._state = AxisState.AXIS_READY
+        self._homed = False
+        self._stop_latch: object | None = None
+        self._after_stop = AfterStop.NOTHING
         self.base = 0.0
         self.processes: list[Process] = []
         #: a buffered PLCopen process waiting for the active ones (factory, owner)
         self.buffered: Pending | None = None
-        self.after_stop = AfterStop.NOTHING
         self.group: int = 0
-        #: MC_Stop holds the axis in Stopping while its Execute stays high
-        self.stop_latch: object | None = None
+        #: coarse update period of the axis's group (s)
+        self.period: float = 0.0
         self.feedback_input = 0.0
+        #: +1 (same) or -1 (opposite): the direction of the latest gear started on this
+        #: slave; MAG Reverse and Unchanged act relative to it (+1 if never geared)
+        self.gear_direction = 1
 
-    # -- kinematic values (views into the controller arrays) ---------------------------------
+    # -- status attributes (each keeps the shared status arrays current) ---------------------
+    @property
+    def state(self) -> AxisState:
+        """Logix AxisState (the power state; changed through :mod:`.power`)."""
+        return self._state
+
+    @state.setter
+    def state(self, value: AxisState) -> None:
+        self._state = value
+        self._s.axis_state[self.index] = int(value)
+        self._s.dirty.add(self.index)
+
+    @property
+    def fault(self) -> int:
+        """AxisFault bits."""
+        return int(self._s.fault[self.index])
+
+    @fault.setter
+    def fault(self, bits: int) -> None:
+        self._s.fault[self.index] = int(bits)
+
+    @property
+    def homed(self) -> bool:
+        return self._homed
+
+    @homed.setter
+    def homed(self, value: bool) -> None:
+        self._homed = bool(value)
+        self._s.dirty.add(self.index)
+
+    @property
+    def stop_latch(self) -> object | None:
+        """Who holds the axis in Stopping while it is at rest (MC_Stop with Execute high,
+        a group stop until the axis has stopped), or None."""
+        return self._stop_latch
+
+    @stop_latch.setter
+    def stop_latch(self, holder: object | None) -> None:
+        self._stop_latch = holder
+        self._s.dirty.add(self.index)
+
+    @property
+    def after_stop(self) -> AfterStop:
+        """What happens to the power state once the axis has come to rest."""
+        return self._after_stop
+
+    @after_stop.setter
+    def after_stop(self, action: AfterStop) -> None:
+        self._after_stop = action
+        self._s.after_stop[self.index] = int(action)
+
+    def motion_changed(self, busy: bool | None = None) -> None:
+        """The kernel changed this axis's processes (or stepped them in Python); ``busy``
+        when the caller knows whether one is active."""
+        s = self._s
+        if busy is None:
+            busy = any(p.active for p in self.processes)
+        s.busy[self.index] = busy
+        s.dirty.add(self.index)
+
+    # -- kinematic values (views into the shared arrays) -----------------------------------
     @property
     def command_position_unwound(self) -> float:
-        return float(self._ctl.cmd_pos[self.index])
+        return float(self._s.cmd_pos[self.index])
 
     @property
     def actual_position_unwound(self) -> float:
-        return float(self._ctl.act_pos[self.index])
+        return float(self._s.act_pos[self.index])
 
     @property
     def command_position(self) -> float:
@@ -67,19 +139,19 @@ class Axis:
 
     @property
     def command_velocity(self) -> float:
-        return float(self._ctl.cmd_vel[self.index])
+        return float(self._s.cmd_vel[self.index])
 
     @property
     def command_acceleration(self) -> float:
-        return float(self._ctl.cmd_acc[self.index])
+        return float(self._s.cmd_acc[self.index])
 
     @property
     def actual_velocity(self) -> float:
-        return float(self._ctl.act_vel[self.index])
+        return float(self._s.act_vel[self.index])
 
     @property
     def position_error(self) -> float:
-        return float(self._ctl.cmd_pos[self.index] - self._ctl.act_pos[self.index])
+        return float(self._s.cmd_pos[self.index] - self._s.act_pos[self.index])
 
     def unwound_target(self, target: float, near: float) -> float:
         """The unwound position that reads ``target``: on a rotary axis, in the turn
@@ -99,7 +171,7 @@ class Axis:
     # -- power state ----------------------------------------------------------------------
     @property
     def servo_on(self) -> bool:
-        return self.state == AxisState.SERVO_CONTROL
+        return self._state == AxisState.SERVO_CONTROL
 
     @property
     def drive_enabled(self) -> bool:
@@ -110,7 +182,7 @@ class Axis:
 
     @property
     def stopping(self) -> bool:
-        return self.stop_latch is not None or any(p.stopping for p in self.processes if p.active)
+        return self._stop_latch is not None or any(p.stopping for p in self.processes if p.active)
 
     @property
     def moving(self) -> bool:
@@ -120,38 +192,40 @@ class Axis:
         return not self.drive_enabled and self.actual_velocity != 0.0
 
     # -- derived status -------------------------------------------------------------------
-    @property
-    def motion_status(self) -> int:
+    def process_bits(self) -> int:
+        """The MotionStatus bits that do not depend on the acceleration: the processes',
+        the Stopping latch's and Homed."""
         bits = 0
-        v, a = self.command_velocity, self.command_acceleration
-        if v * a > 0.0:
-            bits |= 1 << MotionStatusBit.ACCEL
-        elif v * a < 0.0:
-            bits |= 1 << MotionStatusBit.DECEL
         for p in self.processes:
             if not p.active:
                 continue
             if p.stopping:
                 bits |= 1 << MotionStatusBit.STOPPING
-            elif p.kind == ProcessKind.MOVE:
-                bits |= 1 << MotionStatusBit.MOVE
-            elif p.kind == ProcessKind.JOG:
-                bits |= 1 << MotionStatusBit.JOG
-            elif p.kind == ProcessKind.GEAR:
-                bits |= 1 << MotionStatusBit.GEARING
-                if getattr(p, "locked", False):
+            elif p.kind in _BITS:
+                bits |= _BITS[p.kind]
+                if p.kind == ProcessKind.GEAR and getattr(p, "locked", False):
                     bits |= 1 << MotionStatusBit.GEARING_LOCK
-        if self.stop_latch is not None:
+        if self._stop_latch is not None:
             bits |= 1 << MotionStatusBit.STOPPING
-        if self.homed:
+        if self._homed:
             bits |= 1 << MotionStatusBit.HOMED
         return bits
 
     @property
+    def motion_status(self) -> int:
+        bits = self.process_bits()
+        v, a = self.command_velocity, self.command_acceleration
+        if v * a > 0.0:
+            bits |= _ACCEL
+        elif v * a < 0.0:
+            bits |= _DECEL
+        return bits
+
+    @property
     def plcopen_state(self) -> PLCopenState:
-        if self.state == AxisState.AXIS_FAULTED:
+        if self._state == AxisState.AXIS_FAULTED:
             return PLCopenState.ERRORSTOP
-        if self.state != AxisState.SERVO_CONTROL:
+        if self._state != AxisState.SERVO_CONTROL:
             return PLCopenState.DISABLED
         if self.stopping:
             return PLCopenState.STOPPING
@@ -170,4 +244,4 @@ class Axis:
         return self.config.programmed_stop_mode
 
     def __repr__(self) -> str:
-        return f"Axis({self.number}, {self.name!r}, {self.state.name})"
+        return f"Axis({self.number}, {self.name!r}, {self._state.name})"

@@ -5,67 +5,73 @@ advances exactly one base period per step. Each group steps every ``every`` tick
 own coarse update period. Within a group step:
 
 1. feedback-only axes sample their input or signal (the feedback of the cycle);
-2. every axis with motion processes composes its command, masters before slaves;
-3. drives follow the command (vectorised): a critically damped second-order loop for servo
-   axes (the command interpolated linearly across the cycle, as a drive does), actual =
-   command for virtual axes, coasting at the coast deceleration for axes whose drive is
-   off; actual positions are quantised to encoder counts;
-4. following error is checked, and after-stop actions (disable, shutdown) are applied
-   once the axis has come to rest.
+2. every axis with motion processes composes its command, masters before slaves: the
+   fast lanes first (:mod:`.lanes`, motion states stepped as arrays), then the axes left
+   in Python (:class:`~.motion.Motion`);
+3. drives follow the command (:mod:`.drive`, vectorised);
+4. following error is checked, after-stop actions (disable, shutdown) are applied once
+   the axis has come to rest, and group stops note which axes have stopped.
 
-Axes in a steady state (a jog at speed, a locked real-ratio gear) are composed as arrays
-in step 2 (:mod:`.lanes`); whatever touches an axis's motion first calls :meth:`settle`.
-``Controller.mdsc`` holds the MDAC links (:mod:`.mdac_links`, :mod:`.master_driven`).
+The controller holds every piece of kernel state (:class:`~.state.AxisArrays`, the axes,
+groups, lanes, MDAC links), so a snapshot of it is a snapshot of the kernel. Nothing that
+goes wrong in a step ends it: a process that raises is contained by
+:class:`~.motion.Motion`, a value that is not finite faults its axis
+(``AxisFault.NUMERIC``), and both are recorded for the host to log
+(:meth:`Controller.take_internal_errors`); the kernel itself never logs.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Collection, Iterable, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from .axis import Axis
 from .config import MAX_PERIOD, MIN_PERIOD, AxisConfig, GroupConfig
+from .drive import DriveModel
 from .enums import (
     AbortReason,
     AfterStop,
     AxisFault,
     AxisState,
     AxisType,
-    FeedbackSignal,
+    MasterReference,
     ProcessKind,
-    ProcessState,
     ProgrammedStopMode,
 )
 from .errors import ErrorCode, MotionError
-from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode
-from .lanes import GroupLanes
+from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode, after_stops_due
 from .mdac_links import MasterDrivenControl
-from .processes import Process, StopRamp
+from .motion import InternalError, Motion
+from .power import Power, PowerEvent, require
+from .processes import Pending, Process, ProcessFactory, StopRamp
+from .state import AxisArrays, MasterArrays
 
-ProcessFactory = Callable[[float, float], Process]
+__all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArrays"]
 
-
-def _rounding_apart(x: float, y: float) -> bool:
-    """True when ``x`` and ``y`` differ by no more than accumulated rounding."""
-    return abs(x - y) <= 1e-9 * max(1.0, abs(y))
+_DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 
 
 class ConfigError(ValueError):
     """The kernel configuration is inconsistent (raised at construction only)."""
 
 
-class Pending:
-    """A buffered command: started by the kernel once the axis's active motion is done."""
+class StatusArrays(NamedTuple):
+    """The status words of every axis, in axis index order (read-only views, valid until
+    the next call into the kernel)."""
 
-    def __init__(self, make: ProcessFactory, owner: object = None) -> None:
-        self.make = make
-        self.owner = owner
-        self.process: Process | None = None
-        self.cancelled = False
-        #: set when the command could not start (cancelled with an error)
-        self.error_code = 0
+    axis_state: np.ndarray  # int(Axis.state)
+    plcopen_state: np.ndarray  # int(Axis.plcopen_state)
+    motion_status: np.ndarray  # Axis.motion_status
+    fault: np.ndarray  # Axis.fault
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 class Controller:
@@ -79,41 +85,61 @@ class Controller:
         self._check_unique([a.number for a in axes], "axis number")
         self._check_unique([a.name for a in axes], "axis name")
         self._check_unique([g.number for g in groups], "group number")
-        n = len(axes)
-        self.cmd_pos = np.zeros(n)
-        self.cmd_vel = np.zeros(n)
-        self.cmd_acc = np.zeros(n)
-        self.act_x = np.zeros(n)  # continuous drive position (unquantised)
-        self.act_pos = np.zeros(n)  # quantised feedback
-        self.act_vel = np.zeros(n)
-        #: the command position the drive reached at the end of its last cycle (the drive
-        #: interpolates linearly from it to the new command across one cycle)
-        self.drv_cmd = np.zeros(n)
-        self.drive_on = np.zeros(n, dtype=bool)
-        #: bumped whenever a drive switches on or off; the per-group on/off index
-        #: partitions below are recomputed only then (fancy indexing costs on small groups)
-        self._drive_version = 0
-        self._partitions: dict[int, tuple[int, np.ndarray, np.ndarray, np.ndarray]] = {}
-        self.omega = np.array([2.0 * math.pi * max(a.drive_bandwidth, 1e-3) for a in axes])
-        self.cpu = np.array([a.counts_per_unit for a in axes])
-        self.coast = np.array([max(a.coast_deceleration, 0.0) for a in axes])
-        self.fe_limit = np.array([a.following_error_limit for a in axes])
-        #: rollover of rotary axes (0: linear) and the indices of the rotary ones
-        self.rollover = np.array([max(a.rollover, 0.0) for a in axes])
-        self.rotary_idx = np.flatnonzero(self.rollover > 0.0)
-        self.axes: list[Axis] = [Axis(self, cfg, i) for i, cfg in enumerate(axes)]
+        self.arrays = s = AxisArrays(axes)
+        # the arrays under their historic names (front-ends and tools read them)
+        self.cmd_pos, self.cmd_vel, self.cmd_acc = s.cmd_pos, s.cmd_vel, s.cmd_acc
+        self.act_x, self.act_pos, self.act_vel = s.act_x, s.act_pos, s.act_vel
+        self.drv_cmd, self.drive_on = s.drv_cmd, s.drive_on
+        self.omega, self.cpu, self.conversion = s.omega, s.cpu, s.conversion
+        self.coast, self.fe_limit = s.coast, s.fe_limit
+        self.rollover, self.rotary_idx = s.rollover, s.rotary_idx
+        self.axes: list[Axis] = [Axis(s, cfg, i) for i, cfg in enumerate(axes)]
         self._by_number = {a.number: a for a in self.axes}
         self._by_name = {a.name: a for a in self.axes}
+        self.groups = self._build_groups(groups)
+        self._groups_by_number = {g.number: g for g in self.groups}
+        self.lanes_enabled = lanes
+        self.drive = DriveModel(s)
+        self.motion = Motion(s, self.axes, self.groups, lanes)
+        self.power = Power(self.motion, self.drive)
+        #: MDAC master assignments (master-driven speed control)
+        self.mdsc = MasterDrivenControl(self.motion)
+        self.tick = 0
+        self.mode = OperatingMode.RUN
+        #: per group: compose one axis in Python now (and offer it to the lanes)
+        self._composers = {g.number: self._composer(g.period) for g in self.groups}
+        self._status_views = (
+            _readonly(s.axis_state),
+            _readonly(s.plcopen_state),
+            _readonly(s.fault),
+        )
 
-        periods = [g.coarse_update_period for g in groups]
+    def _composer(self, dt: float) -> Callable[[Axis], None]:
+        motion = self.motion
+
+        def compose(ax: Axis) -> None:
+            motion.compose(ax, dt)
+            motion.offer(ax)
+
+        return compose
+
+    @staticmethod
+    def _check_unique(values: Iterable[object], what: str) -> None:
+        seen: set[object] = set()
+        for v in values:
+            if v in seen:
+                raise ConfigError(f"duplicate {what}: {v}")
+            seen.add(v)
+
+    def _build_groups(self, groups: Sequence[GroupConfig]) -> list[MotionGroup]:
         for g in groups:
             if not MIN_PERIOD - 1e-12 <= g.coarse_update_period <= MAX_PERIOD + 1e-12:
                 raise ConfigError(
                     f"group {g.name}: coarse_update_period {g.coarse_update_period} s is outside "
                     f"[{MIN_PERIOD}, {MAX_PERIOD}]"
                 )
-        self.period = min(periods)
-        self.groups: list[MotionGroup] = []
+        self.period = min(g.coarse_update_period for g in groups)
+        built: list[MotionGroup] = []
         seen: dict[int, str] = {}
         for g in groups:
             every = round(g.coarse_update_period / self.period)
@@ -131,27 +157,13 @@ class Controller:
                 seen[num] = g.name
                 ax = self._by_number[num]
                 ax.group = g.number
+                ax.period = g.coarse_update_period
                 members.append(ax)
-            self.groups.append(MotionGroup(g, members, every))
+            built.append(MotionGroup(g, members, every))
         orphans = [a.name for a in self.axes if a.number not in seen]
         if orphans:
             raise ConfigError(f"axes not in any motion group: {', '.join(orphans)}")
-        self._groups_by_number = {g.number: g for g in self.groups}
-        self.lanes_enabled = lanes
-        self._lanes = {g.number: GroupLanes(g) for g in self.groups}
-        self.tick = 0
-        self._order_dirty = True
-        self.mode = OperatingMode.RUN
-        #: MDAC master assignments (master-driven speed control)
-        self.mdsc = MasterDrivenControl(self)
-
-    @staticmethod
-    def _check_unique(values: Iterable[object], what: str) -> None:
-        seen: set[object] = set()
-        for v in values:
-            if v in seen:
-                raise ConfigError(f"duplicate {what}: {v}")
-            seen.add(v)
+        return built
 
     # -- look-up ----------------------------------------------------------------------------
     @property
@@ -174,17 +186,28 @@ class Controller:
         return grp
 
     def dt(self, axis: Axis) -> float:
-        return self._groups_by_number[axis.group].period
+        return axis.period
+
+    # the step context of processes built by instructions with the controller
+    def master_arrays(self, reference: MasterReference) -> MasterArrays:
+        return self.arrays.master_arrays(reference)
+
+    def read_master(self, index: int, reference: MasterReference) -> tuple[float, float]:
+        return self.arrays.read_master(index, reference)
+
+    def index_of(self, number: int) -> int:
+        return self.arrays.index_of(number)
 
     # -- stepping ---------------------------------------------------------------------------
     def step(self) -> None:
         """Advance one base period."""
         self.tick += 1
-        if self._order_dirty:
-            self._sort_groups()
-        for g in self.groups:
-            if self.tick % g.every == 0:
-                self._step_group(g)
+        if self.motion.order_dirty:
+            self.motion.sort()
+        with np.errstate(all="ignore"):  # non-finite values are checked, not warned about
+            for g in self.groups:
+                if self.tick % g.every == 0:
+                    self._step_group(g)
         self.mdsc.update()
 
     def run(self, cycles: int) -> None:
@@ -194,296 +217,102 @@ class Controller:
     def _step_group(self, g: MotionGroup) -> None:
         dt = g.period
         g.cycles += 1
+        s = self.arrays
+        motion = self.motion
         for ax in g.feedback_axes:
-            self._sample_feedback(ax, g, dt)
-        lanes = self._lanes[g.number]
+            problem = self.drive.sample_feedback(ax, g.time, dt)
+            if problem is not None:
+                self._numeric_fault(ax, "feedback", problem)
+        lanes = motion.lanes[g.number]
         if lanes.dirty:
-            lanes.rebuild(self)
-        lanes.step(self, dt)
-        fast = self.lanes_enabled
+            lanes.rebuild(s, self.axes)
+        compose = self._composers[g.number]
+        lanes.step(s, dt, compose)
         for ax in lanes.python_order:
             if ax.processes or ax.buffered is not None:
-                self._compose(ax, dt)
-                procs = ax.processes
-                if fast and len(procs) == 1 and ax.buffered is None and procs[0].active:
-                    lanes.offer(ax)
-        self._drives(g.servo_idx, dt, servo=True)
-        self._drives(g.virtual_idx, dt, servo=False)
-        self._check_following_error(g.servo_idx)
+                compose(ax)
+        if not s.commands_finite():
+            for i in self.drive.repair_commands(g.idx):
+                self._numeric_fault(self.axes[i], "command", "the composed command is not finite")
+        beyond = self.drive.follow(g.servo_idx, dt, servo=True)
+        self.drive.follow(g.virtual_idx, dt, servo=False)
+        if not s.actuals_finite():
+            repaired = self.drive.repair_actuals(g.idx)
+            for i in repaired:
+                self._numeric_fault(self.axes[i], "drive model", "the drive state is not finite")
+            beyond = [i for i in beyond if i not in repaired]  # held at their command
+        for i in beyond:
+            self.fault(self.axes[i], AxisFault.POSITION_ERROR)
         if g.after_stops:
-            self._after_stops(g, dt)
-        for s in g.stops:
-            s.update()
-        g.stops = [s for s in g.stops if not s.complete]
+            due, g.after_stops = after_stops_due(s, g, dt)
+            for ax in due:
+                action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
+                if ax.state != AxisState.SERVO_CONTROL:
+                    continue  # (leaving Servo Control drops the action; kept for safety)
+                event = (
+                    PowerEvent.STOPPED_DISABLE
+                    if action == AfterStop.DISABLE
+                    else PowerEvent.STOPPED_SHUTDOWN
+                )
+                self.power.fire(ax, event)
+        for stop in g.stops:
+            stop.update(s)
+        g.stops = [stop for stop in g.stops if not stop.complete]
 
-    def _after_stops(self, g: MotionGroup, dt: float) -> None:
-        """Apply the after-stop actions (disable, shutdown) of axes that came to rest."""
-        pending = False
-        for ax in g.axes:
-            if ax.after_stop == AfterStop.NOTHING:
-                continue
-            if any(p.active for p in ax.processes) or not self._at_standstill(ax, dt):
-                pending = True
-                continue
-            action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
-            if action == AfterStop.DISABLE:
-                self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
-            else:
-                self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
-        g.after_stops = pending
+    def _numeric_fault(self, ax: Axis, where: str, problem: str) -> None:
+        self.motion.internal_errors.append((ax.name, where, FloatingPointError(problem)))
+        self.fault(ax, AxisFault.NUMERIC)
 
-    def _at_standstill(self, ax: Axis, dt: float) -> bool:
-        """The drive has settled: it moves less than one count per coarse update (a
-        disable or shutdown after a fast stop waits for this, so the axis does not coast
-        on the servo lag)."""
-        i = ax.index
-        if not self.drive_on[i] or ax.type != AxisType.SERVO:
-            return True
-        return bool(abs(self.act_vel[i]) * dt * self.cpu[i] < 1.0)
+    def take_internal_errors(self) -> list[InternalError]:
+        """Unexpected failures since the last call, for the host to log: (axis name, what
+        failed (a process's repr, "feedback", "command", "drive model"), the exception).
+        The process concerned ended with ERR ``INTERNAL_ERROR`` (its axis ramped to rest);
+        a value that was not finite faulted its axis (``AxisFault.NUMERIC``)."""
+        out = self.motion.internal_errors
+        self.motion.internal_errors = []
+        return out
 
-    def _compose(self, ax: Axis, dt: float) -> None:
-        active = ProcessState.ACTIVE
-        procs = ax.processes
-        failed_moving: list[Process] = []
-        for p in procs:
-            if p.state is active:
-                try:
-                    p.step(self, dt)
-                except MotionError as exc:
-                    p.state = ProcessState.ERROR
-                    p.error_code = int(exc.code)
-                if p.state is ProcessState.ERROR and p.velocity != 0.0:
-                    failed_moving.append(p)
-        for p in failed_moving:
-            # a process that fails while moving hands its velocity to a stop ramp at the
-            # axis maximum deceleration: an error never makes a velocity step
-            ramp = StopRamp(dt, ax.config.max_deceleration, 0.0, p.velocity)
-            ramp.step(self, dt)
-            procs.append(ramp)
-        i = ax.index
-        if len(procs) == 1 and procs[0].state is active and ax.buffered is None:
-            # the common case, one running process: no lists, no sums
-            p = procs[0]
-            self.cmd_pos[i] = ax.base + p.position
-            self.cmd_vel[i] = p.velocity
-            self.cmd_acc[i] = p.acceleration
-            return
-        keep: list[Process] = []
-        landing: float | None = None
-        for p in procs:
-            if p.state is active:
-                keep.append(p)
-            else:
-                ax.base += p.position
-                if p.state == ProcessState.DONE and p.landing is not None:
-                    landing = p.landing
-        ax.processes = keep
-        if landing is not None and not keep and _rounding_apart(ax.base, landing):
-            ax.base = landing  # an absolute move ends exactly on its target
-        pos = vel = acc = 0.0
-        for p in keep:
-            pos += p.position
-            vel += p.velocity
-            acc += p.acceleration
-        self.cmd_pos[i] = ax.base + pos
-        self.cmd_vel[i] = vel
-        self.cmd_acc[i] = acc
-        pend = ax.buffered
-        if pend is not None and all(p.reached for p in keep):
-            ax.buffered = None
-            if not pend.cancelled:
-                try:
-                    pend.process = self.start(
-                        ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
-                    )
-                except MotionError as exc:
-                    # it cannot start from where the axis is now: its owner reports it
-                    pend.error_code = int(exc.code)
-                    pend.cancelled = True
-
-    def _sample_feedback(self, ax: Axis, g: MotionGroup, dt: float) -> None:
-        cfg = ax.config
-        i = ax.index
-        old = float(self.act_x[i])
-        if cfg.feedback_signal == FeedbackSignal.CONSTANT_VELOCITY:
-            new = cfg.signal_velocity * g.time
-        elif cfg.feedback_signal == FeedbackSignal.SINE:
-            new = cfg.signal_amplitude * math.sin(2.0 * math.pi * cfg.signal_frequency * g.time)
-        else:
-            new = ax.feedback_input
-            if cfg.rotary:
-                # the input is a wrapped reading: unwind it against the last sample
-                delta = math.remainder(new - ax.wrap(old), cfg.rollover)
-                new = old + delta
-        q = round(new * self.cpu[i]) / self.cpu[i]
-        self.act_vel[i] = (q - self.act_pos[i]) / dt
-        self.act_x[i] = new
-        self.act_pos[i] = q
-        self.cmd_pos[i] = q
-        self.cmd_vel[i] = self.act_vel[i]
-
-    def _partition(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(drive on, drive off, drive on with a following-error limit) among ``idx``."""
-        cached = self._partitions.get(id(idx))
-        if cached is None or cached[0] != self._drive_version:
-            on = self.drive_on[idx]
-            on_idx = idx[on]
-            cached = (self._drive_version, on_idx, idx[~on], on_idx[self.fe_limit[on_idx] > 0.0])
-            self._partitions[id(idx)] = cached
-        return cached[1], cached[2], cached[3]
-
-    def _drives(self, idx: np.ndarray, dt: float, servo: bool) -> None:
-        if idx.size == 0:
-            return
-        on_idx, off_idx, _ = self._partition(idx)
-        if on_idx.size:
-            if servo:
-                # x'' + 2w x' + w^2 x = w^2 c(t), c(t) the command ramp from the last
-                # cycle's command c0 to the new one c1 (slope s). Its exact solution: the
-                # steady tracking point c(t) - 2s/w plus a decaying (A + Bt) e^(-wt).
-                c0 = self.drv_cmd[on_idx]
-                c1 = self.cmd_pos[on_idx]
-                w = self.omega[on_idx]
-                s = (c1 - c0) / dt
-                lag = 2.0 * s / w
-                e0 = self.act_x[on_idx] - (c0 - lag)
-                de0 = self.act_vel[on_idx] - s
-                decay = np.exp(-w * dt)
-                b = de0 + w * e0
-                self.act_x[on_idx] = c1 - lag + (e0 + b * dt) * decay
-                self.act_vel[on_idx] = s + (de0 - w * b * dt) * decay
-                cpu = self.cpu[on_idx]
-                self.act_pos[on_idx] = np.round(self.act_x[on_idx] * cpu) / cpu
-            else:
-                self.act_x[on_idx] = self.cmd_pos[on_idx]
-                self.act_pos[on_idx] = self.cmd_pos[on_idx]
-                self.act_vel[on_idx] = self.cmd_vel[on_idx]
-        if off_idx.size:
-            v0 = self.act_vel[off_idx]
-            step = self.coast[off_idx] * dt
-            speed = np.maximum(np.abs(v0) - step, 0.0)
-            # a remnant below rounding of the per-cycle decrement is rest, not motion
-            speed[speed <= 1e-9 * step] = 0.0
-            v1 = np.sign(v0) * speed
-            self.act_x[off_idx] += 0.5 * (v0 + v1) * dt
-            self.act_vel[off_idx] = v1
-            if servo:
-                cpu = self.cpu[off_idx]
-                self.act_pos[off_idx] = np.round(self.act_x[off_idx] * cpu) / cpu
-            else:
-                self.act_pos[off_idx] = self.act_x[off_idx]
-            # with the drive off the command tracks the actual position
-            self.cmd_pos[off_idx] = self.act_pos[off_idx]
-            self.cmd_vel[off_idx] = v1
-            self.cmd_acc[off_idx] = 0.0
-        self.drv_cmd[idx] = self.cmd_pos[idx]
-
-    def _check_following_error(self, idx: np.ndarray) -> None:
-        if idx.size == 0:
-            return
-        watched = self._partition(idx)[2]
-        if watched.size == 0:
-            return
-        err = np.abs(self.cmd_pos[watched] - self.act_pos[watched])
-        bad = watched[err > self.fe_limit[watched]]
-        for i in bad:
-            self.fault(self.axes[int(i)], AxisFault.POSITION_ERROR)
-
-    def _sort_groups(self) -> None:
-        """Order each group's axes so that masters compose before their slaves."""
-        for g in self.groups:
-            order: list[Axis] = []
-            for ax in g.axes:
-                self._visit(ax, g.number, order, ())
-            g.order = order
-            self._lanes[g.number].dirty = True
-        self._order_dirty = False
-
-    def _visit(self, ax: Axis, group: int, order: list[Axis], path: tuple[int, ...]) -> None:
-        if ax in order or ax.number in path:
-            return
-        for p in ax.processes:
-            for m in p.masters:
-                master = self._by_number.get(m)
-                if master is not None and master.group == group:
-                    self._visit(master, group, order, (*path, ax.number))
-        order.append(ax)
-
-    def settle(self, ax: Axis) -> None:
-        """Bring ``ax``'s processes up to date and take it out of the fast lanes: call
-        before reading or changing its processes outside :meth:`step`. It rejoins a lane
-        once it is steady again."""
-        for p in ax.processes:
-            if p.lane is not None:
-                p.lane.evict(p)
-
-    def coupling_changed(self) -> None:
-        """Call after adding or removing a process that has masters."""
-        self._order_dirty = True
-
-    def would_cycle(self, slave: int, masters: Collection[int]) -> bool:
-        """True if making ``slave`` follow ``masters`` closes a loop of master/slave links."""
-        frontier = list(masters)
-        seen: set[int] = set()
-        while frontier:
-            m = frontier.pop()
-            if m == slave:
-                return True
-            if m in seen:
-                continue
-            seen.add(m)
-            ax = self._by_number.get(m)
-            if ax is not None:
-                for p in ax.processes:
-                    if p.active:
-                        frontier.extend(p.masters)
-        return False
+    # -- status -----------------------------------------------------------------------------
+    def status_arrays(self) -> StatusArrays:
+        """AxisState, PLCopenState, MotionStatus and AxisFault of every axis as integer
+        arrays (axis index order), equal to the axes' properties at any moment between
+        kernel calls. Costs Python work only for axes whose processes, power state or
+        latches changed since the last call, and a few array operations. The first
+        three arrays are read-only views of the kernel's own (valid until the next call
+        into the kernel); MotionStatus is computed afresh."""
+        s = self.arrays
+        if s.dirty:
+            axes = self.axes
+            for i in s.dirty:
+                ax = axes[i]
+                s.plcopen_state[i] = int(ax.plcopen_state)
+                s.motion_bits[i] = ax.process_bits()
+            s.dirty.clear()
+        # the Accel and Decel bits: the sign of velocity x acceleration (Axis.motion_status)
+        prod = s.cmd_vel * s.cmd_acc
+        status = s.motion_bits + (prod > 0.0)
+        status += (prod < 0.0) * _DECEL_BIT
+        return StatusArrays(
+            self._status_views[0], self._status_views[1], status, self._status_views[2]
+        )
 
     # -- power ------------------------------------------------------------------------------
-    def _power(self, ax: Axis, state: AxisState, reason: AbortReason) -> None:
-        if state != AxisState.SERVO_CONTROL:
-            self.abort(ax, reason)
-            ax.after_stop = AfterStop.NOTHING
-        ax.state = state
-        on = state == AxisState.SERVO_CONTROL and ax.type != AxisType.FEEDBACK_ONLY
-        i = ax.index
-        if on and not self.drive_on[i]:
-            # the command starts where the axis is, at rest
-            ax.base = float(self.act_pos[i])
-            self.cmd_pos[i] = ax.base
-            self.drv_cmd[i] = ax.base
-            self.cmd_vel[i] = 0.0
-            self.cmd_acc[i] = 0.0
-        if bool(self.drive_on[i]) != on:
-            self._drive_version += 1
-        self.drive_on[i] = on
-
     def servo_on(self, ax: Axis) -> None:
         """MSO / MC_Power on."""
-        if ax.type == AxisType.FEEDBACK_ONLY:
-            raise MotionError(ErrorCode.WRONG_AXIS_TYPE, f"{ax.name} is feedback only")
-        if ax.state == AxisState.AXIS_SHUTDOWN:
-            raise MotionError(ErrorCode.SHUTDOWN_STATE, f"{ax.name} is shut down")
-        if ax.state == AxisState.AXIS_FAULTED:
-            raise MotionError(ErrorCode.AXIS_FAULTED, f"{ax.name} is faulted")
-        if ax.state != AxisState.SERVO_CONTROL:
-            self._power(ax, AxisState.SERVO_CONTROL, AbortReason.NONE)
+        self.power.fire(ax, PowerEvent.SERVO_ON)
 
     def servo_off(self, ax: Axis) -> None:
         """MSF / MC_Power off / hard disable: drive off at once, the axis coasts."""
-        if ax.state == AxisState.SERVO_CONTROL:
-            self._power(ax, AxisState.AXIS_READY, AbortReason.DISABLED)
+        self.power.fire(ax, PowerEvent.SERVO_OFF)
 
     def fault(self, ax: Axis, bits: int) -> None:
         ax.fault |= int(bits)
-        if ax.state != AxisState.AXIS_SHUTDOWN:
-            self._power(ax, AxisState.AXIS_FAULTED, AbortReason.FAULTED)
+        self.power.fire(ax, PowerEvent.FAULT)
 
     def fault_reset(self, ax: Axis) -> None:
         """MAFR / MC_Reset: clear faults; a faulted axis returns to Axis Ready."""
         ax.fault = 0
-        if ax.state == AxisState.AXIS_FAULTED:
-            self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
+        self.power.fire(ax, PowerEvent.FAULT_RESET)
 
     def shutdown(self, ax: Axis) -> None:
         """MASD: Axis Shutdown at once; the drive is off and the axis coasts.
@@ -493,14 +322,13 @@ class Controller:
         :meth:`release_followers`.
         """
         self.mdsc.break_axis(ax, AbortReason.SHUTDOWN)
-        self._power(ax, AxisState.AXIS_SHUTDOWN, AbortReason.SHUTDOWN)
+        self.power.fire(ax, PowerEvent.SHUTDOWN)
         self.release_followers(ax, AbortReason.SHUTDOWN)
 
     def shutdown_reset(self, ax: Axis) -> None:
         """MASR: from Axis Shutdown (or faulted) to Axis Ready, faults cleared."""
         ax.fault = 0
-        if ax.state in (AxisState.AXIS_SHUTDOWN, AxisState.AXIS_FAULTED):
-            self._power(ax, AxisState.AXIS_READY, AbortReason.NONE)
+        self.power.fire(ax, PowerEvent.SHUTDOWN_RESET)
 
     def group_shutdown(self, ref: int | str) -> MotionGroup:
         """MGSD: every axis of the group (feedback-only ones too) to Axis Shutdown."""
@@ -517,31 +345,14 @@ class Controller:
         return g
 
     def release_followers(self, master: Axis, reason: AbortReason) -> None:
-        """Release every process on another axis that reads ``master`` (its ``masters``):
-        a shut-down master no longer drives anything (see :meth:`release`)."""
-        for ax in self.axes:
-            if ax is not master:
-                hit = [p for p in ax.processes if p.active and master.number in p.masters]
-                self.release(ax, hit, reason)
+        """Release every process on another axis that reads ``master``: a shut-down master
+        no longer drives anything (see :meth:`release`)."""
+        self.motion.release_followers(master, reason)
 
     def release(self, ax: Axis, processes: Collection[Process], reason: AbortReason) -> None:
-        """Switch ``processes`` of ``ax`` to a time-driven stop, as a controller does when a
-        slave loses its master: they are aborted with ``reason`` and the axis decelerates
-        their velocity to rest at its maximum deceleration (trapezoidal, StoppingStatus
-        set), keeping its power state; its other processes go on. An axis whose drive is
-        off simply coasts."""
-        hit = [p for p in processes if p.active and p in ax.processes]
-        if not hit:
-            return
-        self.settle(ax)
-        v = sum(p.velocity for p in hit)
-        for p in hit:
-            p.abort(reason)
-            ax.base += p.position
-        ax.processes = [p for p in ax.processes if p.active]
-        self.coupling_changed()
-        if self.drive_on[ax.index] and v != 0.0:
-            ax.processes.append(StopRamp(self.dt(ax), ax.config.max_deceleration, 0.0, v))
+        """Switch ``processes`` of ``ax`` to a time-driven stop at its maximum deceleration
+        (see :meth:`Motion.release <.motion.Motion.release>`)."""
+        self.motion.release(ax, processes, reason)
 
     # -- operating mode ---------------------------------------------------------------------
     def set_mode(self, mode: OperatingMode) -> list[GroupStop]:
@@ -562,36 +373,19 @@ class Controller:
     # -- motion -----------------------------------------------------------------------------
     def require_motion(self, ax: Axis) -> None:
         """Preconditions of every motion command, as a controller checks them."""
-        if ax.type == AxisType.FEEDBACK_ONLY:
-            raise MotionError(ErrorCode.WRONG_AXIS_TYPE, f"{ax.name} is feedback only")
-        if ax.state == AxisState.AXIS_SHUTDOWN:
-            raise MotionError(ErrorCode.SHUTDOWN_STATE, f"{ax.name} is shut down")
-        if ax.state == AxisState.AXIS_FAULTED:
-            raise MotionError(ErrorCode.AXIS_FAULTED, f"{ax.name} is faulted")
-        if ax.state != AxisState.SERVO_CONTROL:
-            raise MotionError(ErrorCode.SERVO_OFF_STATE, f"{ax.name} is not in Servo Control")
+        require(ax, PowerEvent.MOTION)
 
-    def _retire(
-        self, ax: Axis, kinds: Collection[ProcessKind] | None, reason: AbortReason
-    ) -> tuple[float, float]:
-        """Abort matching processes, fold them into ``base``; return their velocity and
-        acceleration so that a successor can inherit them."""
-        self.settle(ax)
-        v = a = 0.0
-        keep: list[Process] = []
-        for p in ax.processes:
-            if p.active and (kinds is None or p.kind in kinds):
-                p.abort(reason)
-                v += p.velocity
-                a += p.acceleration
-            if p.active:
-                keep.append(p)
-            else:
-                ax.base += p.position
-        if len(keep) != len(ax.processes):
-            ax.processes = keep
-            self.coupling_changed()
-        return v, a
+    def settle(self, ax: Axis) -> None:
+        """Bring ``ax``'s processes up to date and take it out of the fast lanes."""
+        self.motion.settle(ax)
+
+    def coupling_changed(self) -> None:
+        """Call after adding or removing a process that has masters."""
+        self.motion.coupling_changed()
+
+    def would_cycle(self, slave: int, masters: Collection[int]) -> bool:
+        """True if making ``slave`` follow ``masters`` closes a loop of master/slave links."""
+        return self.motion.would_cycle(slave, masters)
 
     def start(
         self,
@@ -600,46 +394,17 @@ class Controller:
         replace: Collection[ProcessKind] | None = (),
         reason: AbortReason = AbortReason.SUPERSEDED,
     ) -> Process:
-        """Start a process. ``replace`` names the kinds it supersedes (``None``: all of
-        them, the PLCopen aborting mode and Logix merge); the new process is built by
-        ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
-        raises, nothing has changed: the processes it would replace keep running."""
-        if not ax.processes:
-            # an axis without motion may be a master its lane gears read as constant
-            self._lanes[ax.group].dirty = True
-        self.settle(ax)
-        matching = [p for p in ax.processes if p.active and (replace is None or p.kind in replace)]
-        p = make(
-            sum((q.velocity for q in matching), 0.0), sum((q.acceleration for q in matching), 0.0)
-        )
-        self._retire(ax, replace, reason)
-        if replace is None and ax.buffered is not None:
-            ax.buffered.cancelled = True
-            ax.buffered = None
-        ax.processes.append(p)
-        if p.masters:
-            self.coupling_changed()
-        return p
+        """Start a process built by ``make(v, a)`` (see :meth:`Motion.start
+        <.motion.Motion.start>`)."""
+        return self.motion.start(ax, make, replace, reason)
 
     def buffer(self, ax: Axis, make: ProcessFactory, owner: object = None) -> Pending:
         """Queue ``make`` to start when the axis's active motion is done (PLCopen buffered)."""
-        if ax.buffered is not None:
-            raise MotionError(ErrorCode.BUFFER_FULL, f"{ax.name} already has a buffered command")
-        self.settle(ax)
-        pend = Pending(make, owner)
-        if not any(p.active for p in ax.processes):
-            pend.process = self.start(ax, make, replace=None)
-        else:
-            ax.buffered = pend
-        return pend
+        return self.motion.buffer(ax, make, owner)
 
     def abort(self, ax: Axis, reason: AbortReason) -> None:
         """End every process on the axis at once (no ramp): disable, shutdown, fault."""
-        self._retire(ax, None, reason)
-        if ax.buffered is not None:
-            ax.buffered.cancelled = True
-            ax.buffered = None
-        ax.stop_latch = None
+        self.motion.abort(ax, reason)
 
     def stop(
         self,
@@ -650,7 +415,7 @@ class Controller:
         owner: object = None,
     ) -> StopRamp:
         """Replace the matching processes by one ramp from their velocity to rest."""
-        dt = self.dt(ax)
+        dt = ax.period
 
         def make(v: float, a: float) -> Process:
             return StopRamp(dt, deceleration, jerk, v, a, owner=owner)
@@ -663,7 +428,7 @@ class Controller:
         if kinds is None:
             # a stop of all motion breaks the axis's MDAC links as slave (MAS All)
             self.mdsc.break_slave(ax, AbortReason.STOPPED)
-        ramp = self.start(ax, make, replace=kinds, reason=AbortReason.STOPPED)
+        ramp = self.motion.start(ax, make, replace=kinds, reason=AbortReason.STOPPED)
         assert isinstance(ramp, StopRamp)
         return ramp
 

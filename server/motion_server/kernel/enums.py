@@ -99,8 +99,22 @@ class AxisFault(IntEnum):
     """Bits of the AxisFault word."""
 
     NONE = 0
+    #: |command - actual| beyond the axis's following error limit
     POSITION_ERROR = 1 << 0
     PROFILE = 1 << 1
+    #: a watchdog trip (communication loss), set by the safety layer
+    WATCHDOG = 1 << 2
+    #: a value of this axis became infinite or NaN, or overflowed, in its commanded
+    #: motion, its drive model or its feedback sample: the axis is faulted instead
+    NUMERIC = 1 << 3
+
+
+class MasterReference(IntEnum):
+    """Which position of a master a follower reads (numbered as Logix MasterReference;
+    PLCopen MC_Source numbers the two the other way round)."""
+
+    ACTUAL = 0
+    COMMAND = 1
 
 
 class AfterStop(IntEnum):

@@ -1,4 +1,5 @@
-"""The error table shared by both instruction dialects (the Logix ``.ERR`` numbering).
+"""The error table shared by both instruction dialects (the Logix ``.ERR`` numbering), and
+the error every state table raises for an event it has no transition for.
 
 PLCopen blocks report the same numbers in ``ErrorID``. Codes from 1000 up are ours and are
 documented here, in one table.
@@ -6,7 +7,7 @@ documented here, in one table.
 
 from __future__ import annotations
 
-from enum import IntEnum
+from enum import Enum, IntEnum
 
 
 class ErrorCode(IntEnum):
@@ -56,7 +57,7 @@ ERROR_TEXT: dict[ErrorCode, str] = {
     ErrorCode.NOT_GEARED: "the slave axis is not geared",
     ErrorCode.BUFFER_FULL: "a buffered command is already waiting on this axis",
     ErrorCode.INTERNAL_ERROR: "internal error in the server (logged with its traceback); "
-    "the instruction's axes were stopped",
+    "its axes ramp to rest",
 }
 
 
@@ -74,3 +75,18 @@ class MotionError(Exception):
     def __init__(self, code: ErrorCode, message: str = "") -> None:
         self.code = code
         super().__init__(message or ERROR_TEXT.get(code, str(code)))
+
+
+class TransitionError(RuntimeError):
+    """An event that a state table has no transition for, in the current state.
+
+    Every state table of the server (the power states in :mod:`.power`, the PLCopen block
+    states, the watchdog) raises this one error; a missing pair is a bug, never bad input.
+    The message names the machine, the state and the event.
+    """
+
+    def __init__(self, machine: str, state: Enum, event: Enum) -> None:
+        self.machine = machine
+        self.state = state
+        self.event = event
+        super().__init__(f"{machine}: no transition for {event.name} in state {state.name}")

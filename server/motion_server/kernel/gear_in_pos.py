@@ -24,17 +24,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from .enums import ProcessKind
+from .axis import Axis
+from .enums import MasterReference, ProcessKind
 from .errors import ErrorCode, MotionError
 from .gearing import remember_direction
 from .processes import Process
-
-if TYPE_CHECKING:
-    from .axis import Axis
-    from .controller import Controller
-
+from .state import StepContext
 
 #: sync positions and distances beyond this magnitude are refused (ErrorID 13)
 POSITION_LIMIT = 1e12
@@ -194,7 +191,7 @@ class GearInPosProcess(Process):
 
     def __init__(
         self,
-        ctl: Controller,
+        ctx: StepContext,
         slave: Axis,
         master: Axis,
         numerator: int,
@@ -217,8 +214,7 @@ class GearInPosProcess(Process):
         self.direction = 1 if numerator * denominator > 0 else -1
         self._slave = slave
         self._mi = master.index
-        self._pos = ctl.act_pos
-        self._vel = ctl.act_vel
+        self._pos, self._vel, _ = ctx.master_arrays(MasterReference.ACTUAL)
         self._m_prev = float(self._pos[self._mi])
         self._v_prev = float(self._vel[self._mi])
         self._hold = float(velocity)
@@ -238,7 +234,7 @@ class GearInPosProcess(Process):
             slave_sync,
             mode,
             start_distance,
-            ctl.dt(slave),
+            slave.period,
         )
         self.masters = (master.number,)
         self.warning = self.plan.excessive
@@ -283,7 +279,7 @@ class GearInPosProcess(Process):
         if peak > slave.config.max_acceleration:
             self.warning = True
 
-    def step(self, ctl: Controller, dt: float) -> None:
+    def step(self, ctx: StepContext, dt: float) -> None:
         plan = self.plan
         assert plan is not None
         m = float(self._pos[self._mi])

@@ -17,7 +17,8 @@ two phases:
 Without a ramp (MAG clutch disabled) the gear locks at once: if the master moves, the
 slave's velocity steps, as the MAG seed warns.
 
-The master reference is read from the controller arrays while the slave composes: the
+The master reference is read from the shared arrays while the slave composes
+(``StepContext.master_arrays``, the one place that says where a master is read): the
 command position is this cycle's (the controller composes masters before slaves, see
 ``masters``), the actual position is the feedback sampled at the start of the cycle (the
 drive update runs after composition, so for a servo or virtual master it is the previous
@@ -31,29 +32,23 @@ had, until a stop.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any
-from weakref import WeakKeyDictionary
+from typing import Any, Protocol
 
-from .enums import AxisType, ProcessKind
+import numpy as np
+
+from .axis import Axis
+from .enums import AxisType, MasterReference, ProcessKind
 from .errors import ErrorCode, MotionError
 from .processes import Process
 from .profiles import Limits, Profile
+from .state import StepContext
 
-if TYPE_CHECKING:
-    import numpy as np
-
-    from .axis import Axis
-    from .controller import Controller
-
-
-class MasterSource(IntEnum):
-    """Which master position the slave follows (numbered as Logix MasterReference)."""
-
-    ACTUAL = 0
-    COMMAND = 1
+#: the master reference of a gear: the one :class:`~.enums.MasterReference` (Logix
+#: numbering), under the name the gearing API has used
+MasterSource = MasterReference
 
 
 class GearPhase(IntEnum):
@@ -61,19 +56,20 @@ class GearPhase(IntEnum):
     LOCKED = 1
 
 
-#: the gearing direction (+1 same, -1 opposite) of the latest gear started on each slave:
-#: MAG Reverse and Unchanged act relative to the "current or previous" direction
-_DIRECTIONS: WeakKeyDictionary[Axis, int] = WeakKeyDictionary()
-
-
 def gearing_direction(slave: Axis) -> int:
     """+1 (same) or -1 (opposite): the current or previous gearing direction of ``slave``
-    (+1 if it was never geared)."""
-    return _DIRECTIONS.get(slave, 1)
+    (+1 if it was never geared). Kept on the axis, with the rest of its state."""
+    return slave.gear_direction
 
 
 def remember_direction(slave: Axis, direction: int) -> None:
-    _DIRECTIONS[slave] = -1 if direction < 0 else 1
+    slave.gear_direction = -1 if direction < 0 else 1
+
+
+class CouplingGraph(Protocol):
+    """What :func:`check_master` asks of the kernel: would a new link close a loop."""
+
+    def would_cycle(self, slave: int, masters: Collection[int]) -> bool: ...
 
 
 #: largest magnitude of a real gear ratio (slave units per master unit): beyond it a
@@ -88,7 +84,7 @@ class GearTerm:
     (slave counts per master counts; the conversion constants turn them into units)."""
 
     master: int
-    source: MasterSource
+    source: MasterReference
     numerator: float | int
     denominator: float | int = 1
     counts: bool = False
@@ -114,16 +110,16 @@ class GearTerm:
         return self
 
 
-def check_master(ctl: Controller, slave: Axis, master: Axis, source: MasterSource) -> None:
+def check_master(graph: CouplingGraph, slave: Axis, master: Axis, source: MasterReference) -> None:
     """The checks every gearing instruction makes on a master: a command reference needs
     a master that has a command position (ERR 8), and the coupling must not close a loop
     of master/slave links (ERR 10, also for a slave geared to itself)."""
-    if source == MasterSource.COMMAND and master.type == AxisType.FEEDBACK_ONLY:
+    if source == MasterReference.COMMAND and master.type == AxisType.FEEDBACK_ONLY:
         raise MotionError(
             ErrorCode.WRONG_AXIS_TYPE,
             f"{master.name} is feedback only: gear to its actual position",
         )
-    if ctl.would_cycle(slave.number, (master.number,)):
+    if graph.would_cycle(slave.number, (master.number,)):
         raise MotionError(
             ErrorCode.MASTER_AXIS_CONFLICT,
             f"gearing {slave.name} to {master.name} would cross-couple the axes",
@@ -150,19 +146,15 @@ class _Coupling:
         "vel",
     )
 
-    def __init__(self, ctl: Controller, slave: Axis, term: GearTerm) -> None:
-        master = ctl.axis(term.master)
-        self.index = master.index
+    def __init__(self, ctx: StepContext, slave: Axis, term: GearTerm) -> None:
+        self.index = ctx.index_of(term.master)
         self.pos: np.ndarray
         self.vel: np.ndarray
         self.acc: np.ndarray | None
-        if term.source == MasterSource.COMMAND:
-            self.pos, self.vel, self.acc = ctl.cmd_pos, ctl.cmd_vel, ctl.cmd_acc
-        else:
-            self.pos, self.vel, self.acc = ctl.act_pos, ctl.act_vel, None
+        self.pos, self.vel, self.acc = ctx.master_arrays(term.source)
         self.exact = term.counts
-        self.cpu_m = master.config.conversion_constant
-        self.cpu_s = slave.config.conversion_constant
+        self.cpu_m = float(ctx.conversion[self.index])
+        self.cpu_s = float(slave.config.conversion_constant)
         if self.exact:
             self.num: Any = int(term.numerator)
             self.den: Any = int(term.denominator)
@@ -231,6 +223,10 @@ class CatchUp:
     def step(self, target_v: float, target_a: float, dt: float) -> bool:
         raise NotImplementedError
 
+    def judge(self, target_v: float) -> None:
+        """Raise MotionError if the ramp from where it starts to ``target_v`` cannot be
+        planned (checked when the gear is built, so a refused gear changes nothing)."""
+
 
 class RateRamp(CatchUp):
     """Trapezoidal velocity profile: the velocity moves toward the target by at most
@@ -284,6 +280,13 @@ class JerkRamp(CatchUp):
         self._profile = Profile(self._dt, velocity, a0)
         self._target = None
 
+    def judge(self, target_v: float) -> None:
+        """Plan the first step's profile on a copy (ruckig refuses limits such as a jerk
+        of 1e-300 only when it plans)."""
+        prof = Profile(self._dt, self._profile.velocity, self._profile.acceleration)
+        big = 2.0 * max(abs(target_v), abs(prof.velocity)) + 1.0
+        prof.to_velocity(target_v, Limits(big, self.accel, self.decel, self.jerk))
+
     def step(self, target_v: float, target_a: float, dt: float) -> bool:
         prof = self._profile
         moving = self._target is not None and target_v != self._target
@@ -326,7 +329,7 @@ class GearProcess(Process):
 
     def __init__(
         self,
-        ctl: Controller,
+        ctx: StepContext,
         slave: Axis,
         terms: Sequence[GearTerm],
         ramp: CatchUp | None = None,
@@ -343,20 +346,21 @@ class GearProcess(Process):
         #: two or more masters (MC_CombineAxes): MC_GearOut is refused
         self.combined = len(self.terms) > 1
         self.direction = -1 if direction < 0 else 1
-        self._c = [_Coupling(ctl, slave, t) for t in self.terms]
+        self._c = [_Coupling(ctx, slave, t) for t in self.terms]
         #: the coupling of a one-master gear (None for MC_CombineAxes)
         self.single = self._c[0] if len(self._c) == 1 else None
         self._ramp = ramp
         #: the gear's own displacement when it locked
         self.at_lock = 0.0
         self.locked = False
-        remember_direction(slave, self.direction)
         if ramp is None:
             self._lock()
         else:
             ramp.start(velocity, acceleration)
+            ramp.judge(sum(c.velocity() for c in self._c))
             self.velocity = velocity
             self.acceleration = acceleration
+        remember_direction(slave, self.direction)  # once nothing can refuse the gear
 
     @property
     def phase(self) -> GearPhase:
@@ -365,7 +369,14 @@ class GearProcess(Process):
     @property
     def slave_counts(self) -> int:
         """Slave feedback counts moved since the lock (fraction ratios, one master)."""
+        if self.lane is not None:
+            self.lane.sync(self)
         return self._c[0].slave_counts
+
+    @property
+    def ramp(self) -> CatchUp | None:
+        """The catch-up ramp (None: the gear locked at once)."""
+        return self._ramp
 
     @property
     def reached(self) -> bool:
@@ -373,12 +384,13 @@ class GearProcess(Process):
         return self.locked or super().reached
 
     def _lock(self) -> None:
+        self.offer_pending = True
         self.at_lock = self.position
         for c in self._c:
             c.lock()
         self.locked = True
 
-    def step(self, ctl: Controller, dt: float) -> None:
+    def step(self, ctx: StepContext, dt: float) -> None:
         c1 = self.single
         if self.locked:
             if c1 is not None and not c1.exact:
@@ -429,7 +441,7 @@ class VelocityHold(Process):
         self.velocity = float(velocity)
         self._cycles = 0
 
-    def step(self, ctl: Controller, dt: float) -> None:
+    def step(self, ctx: StepContext, dt: float) -> None:
         self._cycles += 1
         self.position = self.velocity * (self._cycles * dt)
         self.acceleration = 0.0

@@ -1,19 +1,22 @@
 """Motion groups: a set of axes sharing a coarse update period, group stops, and the
-controller's operating mode (leaving run mode stops every group)."""
+controller's operating mode (leaving run mode stops every group).
+
+A group stop watches every axis of its group each coarse update until all have come to
+rest; it reads the shared status arrays (``busy``, ``after_stop``, the drive state and
+actual velocity) for all of them at once, and touches an axis in Python only when it
+comes to rest (to release its Stopping latch).
+"""
 
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .axis import Axis
 from .config import GroupConfig
 from .enums import AfterStop, AxisState, AxisType, ProgrammedStopMode
-
-if TYPE_CHECKING:
-    from .axis import Axis
-
+from .state import AxisArrays
 
 #: what follows the ramp of a fast programmed stop mode (the hard modes have no ramp)
 AFTER_FAST_STOP: dict[ProgrammedStopMode, AfterStop] = {
@@ -54,6 +57,13 @@ class MotionGroup:
         self.stops: list[GroupStop] = []
         #: some axis has an after-stop action (disable, shutdown) waiting for rest
         self.after_stops = False
+        #: array indices of the group's axes, of those that are not feedback only, and of
+        #: its servo and virtual axes
+        self.idx = np.array([a.index for a in axes], dtype=np.intp)
+        self.motion_idx = np.array(
+            [a.index for a in axes if a.type != AxisType.FEEDBACK_ONLY], dtype=np.intp
+        )
+        self.by_index = {a.index: a for a in axes}
         self.servo_idx = np.array(
             [a.index for a in axes if a.type == AxisType.SERVO], dtype=np.intp
         )
@@ -79,6 +89,30 @@ class MotionGroup:
         return self.cycles * self.period
 
 
+def moving(s: AxisArrays, idx: np.ndarray) -> np.ndarray:
+    """``Axis.moving`` of the axes ``idx`` at once: an active process, or a drive that is
+    off while the axis still turns."""
+    return s.busy[idx] | (~s.drive_on[idx] & (s.act_vel[idx] != 0.0))
+
+
+def at_standstill(s: AxisArrays, idx: np.ndarray, dt: float) -> np.ndarray:
+    """The drives of ``idx`` have settled: less than one count per coarse update (a
+    disable or shutdown after a fast stop waits for this, so the axis does not coast on
+    the servo lag). Axes without a servo drive on are always settled."""
+    return ~s.drive_on[idx] | ~s.servo_type[idx] | (np.abs(s.act_vel[idx]) * dt * s.cpu[idx] < 1.0)
+
+
+def after_stops_due(s: AxisArrays, g: MotionGroup, dt: float) -> tuple[list[Axis], bool]:
+    """The axes of ``g`` whose after-stop action (disable, shutdown) is due now (no active
+    process, drive settled), in group order; and whether others still wait."""
+    idx = g.idx[s.after_stop[g.idx] != AfterStop.NOTHING]
+    if idx.size == 0:
+        return [], False
+    ready = ~s.busy[idx] & at_standstill(s, idx, dt)
+    due = [g.by_index[int(i)] for i in idx[ready]]
+    return due, bool(not ready.all())
+
+
 class GroupStop:
     """Handle of a group stop in progress (MGS, leaving run mode).
 
@@ -92,18 +126,23 @@ class GroupStop:
         self.owner = owner
         self.initiated = False
         self.complete = False
+        #: the axes (array indices) this stop may still hold in Stopping
+        self._latched = group.motion_idx
 
-    def update(self) -> None:
+    def update(self, s: AxisArrays) -> None:
         """Called after each coarse update of the group."""
         self.initiated = True
         if self.complete:
             return
-        done = True
-        for a in self.group.axes:
-            if a.type == AxisType.FEEDBACK_ONLY:
-                continue
-            if a.moving or a.after_stop != AfterStop.NOTHING:
-                done = False
-            elif a.stop_latch is self:
-                a.stop_latch = None  # this axis is at rest: StoppingStatus ends
-        self.complete = done
+        idx = self.group.motion_idx
+        waiting = moving(s, idx) | (s.after_stop[idx] != AfterStop.NOTHING)
+        latched = self._latched
+        if latched.size:
+            rest = ~(moving(s, latched) | (s.after_stop[latched] != AfterStop.NOTHING))
+            if rest.any():
+                for i in latched[rest]:
+                    a = self.group.by_index[int(i)]
+                    if a.stop_latch is self:
+                        a.stop_latch = None  # this axis is at rest: StoppingStatus ends
+                self._latched = latched[~rest]
+        self.complete = not waiting.any()

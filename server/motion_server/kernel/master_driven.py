@@ -32,18 +32,16 @@ from __future__ import annotations
 
 import math
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import ruckig
 
-from .enums import AxisType, ProcessKind
+from .axis import Axis
+from .enums import AxisType, MasterReference, ProcessKind
 from .errors import ErrorCode, MotionError
 from .processes import Process
 from .profiles import Limits
-
-if TYPE_CHECKING:
-    from .axis import Axis
-    from .controller import Controller
+from .state import StepContext
 
 #: a slave moving slower than this (units/s) counts as standing still for the master change
 MOVING_EPSILON = 1e-9
@@ -59,33 +57,24 @@ class MotionType(IntEnum):
     MOVE = 2
 
 
-class MasterReference(IntEnum):
-    """Master position source (Logix numbering)."""
+def link_reference(master: Axis, reference: MasterReference) -> MasterReference:
+    """The position an MDAC link reads: a virtual master at its command, a feedback-only
+    master at its actual position, whatever the MasterReference says (the manuals' rule)."""
+    if master.type == AxisType.VIRTUAL:
+        return MasterReference.COMMAND
+    if master.type == AxisType.FEEDBACK_ONLY:
+        return MasterReference.ACTUAL
+    return reference
 
-    ACTUAL = 0
-    COMMAND = 1
 
-
-def master_position(ctl: Controller, master: Axis, reference: MasterReference) -> float:
+def master_position(ctx: StepContext, master: Axis, reference: MasterReference) -> float:
     """Unwound position of the master as the link reads it."""
-    i = master.index
-    if master.type == AxisType.VIRTUAL:
-        return float(ctl.cmd_pos[i])
-    if master.type == AxisType.FEEDBACK_ONLY or reference == MasterReference.ACTUAL:
-        return float(ctl.act_pos[i])
-    return float(ctl.cmd_pos[i])
+    return ctx.read_master(master.index, link_reference(master, reference))[0]
 
 
-def master_speed(ctl: Controller, master: Axis, reference: MasterReference) -> float:
+def master_speed(ctx: StepContext, master: Axis, reference: MasterReference) -> float:
     """The master's forward speed (units/s) as the link reads it; reverse counts as 0."""
-    i = master.index
-    if master.type == AxisType.VIRTUAL:
-        v = float(ctl.cmd_vel[i])
-    elif master.type == AxisType.FEEDBACK_ONLY or reference == MasterReference.ACTUAL:
-        v = float(ctl.act_vel[i])
-    else:
-        v = float(ctl.cmd_vel[i])
-    return max(v, 0.0)
+    return max(ctx.read_master(master.index, link_reference(master, reference))[1], 0.0)
 
 
 class MasterProfile:
@@ -149,7 +138,7 @@ class MasterDrivenProcess(Process):
 
     def __init__(
         self,
-        ctl: Controller,
+        ctx: StepContext,
         master: Axis,
         reference: MasterReference,
         limits: Limits,
@@ -167,12 +156,12 @@ class MasterDrivenProcess(Process):
         #: the slave follows the master at the programmed ratio (TrackingMaster)
         self.tracking = False
         self._master = master
-        self._last_master = master_position(ctl, master, reference)
+        self._last_master = master_position(ctx, master, reference)
         self._origin = 0.0  # position at the last (re)plan
         self._plan_travel = 0.0  # travel at the last (re)plan
         self.profile = self._plan(ratio)
         self._sample()
-        self.velocity = self.ratio * master_speed(ctl, master, reference)
+        self.velocity = self.ratio * master_speed(ctx, master, reference)
 
     # -- planning -------------------------------------------------------------------------
     def _plan(self, ratio: float) -> MasterProfile:
@@ -198,8 +187,8 @@ class MasterDrivenProcess(Process):
         self._sample()
 
     # -- stepping -------------------------------------------------------------------------
-    def step(self, ctl: Controller, dt: float) -> None:
-        m = master_position(ctl, self._master, self.reference)
+    def step(self, ctx: StepContext, dt: float) -> None:
+        m = master_position(ctx, self._master, self.reference)
         ds = max(m - self._last_master, 0.0)
         self._last_master = m
         self.travel += ds
@@ -225,7 +214,7 @@ class MasterDrivenJog(MasterDrivenProcess):
 
     def __init__(
         self,
-        ctl: Controller,
+        ctx: StepContext,
         master: Axis,
         reference: MasterReference,
         speed: float,
@@ -234,7 +223,7 @@ class MasterDrivenJog(MasterDrivenProcess):
         owner: Any = None,
     ) -> None:
         self.speed = speed
-        super().__init__(ctl, master, reference, limits, ratio, owner)
+        super().__init__(ctx, master, reference, limits, ratio, owner)
 
     @property
     def target_ratio(self) -> float:
@@ -261,7 +250,7 @@ class MasterDrivenMove(MasterDrivenProcess):
 
     def __init__(
         self,
-        ctl: Controller,
+        ctx: StepContext,
         master: Axis,
         reference: MasterReference,
         distance: float,
@@ -270,7 +259,7 @@ class MasterDrivenMove(MasterDrivenProcess):
         owner: Any = None,
     ) -> None:
         self.distance = distance
-        super().__init__(ctl, master, reference, limits, ratio, owner)
+        super().__init__(ctx, master, reference, limits, ratio, owner)
 
     @property
     def target_ratio(self) -> float:

@@ -4,30 +4,29 @@ break a link (master-driven speed control, see :mod:`.master_driven` for the rul
 ``Controller.mdsc`` is the :class:`MasterDrivenControl` of a controller. An MDAC calls
 :meth:`MasterDrivenControl.assign`; MAJ/MAM start through :meth:`~MasterDrivenControl.start`
 (time-driven) or :meth:`~MasterDrivenControl.start_master_driven`; stops call the
-``break_*`` methods.
+``break_*`` methods. Processes start and end through :class:`~.motion.Motion`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Collection
 from enum import IntEnum
-from typing import TYPE_CHECKING
 
-from .enums import AbortReason, AxisState, AxisType, ProcessKind
+import numpy as np
+
+from .axis import Axis
+from .enums import AbortReason, AxisState, AxisType, MasterReference, ProcessKind
 from .errors import ErrorCode, MotionError
 from .master_driven import (
     MIN_SPEED_SHARE,
     MOVING_EPSILON,
     MasterDrivenProcess,
-    MasterReference,
     MotionType,
     master_speed,
 )
+from .motion import Motion
+from .power import PowerEvent, require
 from .processes import Process
-
-if TYPE_CHECKING:
-    from .axis import Axis
-    from .controller import Controller
 
 
 class LinkState(IntEnum):
@@ -101,15 +100,15 @@ class MasterLink:
 
 
 #: builds a master-driven process from (link, master axis, inherited ratio)
-MasterFactory = Callable[[MasterLink, "Axis", float], Process]
+MasterFactory = Callable[[MasterLink, Axis, float], Process]
 
 
 class MasterDrivenControl:
     """The MDAC assignments of a controller: the current link per slave and motion type,
     and the pending reassignment per slave."""
 
-    def __init__(self, ctl: Controller) -> None:
-        self._ctl = ctl
+    def __init__(self, motion: Motion) -> None:
+        self._motion = motion
         self._links: dict[int, list[MasterLink]] = {}
         self._pending: dict[int, MasterLink] = {}
 
@@ -142,11 +141,8 @@ class MasterDrivenControl:
             raise MotionError(ErrorCode.MASTER_AXIS_CONFLICT, "an axis cannot be its own master")
         if slave.type == AxisType.FEEDBACK_ONLY:
             raise MotionError(ErrorCode.WRONG_AXIS_TYPE, f"{slave.name} is feedback only")
-        for ax in (slave, master):
-            if ax.state == AxisState.AXIS_SHUTDOWN:
-                raise MotionError(ErrorCode.SHUTDOWN_STATE, f"{ax.name} is shut down")
-            if ax.state == AxisState.AXIS_FAULTED:
-                raise MotionError(ErrorCode.AXIS_FAULTED, f"{ax.name} is faulted")
+        require(slave, PowerEvent.ASSIGN)
+        require(master, PowerEvent.ASSIGN)
         if self._follows(master.number, slave.number):
             raise MotionError(
                 ErrorCode.MASTER_AXIS_CONFLICT,
@@ -212,7 +208,7 @@ class MasterDrivenControl:
             if pend is not None:
                 frontier.append(pend.master)
             try:
-                ax = self._ctl.axis(a)
+                ax = self._motion.axis(a)
             except MotionError:
                 continue
             for p in ax.processes:
@@ -231,7 +227,7 @@ class MasterDrivenControl:
         """Start a time-driven process; a pending reassignment covering it switches now."""
         motion = KIND_TYPE[kind]
         pend = self._pending.get(slave.number)
-        p = self._ctl.start(slave, make, replace=replace)
+        p = self._motion.start(slave, make, replace=replace)
         if pend is not None and covers(pend.motion_type, motion):
             self._switch(pend)
         return p
@@ -250,7 +246,7 @@ class MasterDrivenControl:
         the 5 % rule compares). Raises before anything moves when the change of master is
         refused.
         """
-        ctl = self._ctl
+        mo = self._motion
         motion = KIND_TYPE[kind]
         pend = self._pending.get(slave.number)
         if pend is not None and not covers(pend.motion_type, motion):
@@ -261,14 +257,14 @@ class MasterDrivenControl:
                 ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE,
                 f"master units need an MDAC with {slave.name} as slave first",
             )
-        master = ctl.axis(link.master)
+        master = mo.axis(link.master)
         if master.state in (AxisState.AXIS_SHUTDOWN, AxisState.AXIS_FAULTED):
             raise MotionError(
                 ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE,
                 f"master {master.name} is {master.state.name.lower()}",
             )
-        v_m = master_speed(ctl, master, link.reference)
-        ctl.settle(slave)
+        v_m = master_speed(mo.s, master, link.reference)
+        mo.settle(slave)
         replaced = [
             p for p in slave.processes if p.active and (replace is None or p.kind in replace)
         ]
@@ -299,7 +295,7 @@ class MasterDrivenControl:
         def factory(v: float, a: float) -> Process:
             return make(link, master, ratio)
 
-        p = ctl.start(slave, factory, replace=replace)
+        p = mo.start(slave, factory, replace=replace)
         if pend is not None:
             self._switch(pend)
         link.processes.append(p)
@@ -345,16 +341,16 @@ class MasterDrivenControl:
         self.break_master(ax, reason, hold_active)
 
     def break_all(self, reason: AbortReason) -> None:
-        for ax in self._ctl.axes:
+        for ax in self._motion.axes:
             self.break_slave(ax, reason)
 
     def _break(self, link: MasterLink, reason: AbortReason, hold_active: bool) -> None:
         """Release ``link``; its running processes switch to a time-driven stop. With
         ``hold_active`` (MGS) AC stays set until the slave has stopped."""
-        slave = self._ctl.axis(link.slave)
+        slave = self._motion.axis(link.slave)
         was_active = link.active
         link.release(reason)
-        self._ctl.release(slave, link.processes, reason)
+        self._motion.release(slave, link.processes, reason)
         if hold_active and was_active:
             link.hold_active = lambda: slave.moving
 
@@ -362,10 +358,11 @@ class MasterDrivenControl:
         """Once per controller step: a fault on a slave or a master breaks its links."""
         if not self._links and not self._pending:
             return  # no MDAC link anywhere: nothing a fault could break
-        for ax in self._ctl.axes:
-            if ax.state == AxisState.AXIS_FAULTED and (
-                ax.number in self._links or self._is_master(ax.number)
-            ):
+        axes = self._motion.axes
+        faulted = np.flatnonzero(self._motion.s.axis_state == AxisState.AXIS_FAULTED)
+        for i in faulted:
+            ax = axes[int(i)]
+            if ax.number in self._links or self._is_master(ax.number):
                 self.break_axis(ax, AbortReason.FAULTED)
 
     def _is_master(self, number: int) -> bool:

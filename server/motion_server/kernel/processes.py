@@ -5,25 +5,30 @@ An axis's command position is its ``base`` plus the displacement of every active
 velocities add). A process that ends folds its displacement into ``base``. Instructions
 keep a reference to the process they started and poll its ``state``; the kernel never
 calls back into instructions.
+
+A process steps against a :class:`~.state.StepContext` (the shared arrays), never the
+controller: gears read their masters there.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Protocol
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from .enums import AbortReason, ProcessKind, ProcessState
 from .errors import MotionError
-from .profiles import Limits, Profile
-
-if TYPE_CHECKING:
-    from .controller import Controller
+from .profiles import Limits, OnlineProfile, TrapezoidProfile, profile_for
+from .state import StepContext
+from .trapezoid import judge_ramp
 
 
 class Lane(Protocol):
     """A fast lane stepping processes as arrays (:mod:`.lanes`)."""
 
     def evict(self, p: Process) -> None: ...
+
+    def sync(self, p: Process) -> None: ...
 
 
 class Process:
@@ -35,6 +40,9 @@ class Process:
     #: the fast lane stepping this process (:mod:`.lanes`); while set, ``position``,
     #: ``velocity`` and ``acceleration`` are stale until the lane evicts it
     lane: Lane | None = None
+    #: the process may have entered a state a lane steps (it started, left its lane,
+    #: reached its speed, locked): the kernel offers it to the lanes once, then clears it
+    offer_pending: bool = True
 
     def __init__(self, owner: Any = None) -> None:
         self.owner = owner
@@ -54,7 +62,7 @@ class Process:
     def active(self) -> bool:
         return self.state == ProcessState.ACTIVE
 
-    def step(self, ctl: Controller, dt: float) -> None:
+    def step(self, ctx: StepContext, dt: float) -> None:
         raise NotImplementedError
 
     @property
@@ -73,9 +81,34 @@ class Process:
         if self.state == ProcessState.ACTIVE:
             self.state = ProcessState.DONE
 
+    def fail(self, code: int) -> None:
+        """The process cannot go on: ERROR with ``code`` (the kernel ramps its velocity
+        down)."""
+        if self.lane is not None:
+            self.lane.evict(self)
+        self.state = ProcessState.ERROR
+        self.error_code = int(code)
+
+
+#: builds a process from the velocity and acceleration of what it replaces
+ProcessFactory = Callable[[float, float], Process]
+
+
+class Pending:
+    """A buffered command: started by the kernel once the axis's active motion is done."""
+
+    def __init__(self, make: ProcessFactory, owner: object = None) -> None:
+        self.make = make
+        self.owner = owner
+        self.process: Process | None = None
+        self.cancelled = False
+        #: set when the command could not start (cancelled with an error)
+        self.error_code = 0
+
 
 class ProfiledProcess(Process):
-    """A process driven by one ruckig :class:`Profile`."""
+    """A process driven by one profile: ruckig's when jerk-limited, the closed-form
+    trapezoid otherwise (:func:`.profiles.profile_for`)."""
 
     def __init__(
         self,
@@ -87,11 +120,11 @@ class ProfiledProcess(Process):
     ) -> None:
         super().__init__(owner)
         self.limits = limits.validated()
-        self.profile = Profile(dt, velocity, acceleration)
+        self.profile: OnlineProfile = profile_for(self.limits, dt, velocity, acceleration)
         self.velocity = velocity
         self.acceleration = acceleration
 
-    def step(self, ctl: Controller, dt: float) -> None:
+    def step(self, ctx: StepContext, dt: float) -> None:
         self.profile.step()
         self.position = self.profile.position
         self.velocity = self.profile.velocity
@@ -111,9 +144,11 @@ class ProfiledProcess(Process):
         profile cannot be planned nothing changes and MotionError is raised."""
         if self.lane is not None:
             self.lane.evict(self)
+        self.offer_pending = True
         saved = dict(vars(self))
         try:
             self.limits = limits.validated()
+            self._fit_profile()
             if speed is None:
                 self._retarget()
             else:
@@ -121,6 +156,15 @@ class ProfiledProcess(Process):
         except MotionError:
             vars(self).update(saved)
             raise
+
+    def _fit_profile(self) -> None:
+        """New limits may change the kind of profile (jerk-limited or trapezoidal): the
+        new one starts where the old one is."""
+        prof = self.profile
+        if isinstance(prof, TrapezoidProfile) != self.limits.trapezoidal:
+            self.profile = profile_for(
+                self.limits, prof.dt, prof.velocity, prof.acceleration, prof.position
+            )
 
     def change_speed(self, speed: float) -> None:
         raise NotImplementedError
@@ -154,8 +198,9 @@ class JogProcess(ProfiledProcess):
 
     def _after_step(self) -> None:
         # A jog never finishes by itself; "at speed" is InVelocity for PLCopen.
-        if self.profile.finished:
+        if self.profile.finished and not self.at_speed:
             self.at_speed = True
+            self.offer_pending = True
 
     def change_speed(self, speed: float) -> None:
         """Keep the direction, change the magnitude (MCD)."""
@@ -232,19 +277,30 @@ class StopRamp(ProfiledProcess):
         stopping: bool = True,
     ) -> None:
         big = max(abs(velocity), 1e-9) * 2.0
-        limits = Limits(big, deceleration, deceleration, jerk)
-        super().__init__(dt, limits, velocity, acceleration if jerk else 0.0, owner)
+        limits = Limits(big, deceleration, deceleration, jerk).validated()
+        a0 = acceleration if jerk else 0.0
+        if limits.trapezoidal:
+            # stepped in closed form (below), no planner: the ramp is judged as a plan
+            # would judge it (a ramp beyond the longest profile is refused)
+            Process.__init__(self, owner)
+            self.limits = limits
+            self.profile = TrapezoidProfile(dt, velocity, a0)
+            self.velocity = velocity
+            self.acceleration = a0
+            judge_ramp(velocity, deceleration)
+        else:
+            super().__init__(dt, limits, velocity, a0, owner)
+            self._retarget()
         self.stopping = stopping
-        self._retarget()
         if velocity == 0.0 and acceleration == 0.0:
             self.finish()
 
     def _retarget(self) -> None:
         self.profile.to_velocity(0.0, self.limits)
 
-    def step(self, ctl: Controller, dt: float) -> None:
-        if not math.isinf(self.limits.ruckig_jerk):
-            super().step(ctl, dt)  # jerk-limited: ruckig plans it
+    def step(self, ctx: StepContext, dt: float) -> None:
+        if not self.limits.trapezoidal:
+            super().step(ctx, dt)  # jerk-limited: ruckig plans it
             return
         # Trapezoidal (every MGS stop, MAS without jerk): the velocity drops by exactly
         # deceleration x dt per cycle and reaches rest in ceil(|v| / (d dt)) cycles. Done

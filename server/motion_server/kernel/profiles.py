@@ -1,9 +1,12 @@
-"""One-axis jerk-limited profiles through ruckig, one online update per cycle.
+"""One-axis profiles: jerk-limited through ruckig (one online update per cycle), trapezoidal
+in closed form (:mod:`.trapezoid`).
 
-A :class:`Profile` plans in displacement from its own origin, so a process can add its
-position to the others (superposition). Inputs are validated here before ruckig sees
-them: ruckig raises on bad input, and a controller must answer ER instead. Jerk 0 (or
-infinite) means a trapezoidal velocity profile. ``intermediate_positions`` is never set.
+A profile plans in displacement from its own origin, so a process can add its position to
+the others (superposition). Inputs are validated here before ruckig sees them: ruckig
+raises on bad input, and a controller must answer ER instead. Jerk 0 (or infinite) means a
+trapezoidal velocity profile: :func:`profile_for` then gives a
+:class:`~.trapezoid.TrapezoidProfile`, which the fast lanes can sample as arrays.
+``intermediate_positions`` is never set.
 """
 
 from __future__ import annotations
@@ -11,41 +14,15 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Any
 
 import ruckig
 
 from .errors import ErrorCode, MotionError
+from .limits import INF, Limits
+from .trapezoid import TrapezoidProfile
 
-INF = math.inf
-
-
-@dataclass(frozen=True)
-class Limits:
-    """Dynamics of one profile; jerk 0 or inf means trapezoidal."""
-
-    velocity: float
-    acceleration: float
-    deceleration: float
-    jerk: float = 0.0
-
-    def validated(self) -> Limits:
-        for name in ("velocity", "acceleration", "deceleration"):
-            value = getattr(self, name)
-            if not math.isfinite(value) or value <= 0.0:
-                raise MotionError(
-                    ErrorCode.PARAMETER_OUT_OF_RANGE, f"{name} must be > 0 and finite, got {value}"
-                )
-        if math.isnan(self.jerk) or self.jerk < 0.0:
-            raise MotionError(
-                ErrorCode.PARAMETER_OUT_OF_RANGE, f"jerk must be >= 0, got {self.jerk}"
-            )
-        return self
-
-    @property
-    def ruckig_jerk(self) -> float:
-        return INF if self.jerk == 0.0 or math.isinf(self.jerk) else self.jerk
+__all__ = ["INF", "Limits", "OnlineProfile", "Profile", "TrapezoidProfile", "profile_for"]
 
 
 class Profile:
@@ -54,15 +31,17 @@ class Profile:
     ``position`` is the displacement from the origin where the profile was created.
     """
 
-    def __init__(self, dt: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
+    def __init__(
+        self, dt: float, velocity: float = 0.0, acceleration: float = 0.0, position: float = 0.0
+    ) -> None:
         self._dt = dt
         self._otg = ruckig.Ruckig(1, dt)
         self._inp = ruckig.InputParameter(1)
         self._out = ruckig.OutputParameter(1)
-        self._inp.current_position = [0.0]
+        self._inp.current_position = [float(position)]
         self._inp.current_velocity = [float(velocity)]
         self._inp.current_acceleration = [float(acceleration)]
-        self.position = 0.0
+        self.position = float(position)
         self.velocity = float(velocity)
         self.acceleration = float(acceleration)
         self.finished = False
@@ -194,3 +173,20 @@ class Profile:
     @property
     def target_velocity(self) -> float:
         return self._target_velocity
+
+
+#: a process's profile: ruckig's when jerk-limited, the closed form when trapezoidal
+OnlineProfile = Profile | TrapezoidProfile
+
+
+def profile_for(
+    limits: Limits,
+    dt: float,
+    velocity: float = 0.0,
+    acceleration: float = 0.0,
+    position: float = 0.0,
+) -> OnlineProfile:
+    """The profile that plans ``limits``: trapezoidal in closed form, else ruckig."""
+    if limits.trapezoidal:
+        return TrapezoidProfile(dt, velocity, acceleration, position)
+    return Profile(dt, velocity, acceleration, position)

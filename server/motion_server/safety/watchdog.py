@@ -34,7 +34,7 @@ from enum import IntEnum
 
 from ..config import WatchdogSection
 from ..instructions.logix.mgs import FORCED, MGSStopMode
-from ..kernel import AxisType, Controller, GroupStop
+from ..kernel import AxisType, Controller, GroupStop, TransitionError
 from ..tagmap.codec import Value
 from ..tagmap.image import Getter, Setter
 from .client import current_client
@@ -84,10 +84,6 @@ STOP_MODES = {
 }
 
 
-class TransitionError(RuntimeError):
-    """An event the watchdog's state table has no transition for."""
-
-
 class Watchdog:
     """One configured watchdog on a controller. The runtime calls :meth:`check` before
     every cycle; the tag image binds :meth:`bindings`."""
@@ -111,9 +107,7 @@ class Watchdog:
     def fire(self, event: WatchdogEvent) -> WatchdogState:
         nxt = TRANSITIONS.get((self.state, event))
         if nxt is None:
-            raise TransitionError(
-                f"watchdog {self.name}: no transition for {event.name} in {self.state.name}"
-            )
+            raise TransitionError(f"watchdog {self.name}", self.state, event)
         self.state = nxt
         return nxt
 

@@ -339,6 +339,9 @@ class Scan:
                 )
         if self.system.internal_errors:
             self._log_internal_errors()
+        kernel_errors = self.ctl.take_internal_errors()
+        if kernel_errors:
+            self._log_kernel_errors(kernel_errors)
         self.heartbeat = (self.heartbeat + 1) & 0xFFFFFFFF
         # Diagnostics.CycleTime: the cycle's own work (watchdogs, instructions, kernel);
         # copying it into the image is counted in the scan load
@@ -361,6 +364,16 @@ class Scan:
                 exc_info=exc,
             )
         errors.clear()
+
+    def _log_kernel_errors(self, errors: list[tuple[str, str, BaseException]]) -> None:
+        for axis, where, exc in errors:
+            log.error(
+                "axis %s: %s raised %s: the axis stops (internal error 1005 or AxisFault bit 3)",
+                axis,
+                where,
+                type(exc).__name__,
+                exc_info=exc,
+            )
 
     def _publish(self) -> None:
         t0 = time.perf_counter()

@@ -5,8 +5,10 @@ What changes how often decides how a slot is filled:
 - configuration (axis and group numbers, member lists, versions): once;
 - the axis arrays (positions, velocities, following error): for every axis at once,
   from the kernel's numpy arrays;
-- axis status words, group states, diagnostics, the clock and the watchdogs: every
-  cycle, value by value;
+- the axis status words (AxisState, PLCopenState, MotionStatus, AxisFault): every
+  cycle, for every axis at once, from the kernel's status arrays (which cost Python work
+  only for the axes whose processes or power changed);
+- group states, diagnostics, the clock and the watchdogs: every cycle, value by value;
 - instruction outputs: only of the instances whose outputs changed in the cycle (their
   output dictionaries note it: :class:`~motion_server.instructions.base.Outputs`);
 - writable tags (operands, triggers, hand-wheel inputs, clock commands): when written
@@ -20,7 +22,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..image.layout import ImageLayout
-from ..tagmap.image import AXIS_ARRAYS, Getter, TagImage, is_static
+from ..tagmap.image import AXIS_ARRAYS, AXIS_STATUS, Getter, TagImage, is_static
 from ..tagmap.model import Folder, Tag
 
 _POSITIONS = frozenset({"ActualPosition", "CommandPosition"})
@@ -45,7 +47,7 @@ class ImageFiller:
             self._all.append((slot, get))
             if is_static(tag) or (tag.writable and tag.folder == Folder.INSTRUCTIONS):
                 continue
-            if tag.folder == Folder.AXES and tag.field in AXIS_ARRAYS:
+            if tag.folder == Folder.AXES and (tag.field in AXIS_ARRAYS or tag.field in AXIS_STATUS):
                 slots, axes = by_field.setdefault(tag.field, ([], []))
                 slots.append(slot)
                 axes.append(ctl.axis(tag.owner).index)
@@ -66,6 +68,7 @@ class ImageFiller:
                 self._arrays.append(
                     (field, np.array(slots, dtype=np.intp), np.array(axes, dtype=np.intp))
                 )
+        self._status = any(field in AXIS_STATUS for field, _, _ in self._arrays)
         #: rotary axes: positions are published wrapped (as ``Axis.wrap`` reads them)
         self._rot = ctl.rotary_idx
         self._rollover = ctl.rollover[self._rot]
@@ -85,7 +88,12 @@ class ImageFiller:
         """After a cycle: what may have changed."""
         values = self.values
         ctl = self.image.system.ctl
+        status = ctl.status_arrays() if self._status else None
         for field, slots, axes in self._arrays:
+            if status is not None and field in AXIS_STATUS:
+                array = getattr(status, AXIS_STATUS[field])
+                values[slots] = array if axes is None else array[axes]
+                continue
             if axes is None and field in _POSITIONS:
                 assert isinstance(slots, slice)
                 raw = ctl.act_pos if field == "ActualPosition" else ctl.cmd_pos

@@ -20,8 +20,13 @@ from ..instructions.status import LogixBit
 from ..kernel import MotionStatusBit
 from .model import Access, Tag, TagMap
 
-#: AxisFault bits (kernel ``AxisFault`` and the communication watchdog's bit 2)
-AXIS_FAULT_BITS: dict[int, str] = {0: "PositionError", 1: "Profile", 2: "CommunicationWatchdog"}
+#: AxisFault bits (kernel ``AxisFault``; bit 2 is set by the communication watchdog)
+AXIS_FAULT_BITS: dict[int, str] = {
+    0: "PositionError",
+    1: "Profile",
+    2: "CommunicationWatchdog",
+    3: "Numeric",
+}
 
 
 def _camel(name: str) -> str:

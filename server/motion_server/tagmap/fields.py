@@ -56,7 +56,8 @@ AXIS_FIELDS: tuple[FieldSpec, ...] = (
     FieldSpec(
         "AxisFault",
         TagType.UDINT,
-        description="fault bits: 0 position error, 1 profile, 2 communication watchdog",
+        description="fault bits: 0 position error, 1 profile, 2 communication watchdog, "
+        "3 numeric (a value the kernel could not compute)",
     ),
     FieldSpec("ActualPosition", TagType.LREAL, quantity=Quantity.POSITION),
     FieldSpec("CommandPosition", TagType.LREAL, quantity=Quantity.POSITION),

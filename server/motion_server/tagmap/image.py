@@ -153,6 +153,15 @@ AXIS_ARRAYS: dict[str, Callable[[Controller], np.ndarray]] = {
     "PositionError": lambda ctl: ctl.cmd_pos - ctl.act_pos,
 }
 
+#: the axis status words the kernel gives for every axis at once
+#: (``Controller.status_arrays()``): tag field -> field of its ``StatusArrays``
+AXIS_STATUS: dict[str, str] = {
+    "AxisState": "axis_state",
+    "PLCopenState": "plcopen_state",
+    "MotionStatus": "motion_status",
+    "AxisFault": "fault",
+}
+
 #: fields whose value never changes while the server runs (configuration)
 STATIC_FIELDS: dict[Folder, frozenset[str]] = {
     Folder.AXES: frozenset({"Number", "Type", *CONFIG_GETTERS}),

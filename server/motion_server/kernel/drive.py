@@ -1,0 +1,233 @@
+"""The simulated drives and feedback: how actual positions follow the command.
+
+- Servo axes: a critically damped second-order loop that follows the command as a ramp
+  across each cycle (its exact solution); the steady following error at velocity v is
+  2v/ω, ω = 2π·drive_bandwidth, whatever the period. Actual positions are quantised to
+  encoder counts.
+- Virtual axes: actual = command.
+- An axis whose drive is off coasts at its coast deceleration, and its command tracks
+  the actual position.
+- Feedback-only axes sample their input (a hand wheel) or a built-in signal at the start
+  of the cycle.
+
+All of it is vectorised over a group's axes. A value that is not finite, or overflows
+(a command near the largest float, a feedback reading times its counts per unit beyond
+it), is never propagated: the controller screens the arrays after composition and after
+the drives (``AxisArrays.commands_finite``, one dot product each), :class:`DriveModel`
+repairs the axes concerned (finite values, at rest) and the controller faults them
+(``AxisFault.NUMERIC``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .axis import Axis
+from .enums import FeedbackSignal
+from .state import AxisArrays, Index, compact
+
+
+class _Partition:
+    """The axes ``idx`` of a group split by drive state, each part as a slice when its
+    indices are consecutive."""
+
+    __slots__ = (
+        "all",
+        "decay",
+        "dt",
+        "limit",
+        "n_off",
+        "n_on",
+        "n_watched",
+        "off",
+        "on",
+        "version",
+        "watch_all",
+        "watched",
+    )
+
+    def __init__(self, s: AxisArrays, idx: np.ndarray, version: int) -> None:
+        self.version = version
+        on = s.drive_on[idx]
+        on_idx = idx[on]
+        off_idx = idx[~on]
+        watched = on_idx[s.fe_limit[on_idx] > 0.0]
+        self.all: Index = compact(idx)
+        self.on: Index = compact(on_idx)
+        self.off: Index = compact(off_idx)
+        self.watched: Index = compact(watched)
+        self.n_on, self.n_off, self.n_watched = on_idx.size, off_idx.size, watched.size
+        #: every axis that is on has a following-error limit: the check reads the
+        #: drive update's own arrays
+        self.watch_all = watched.size == on_idx.size
+        self.limit = s.fe_limit[on_idx] if self.watch_all else s.fe_limit[watched]
+        #: exp(-w dt) of the axes that are on, for the period ``dt`` (set on first use)
+        self.decay = np.zeros(0)
+        self.dt = 0.0
+
+    def decay_for(self, s: AxisArrays, dt: float) -> np.ndarray:
+        if dt != self.dt or self.decay.size != self.n_on:
+            self.decay = np.exp(-s.omega[self.on] * dt)
+            self.dt = dt
+        return self.decay
+
+
+class DriveModel:
+    def __init__(self, arrays: AxisArrays) -> None:
+        self.s = arrays
+        #: bumped whenever a drive switches on or off; the per-group on/off index
+        #: partitions below are recomputed only then (fancy indexing costs on small groups)
+        self._version = 0
+        self._partitions: dict[int, _Partition] = {}
+
+    def switched(self) -> None:
+        """A drive switched on or off."""
+        self._version += 1
+
+    def _partition(self, idx: np.ndarray) -> _Partition:
+        """``idx`` split by drive state (recomputed only when a drive switched)."""
+        cached = self._partitions.get(id(idx))
+        if cached is None or cached.version != self._version:
+            cached = _Partition(self.s, idx, self._version)
+            self._partitions[id(idx)] = cached
+        return cached
+
+    # -- numerics -----------------------------------------------------------------------
+    def repair_commands(self, idx: np.ndarray) -> list[int]:
+        """Axes of ``idx`` whose composed command is not finite, set back to the last
+        command the drive followed, at rest. (Screen with ``commands_finite`` first.)"""
+        s = self.s
+        ok = np.isfinite(s.cmd_pos[idx]) & np.isfinite(s.cmd_vel[idx]) & np.isfinite(s.cmd_acc[idx])
+        bad = idx[~ok]
+        s.cmd_pos[bad] = s.drv_cmd[bad]
+        s.cmd_vel[bad] = 0.0
+        s.cmd_acc[bad] = 0.0
+        return [int(i) for i in bad]
+
+    def repair_actuals(self, idx: np.ndarray) -> list[int]:
+        """Axes of ``idx`` whose drive state is not finite (the drive overflowed), held at
+        their command, at rest: within the positions whose encoder count is a finite
+        number, so that the axis does not overflow again. (Screen with
+        ``actuals_finite`` first.)"""
+        s = self.s
+        ok = np.isfinite(s.act_x[idx]) & np.isfinite(s.act_pos[idx]) & np.isfinite(s.act_vel[idx])
+        bad = idx[~ok]
+        reach = 0.5 * np.finfo(float).max / s.cpu[bad]
+        here = s.drv_cmd[bad]
+        here = np.where(np.isfinite(here), np.clip(here, -reach, reach), 0.0)
+        here = np.round(here * s.cpu[bad]) / s.cpu[bad]
+        for a in (s.act_x, s.act_pos, s.cmd_pos, s.drv_cmd):
+            a[bad] = here
+        for a in (s.act_vel, s.cmd_vel, s.cmd_acc):
+            a[bad] = 0.0
+        return [int(i) for i in bad]
+
+    # -- drives ---------------------------------------------------------------------------
+    def follow(self, idx: np.ndarray, dt: float, servo: bool) -> list[int]:
+        """One cycle of the drives of ``idx`` (all servo or all virtual). Returns the servo
+        axes whose following error now exceeds their limit (to be faulted)."""
+        if idx.size == 0:
+            return []
+        s = self.s
+        beyond: list[int] = []
+        part = self._partition(idx)
+        on_idx, off_idx = part.on, part.off
+        if part.n_on:
+            if servo:
+                # x'' + 2w x' + w^2 x = w^2 c(t), c(t) the command ramp from the last
+                # cycle's command c0 to the new one c1 (slope v). Its exact solution: the
+                # steady tracking point c(t) - 2v/w plus a decaying (A + Bt) e^(-wt).
+                c0 = s.drv_cmd[on_idx]
+                c1 = s.cmd_pos[on_idx]
+                w = s.omega[on_idx]
+                slope = (c1 - c0) / dt
+                lag = 2.0 * slope / w
+                e0 = s.act_x[on_idx] - (c0 - lag)
+                de0 = s.act_vel[on_idx] - slope
+                decay = part.decay_for(s, dt)  # np.exp(-w * dt), constant per axis
+                b = de0 + w * e0
+                x = c1 - lag + (e0 + b * dt) * decay
+                s.act_x[on_idx] = x
+                s.act_vel[on_idx] = slope + (de0 - w * b * dt) * decay
+                cpu = s.cpu[on_idx]
+                q = (x * cpu).round() / cpu
+                s.act_pos[on_idx] = q
+                if part.n_watched:
+                    beyond = self._following_errors(part, c1, q)
+            else:
+                s.act_x[on_idx] = s.cmd_pos[on_idx]
+                s.act_pos[on_idx] = s.cmd_pos[on_idx]
+                s.act_vel[on_idx] = s.cmd_vel[on_idx]
+        if part.n_off:
+            v0 = s.act_vel[off_idx]
+            step = s.coast[off_idx] * dt
+            speed = np.maximum(np.abs(v0) - step, 0.0)
+            # a remnant below rounding of the per-cycle decrement is rest, not motion
+            speed[speed <= 1e-9 * step] = 0.0
+            v1 = np.sign(v0) * speed
+            x = s.act_x[off_idx] + 0.5 * (v0 + v1) * dt
+            if servo:
+                cpu = s.cpu[off_idx]
+                q = (x * cpu).round() / cpu
+            else:
+                q = x
+            s.act_x[off_idx] = x
+            s.act_vel[off_idx] = v1
+            s.act_pos[off_idx] = q
+            # with the drive off the command tracks the actual position
+            s.cmd_pos[off_idx] = q
+            s.cmd_vel[off_idx] = v1
+            s.cmd_acc[off_idx] = 0.0
+        s.drv_cmd[part.all] = s.cmd_pos[part.all]
+        return beyond
+
+    def _following_errors(self, part: _Partition, c1: np.ndarray, q: np.ndarray) -> list[int]:
+        """Axes whose |command - actual| exceeds their following error limit, from the
+        servo update's command ``c1`` and new actual ``q`` of the axes that are on."""
+        if part.watch_all:
+            over = np.abs(c1 - q) > part.limit
+            rows_of = part.on
+        else:
+            s = self.s
+            w = part.watched
+            over = np.abs(s.cmd_pos[w] - s.act_pos[w]) > part.limit
+            rows_of = w
+        if not np.count_nonzero(over):
+            return []
+        rows = np.flatnonzero(over)
+        if isinstance(rows_of, slice):
+            return [int(rows_of.start + r) for r in rows]
+        return [int(rows_of[r]) for r in rows]
+
+    # -- feedback -------------------------------------------------------------------------
+    def sample_feedback(self, ax: Axis, time: float, dt: float) -> str | None:
+        """The feedback of a feedback-only axis for this cycle. Returns why the sample
+        cannot be taken (not finite in counts), leaving the last sample and no velocity."""
+        cfg = ax.config
+        s = self.s
+        i = ax.index
+        old = float(s.act_x[i])
+        if cfg.feedback_signal == FeedbackSignal.CONSTANT_VELOCITY:
+            new = cfg.signal_velocity * time
+        elif cfg.feedback_signal == FeedbackSignal.SINE:
+            new = cfg.signal_amplitude * math.sin(2.0 * math.pi * cfg.signal_frequency * time)
+        else:
+            new = ax.feedback_input
+            if cfg.rotary:
+                # the input is a wrapped reading: unwind it against the last sample
+                delta = math.remainder(new - ax.wrap(old), cfg.rollover)
+                new = old + delta
+        cpu = float(s.cpu[i])
+        counts = new * cpu
+        if not math.isfinite(counts):
+            s.act_vel[i] = s.cmd_vel[i] = 0.0
+            return f"feedback sample {new!r} x {cpu:g} counts/unit is not a finite count"
+        q = round(counts) / cpu
+        s.act_vel[i] = (q - s.act_pos[i]) / dt
+        s.act_x[i] = new
+        s.act_pos[i] = q
+        s.cmd_pos[i] = q
+        s.cmd_vel[i] = s.act_vel[i]
+        return None

@@ -1,0 +1,34 @@
+"""Fast lanes: the motion states of many axes stepped as numpy arrays.
+
+Stepping one process object per axis in Python costs about a microsecond each; a lane
+steps all processes of one kind and state with a few array operations that repeat the
+objects' floating-point operations in the same order, so the results are bit-identical
+(a test runs a controller with and one without lanes side by side). The lanes:
+
+- time-driven (:mod:`.ramps`): jogs at speed; trapezoidal jogs and moves on their way
+  (accelerating, cruising, decelerating, reversing); trapezoidal stop ramps (MGS, MAS,
+  MC_Stop, MC_Halt and the ramp of a failed process);
+- followers on one master (:mod:`.gears`): locked gears with a real or a fraction ratio,
+  and gears catching up at a rate (the MAG clutch, the trapezoidal PLCopen catch-up).
+
+Jerk-limited profiles (ruckig), two-master gears, MC_GearInPos, master-driven motion,
+axes with more than one process or a buffered command stay in Python.
+
+Membership:
+
+- An axis joins a lane when its only process is in such a state and it has no buffered
+  command: when the command starts it, or after the controller composed it in Python.
+- It leaves when anything touches its motion: a new command, a stop, a release, an abort
+  (``Controller.settle``), a change of dynamics (``ProfiledProcess.change_dynamics``).
+  Leaving first writes the lane's values back into the process object.
+- A step in which a member changes state (a profile or ramp ends, a gear catches up, a
+  fraction gear's counts outgrow int64) is the process's own: the lane moves the member
+  out before it computes, and the axis is composed in Python in that step, then offered
+  again. Events cost Python work; the steady arithmetic between them does not.
+
+The order of the steps and the levels of the followers: :mod:`.group`.
+"""
+
+from .group import GroupLanes
+
+__all__ = ["GroupLanes"]

@@ -1,0 +1,192 @@
+"""A fast lane: the processes of one kind and state, with their state as parallel arrays.
+
+A lane steps all its members with a few array operations that repeat, for each member,
+the floating-point operations of the member's own ``step`` in the same order, so the
+result is bit-identical to stepping the objects one by one. A member that changes state
+in a step (finishes, locks, reaches its speed) is *moved out* before the lane computes:
+the lane writes its state before the step back into the process object, and the caller
+composes the axis in Python, through the process's own code, in the same step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+
+from ..axis import Axis
+from ..enums import MasterReference
+from ..processes import Process
+from ..state import AxisArrays, Index, compact
+
+#: composes one axis in Python now (its process changes state this step)
+Compose = Callable[[Axis], None]
+
+
+class LaneOwner(Protocol):
+    """The lanes of a group: a change of membership marks them for a rebuild."""
+
+    dirty: bool
+
+
+class Lane:
+    """Members (process, axis) and their state as arrays named by ``FIELDS``.
+
+    Members that joined since the last :meth:`rebuild` wait in ``_joining``: their
+    process objects are current until the lane steps them. While a process is a member
+    (``p.lane is self``) its ``position``, ``velocity`` and ``acceleration`` are stale
+    until the lane evicts or syncs it; its flags (state, locked, at speed) are current.
+    """
+
+    #: names of the per-member arrays, loaded from a member by :meth:`_load`
+    FIELDS: ClassVar[tuple[str, ...]] = ()
+    #: dtype of a field (float unless named here)
+    DTYPES: ClassVar[dict[str, Any]] = {}
+    #: fields with one row of this many values per member
+    WIDTHS: ClassVar[dict[str, int]] = {}
+
+    def __init__(self, owner: LaneOwner) -> None:
+        self._owner = owner
+        self.members: list[Process] = []
+        self.axes: list[Axis] = []
+        self._joining: list[tuple[Process, Axis]] = []
+        self._slot: dict[int, int] = {}  # id(process) -> row in the arrays
+        self.idx = np.zeros(0, dtype=np.intp)  # the members' axis indices
+        self.at: Index = self.idx  # the same, as a slice when consecutive
+        self.arrays: dict[str, np.ndarray] = {f: self._empty(f) for f in self.FIELDS}
+        #: membership changed since the last rebuild
+        self.changed = False
+
+    def _empty(self, field: str) -> np.ndarray:
+        width = self.WIDTHS.get(field)
+        shape = (0,) if width is None else (0, width)
+        return np.zeros(shape, dtype=self.DTYPES.get(field, float))
+
+    def __len__(self) -> int:
+        return len(self.members) + len(self._joining)
+
+    @staticmethod
+    def accepts(p: Process) -> bool:
+        """``p`` (the only, active process of its axis) is in this lane's state."""
+        raise NotImplementedError
+
+    def admit(self, p: Process, ax: Axis) -> None:
+        p.lane = self
+        self._joining.append((p, ax))
+        self.changed = True
+        self._owner.dirty = True
+
+    def evict(self, p: Process) -> None:
+        """Write the lane's state back into ``p`` and drop it."""
+        if p.lane is not self:
+            return
+        p.lane = None
+        p.offer_pending = True
+        k = self._slot.pop(id(p), None)
+        if k is not None:
+            self._store(p, k)
+        self.changed = True
+        self._owner.dirty = True
+
+    def sync(self, p: Process) -> None:
+        """Write the lane's state into ``p`` and keep it."""
+        k = self._slot.get(id(p))
+        if k is not None and p.lane is self:
+            self._store(p, k)
+
+    def move_out(self, rows: Sequence[int] | np.ndarray) -> list[Axis]:
+        """Evict the members at ``rows`` before the lane steps them: they change state in
+        this step, so their axes are composed in Python. Returns those axes."""
+        out = []
+        for k in rows:
+            p = self.members[int(k)]
+            self.evict(p)
+            out.append(self.axes[int(k)])
+        return out
+
+    def rebuild(self) -> None:
+        """Drop evicted members (keeping the others' array values) and add the new ones."""
+        if not self.changed:
+            return
+        keep = [k for k, p in enumerate(self.members) if self._slot.get(id(p)) == k]
+        members = [self.members[k] for k in keep]
+        axes = [self.axes[k] for k in keep]
+        joining = [(p, ax) for p, ax in self._joining if p.lane is self]
+        self._joining = []
+        rows = [self._load(p, ax) for p, ax in joining]
+        sel = np.array(keep, dtype=np.intp)
+        for j, f in enumerate(self.FIELDS):
+            old = self.arrays[f][sel]
+            if rows:
+                new = np.array([r[j] for r in rows], dtype=self.DTYPES.get(f, float))
+                self.arrays[f] = np.concatenate((old, new.reshape((len(rows), *old.shape[1:]))))
+            else:
+                self.arrays[f] = old
+        members += [p for p, _ in joining]
+        axes += [ax for _, ax in joining]
+        self._set_members(members, axes)
+        self.changed = False
+
+    def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
+        self.members = members
+        self.axes = axes
+        self._slot = {id(p): k for k, p in enumerate(members)}
+        self.idx = np.array([ax.index for ax in axes], dtype=np.intp)
+        self.at = compact(self.idx)
+
+    def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
+        raise NotImplementedError
+
+    def _store(self, p: Process, k: int) -> None:
+        raise NotImplementedError
+
+
+class LevelledLane(Lane):
+    """A lane of followers: each member reads a master (``midx``) through ``source``.
+
+    Members on a command reference read their master's command of this cycle, so they
+    step by level (:mod:`.group` orders them): ``levels[L]`` is the slice of level L in
+    the lane's arrays, ``slaves[L]`` and ``masters[L]`` index its members' and their
+    masters' axes.
+    """
+
+    def __init__(self, owner: LaneOwner, source: MasterReference) -> None:
+        super().__init__(owner)
+        self.source = source
+        self.midx = np.zeros(0, dtype=np.intp)
+        self.levels: list[slice] = []
+        self.slaves: list[Index] = []
+        self.masters: list[Index] = []
+        self.whole: list[bool] = []
+
+    @staticmethod
+    def master_index(p: Process) -> int:
+        raise NotImplementedError
+
+    def order(self, levels: list[int]) -> None:
+        """Sort the members by ``levels`` (one per member, in member order)."""
+        perm = sorted(range(len(self.members)), key=levels.__getitem__)
+        sel = np.array(perm, dtype=np.intp)
+        for f in self.FIELDS:
+            self.arrays[f] = self.arrays[f][sel]
+        self._set_members([self.members[k] for k in perm], [self.axes[k] for k in perm])
+        ordered = [levels[k] for k in perm]
+        depth = ordered[-1] + 1 if ordered else 0
+        self.levels = []
+        start = 0
+        for level in range(depth):
+            stop = start
+            while stop < len(ordered) and ordered[stop] == level:
+                stop += 1
+            self.levels.append(slice(start, stop))
+            start = stop
+        self.midx = np.array([self.master_index(p) for p in self.members], dtype=np.intp)
+        self.slaves = [compact(self.idx[sl]) for sl in self.levels]
+        #: the level is the whole lane (its results can replace the arrays, not fill them)
+        self.whole = [sl.start == 0 and sl.stop == len(self.members) for sl in self.levels]
+        self.masters = [compact(self.midx[sl]) for sl in self.levels]
+
+    def step(self, s: AxisArrays, level: int, dt: float, compose: Compose) -> None:
+        """Step the members at ``level`` (moving out those that change state)."""
+        raise NotImplementedError

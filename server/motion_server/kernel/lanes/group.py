@@ -1,0 +1,172 @@
+"""The lanes of one motion group, their order, and the axes left to compose in Python.
+
+Order, masters before slaves: time-driven lanes (jogs, profiles, stop ramps) read no other
+axis and step first; followers on an actual position read feedback, which composition
+never changes, and step next; followers on a command position read their master's
+command of this cycle, so they step by level: level 0 when the master is in a time lane,
+in an actual-position lane, in another group or has no motion; level k + 1 when the master
+is a command follower at level k. A follower whose master is composed in Python leaves its
+lane (it is composed in Python after its master). Axes a lane moves out in a step are
+composed in Python at that point, before any later level reads them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ..axis import Axis
+from ..enums import MasterReference
+from ..gearing import GearProcess
+from ..group import MotionGroup
+from ..processes import JogProcess, MoveProcess, Process, StopRamp
+from ..state import AxisArrays
+from .base import Compose, Lane, LevelledLane
+from .gears import CatchUpLane, FractionLane, GearLane, gear_source
+from .ramps import CruiseLane, ProfileLane, StopLane
+
+
+class GroupLanes:
+    """The lanes of one motion group, and the axes it still composes in Python."""
+
+    def __init__(self, group: MotionGroup) -> None:
+        self.group = group
+        self.cruise = CruiseLane(self)
+        self.profiles = ProfileLane(self)
+        self.stops = StopLane(self)
+        self.followers: dict[MasterReference, tuple[LevelledLane, ...]] = {
+            src: (GearLane(self, src), FractionLane(self, src), CatchUpLane(self, src))
+            for src in (MasterReference.COMMAND, MasterReference.ACTUAL)
+        }
+        self.all: tuple[Lane, ...] = (
+            self.cruise,
+            self.profiles,
+            self.stops,
+            *self.followers[MasterReference.ACTUAL],
+            *self.followers[MasterReference.COMMAND],
+        )
+        #: number of levels of command followers
+        self.depth = 0
+        #: (lane, level) of every non-empty follower level, in stepping order
+        self.schedule: list[tuple[LevelledLane, int]] = []
+        #: the group's axes in composition order, without those in a lane
+        self.python_order: list[Axis] = list(group.order)
+        self.dirty = False
+
+    def __len__(self) -> int:
+        return sum(len(lane) for lane in self.all)
+
+    def offer(self, ax: Axis, p: Process) -> None:
+        """``p`` is the only, active process of ``ax`` and nothing is buffered: admit it
+        to the lane of its state, if there is one."""
+        kind = type(p)
+        if kind is JogProcess:
+            if CruiseLane.accepts(p):
+                self.cruise.admit(p, ax)
+            elif ProfileLane.accepts(p):
+                self.profiles.admit(p, ax)
+        elif kind is MoveProcess:
+            if ProfileLane.accepts(p):
+                self.profiles.admit(p, ax)
+        elif kind is StopRamp:
+            if StopLane.accepts(p):
+                self.stops.admit(p, ax)
+        elif kind is GearProcess:
+            self._offer_follower(p, ax)
+
+    def _offer_follower(self, p: Process, ax: Axis) -> None:
+        assert isinstance(p, GearProcess)
+        if p.single is not None:
+            source = gear_source(p)
+            if source == MasterReference.COMMAND and not self._master_settled(p.single.index):
+                return  # its master is composed in Python: so must it be (see rebuild)
+            for follower in self.followers[source]:
+                if follower.accepts(p):
+                    follower.admit(p, ax)
+                    return
+
+    def _master_settled(self, index: int) -> bool:
+        """The master at ``index`` is composed before any follower steps: in another group,
+        without motion, or in a lane (its level is decided at the rebuild)."""
+        master = self.group.by_index.get(index)
+        if master is None or (not master.processes and master.buffered is None):
+            return True
+        return len(master.processes) == 1 and master.processes[0].lane is not None
+
+    def rebuild(self, s: AxisArrays, axes: Sequence[Axis]) -> None:
+        """Apply the changes of membership; order the command followers by level."""
+        for lane in self.all:
+            lane.rebuild()
+        self.cruise.place(s)
+        for lane in self.followers[MasterReference.ACTUAL]:
+            lane.order([0] * len(lane.members))
+        self._order_command_followers(axes)
+        schedule = [(lane, 0) for lane in self.followers[MasterReference.ACTUAL] if lane.members]
+        cmd = self.followers[MasterReference.COMMAND]
+        for level in range(self.depth):
+            for lane in cmd:
+                if level < len(lane.levels) and lane.levels[level].stop > lane.levels[level].start:
+                    schedule.append((lane, level))
+        self.schedule = schedule
+        laned = {id(ax) for lane in self.all for ax in lane.axes}
+        self.python_order = [ax for ax in self.group.order if id(ax) not in laned]
+        for ax in self.python_order:
+            # membership changed: a follower's master may have joined a lane
+            for p in ax.processes:
+                p.offer_pending = True
+        self.dirty = False  # evictions while levelling set it: they are rebuilt above
+
+    def _order_command_followers(self, axes: Sequence[Axis]) -> None:
+        lanes = self.followers[MasterReference.COMMAND]
+        group = self.group.number
+        by_axis: dict[int, tuple[LevelledLane, Process]] = {}
+        for lane in lanes:
+            for p, ax in zip(lane.members, lane.axes, strict=True):
+                by_axis[id(ax)] = (lane, p)
+        first = (self.cruise, self.profiles, self.stops, *self.followers[MasterReference.ACTUAL])
+        stepped_first = {id(ax) for lane in first for ax in lane.axes}
+        memo: dict[int, int | None] = {}
+
+        def level(ax: Axis) -> int | None:
+            """Level of ``ax``'s follower; None when it cannot stay in its lane."""
+            key = id(ax)
+            if key in memo:
+                return memo[key]
+            memo[key] = None  # no loops (gearing refuses them); guards anyway
+            lane, p = by_axis[key]
+            master = axes[lane.master_index(p)]
+            mkey = id(master)
+            result: int | None
+            if master.group != group or mkey in stepped_first:
+                result = 0
+            elif mkey in by_axis:
+                up = level(master)
+                result = None if up is None else up + 1
+            elif not master.processes and master.buffered is None:
+                result = 0  # no motion: its command does not change while composing
+            else:
+                result = None  # composed in Python: the slave must follow it there
+            memo[key] = result
+            return result
+
+        depth = 0
+        for lane in lanes:
+            levels = [level(ax) for ax in lane.axes]
+            if any(lv is None for lv in levels):
+                for p, lv in zip(list(lane.members), levels, strict=True):
+                    if lv is None:
+                        lane.evict(p)
+                lane.rebuild()
+            kept = [lv for lv in levels if lv is not None]
+            lane.order(kept)
+            depth = max(depth, len(lane.levels))
+        self.depth = depth
+
+    def step(self, s: AxisArrays, dt: float, compose: Compose) -> None:
+        if self.cruise.members:
+            self.cruise.step(s)
+        if self.profiles.members:
+            self.profiles.step(s, compose)
+        if self.stops.members:
+            self.stops.step(s, dt, compose)
+        for lane, level in self.schedule:
+            lane.step(s, level, dt, compose)

@@ -1,0 +1,189 @@
+"""Time-driven lanes: jogs at speed, trapezoidal jogs and moves on their way, and
+trapezoidal stop ramps (every MGS stop, MAS, MC_Stop and MC_Halt without jerk).
+
+None of them reads another axis, so they step first, before any follower.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..axis import Axis
+from ..processes import JogProcess, MoveProcess, Process, StopRamp
+from ..state import AxisArrays
+from ..trapezoid import SEGMENTS, TrapezoidProfile
+from .base import Compose, Lane
+
+
+class CruiseLane(Lane):
+    """Jogs at speed: the profile integrates its held velocity (``Profile.step`` and
+    ``TrapezoidProfile.step`` once finished)."""
+
+    FIELDS = ("base", "pos", "vel", "dt", "advance")
+
+    @staticmethod
+    def accepts(p: Process) -> bool:
+        return type(p) is JogProcess and p.profile.finished
+
+    def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
+        assert isinstance(p, JogProcess)
+        prof = p.profile
+        # the profile adds velocity x dt every step: the same product each time
+        return (ax.base, prof.position, prof.velocity, prof.dt, prof.velocity * prof.dt)
+
+    def _store(self, p: Process, k: int) -> None:
+        assert isinstance(p, JogProcess)
+        pos = float(self.arrays["pos"][k])
+        p.profile.position = pos
+        p.position = pos
+
+    def place(self, s: AxisArrays) -> None:
+        """After a rebuild: the members' velocity and acceleration, which stay constant
+        while they cruise (nothing else writes them while the axis is in the lane)."""
+        s.cmd_vel[self.at] = self.arrays["vel"]
+        s.cmd_acc[self.at] = 0.0
+
+    def step(self, s: AxisArrays) -> None:
+        if not self.members:
+            return
+        a = self.arrays
+        pos = a["pos"]
+        pos += a["advance"]
+        s.cmd_pos[self.at] = a["base"] + pos
+
+
+class ProfileLane(Lane):
+    """Trapezoidal jogs and moves within their plan (``TrapezoidProfile.step`` and
+    ``Plan.sample``); the sample that ends the plan is the process's own (moved out)."""
+
+    FIELDS = (
+        "base",
+        "cycles",
+        "dt",
+        "done",
+        "start",
+        "seg_pos",
+        "seg_vel",
+        "seg_acc",
+        "half",
+        "pos",
+        "vel",
+        "acc",
+    )
+    WIDTHS: ClassVar[dict[str, int]] = {
+        f: SEGMENTS for f in ("start", "seg_pos", "seg_vel", "seg_acc", "half")
+    }
+
+    def __init__(self, owner: Any) -> None:
+        super().__init__(owner)
+        self._rows = np.zeros(0, dtype=np.intp)
+
+    @staticmethod
+    def accepts(p: Process) -> bool:
+        if type(p) is not JogProcess and type(p) is not MoveProcess:
+            return False
+        prof = p.profile
+        return isinstance(prof, TrapezoidProfile) and prof.plan is not None and not prof.finished
+
+    def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
+        assert isinstance(p, JogProcess | MoveProcess)
+        prof = p.profile
+        assert isinstance(prof, TrapezoidProfile) and prof.plan is not None
+        plan = prof.plan
+        return (
+            ax.base,
+            float(prof.cycles),
+            prof.dt,
+            plan.done,
+            plan.start,
+            plan.pos,
+            plan.vel,
+            plan.acc,
+            plan.half,
+            p.position,
+            p.velocity,
+            p.acceleration,
+        )
+
+    def _store(self, p: Process, k: int) -> None:
+        assert isinstance(p, JogProcess | MoveProcess)
+        prof = p.profile
+        assert isinstance(prof, TrapezoidProfile)
+        a = self.arrays
+        prof.cycles = int(a["cycles"][k])
+        prof.position = p.position = float(a["pos"][k])
+        prof.velocity = p.velocity = float(a["vel"][k])
+        prof.acceleration = p.acceleration = float(a["acc"][k])
+
+    def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
+        super()._set_members(members, axes)
+        self._rows = np.arange(len(members), dtype=np.intp)
+
+    def step(self, s: AxisArrays, compose: Compose) -> None:
+        if not self.members:
+            return
+        a = self.arrays
+        cycles = a["cycles"]
+        t = (cycles + 1.0) * a["dt"]
+        ending = t >= a["done"]
+        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
+        cycles += 1.0
+        st = a["start"]
+        seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
+        rows = self._rows
+        tau = t - st[rows, seg]
+        v0 = a["seg_vel"][rows, seg]
+        acc = a["seg_acc"][rows, seg]
+        pos = a["seg_pos"][rows, seg] + tau * (v0 + tau * a["half"][rows, seg])
+        vel = v0 + tau * acc
+        a["pos"], a["vel"], a["acc"] = pos, vel, acc
+        at = self.at
+        s.cmd_pos[at] = a["base"] + pos
+        s.cmd_vel[at] = vel
+        s.cmd_acc[at] = acc
+        for ax in movers:
+            compose(ax)
+
+
+class StopLane(Lane):
+    """Trapezoidal stop ramps (``StopRamp.step`` without jerk): the velocity drops by
+    deceleration x dt per step; the step that reaches rest is the ramp's own (moved
+    out)."""
+
+    FIELDS = ("base", "pos", "vel", "acc", "decel")
+
+    @staticmethod
+    def accepts(p: Process) -> bool:
+        return type(p) is StopRamp and p.limits.trapezoidal
+
+    def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
+        assert isinstance(p, StopRamp)
+        return (ax.base, p.position, p.velocity, p.acceleration, p.limits.deceleration)
+
+    def _store(self, p: Process, k: int) -> None:
+        a = self.arrays
+        p.position = float(a["pos"][k])
+        p.velocity = float(a["vel"][k])
+        p.acceleration = float(a["acc"][k])
+
+    def step(self, s: AxisArrays, dt: float, compose: Compose) -> None:
+        if not self.members:
+            return
+        a = self.arrays
+        v0 = a["vel"]
+        dv = a["decel"] * dt
+        ending = np.abs(v0) <= dv * (1.0 + 1e-9)
+        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
+        v1 = v0 - np.copysign(dv, v0)
+        pos = a["pos"]
+        pos += 0.5 * (v0 + v1) * dt
+        acc = (v1 - v0) / dt
+        a["vel"], a["acc"] = v1, acc
+        at = self.at
+        s.cmd_pos[at] = a["base"] + pos
+        s.cmd_vel[at] = v1
+        s.cmd_acc[at] = acc
+        for ax in movers:
+            compose(ax)

@@ -1,0 +1,303 @@
+"""Motion processes on axes: starting, buffering, retiring and releasing them, composing an
+axis's command from them, and the order in which axes compose (masters before slaves).
+
+Every change to an axis's processes goes through :class:`Motion`, which keeps the axis's
+shared status current (``Axis.motion_changed``) and its fast lane membership right
+(:meth:`Motion.settle` before a change, :meth:`Motion.offer` after). A process whose step
+fails is contained here: a :class:`MotionError` ends it with its code, any other
+exception with ``INTERNAL_ERROR`` (recorded for the host to log), and a process that
+fails while moving hands its velocity to a stop ramp.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Sequence
+
+from .axis import Axis
+from .enums import AbortReason, ProcessKind, ProcessState
+from .errors import ErrorCode, MotionError
+from .group import MotionGroup
+from .lanes import GroupLanes
+from .processes import Pending, Process, ProcessFactory, StopRamp
+from .state import AxisArrays
+
+#: (axis name, what failed, the exception): an unexpected failure the host should log
+InternalError = tuple[str, str, BaseException]
+
+
+def _rounding_apart(x: float, y: float) -> bool:
+    """True when ``x`` and ``y`` differ by no more than accumulated rounding."""
+    return abs(x - y) <= 1e-9 * max(1.0, abs(y))
+
+
+class Motion:
+    """The processes of every axis of a controller."""
+
+    def __init__(
+        self,
+        arrays: AxisArrays,
+        axes: Sequence[Axis],
+        groups: Sequence[MotionGroup],
+        lanes: bool,
+    ) -> None:
+        self.s = arrays
+        self.axes = list(axes)
+        self._by_number = {a.number: a for a in axes}
+        self.groups = list(groups)
+        self.lanes_enabled = lanes
+        self.lanes = {g.number: GroupLanes(g) for g in groups}
+        self._offer_to = self.lanes if lanes else {}
+        #: masters and slaves changed: the composition order is recomputed at the next step
+        self.order_dirty = True
+        #: unexpected failures since the host last took them
+        self.internal_errors: list[InternalError] = []
+
+    def axis(self, number: int) -> Axis:
+        ax = self._by_number.get(number)
+        if ax is None:
+            raise MotionError(ErrorCode.AXIS_NOT_CONFIGURED, f"axis {number} is not configured")
+        return ax
+
+    # -- lanes and order ----------------------------------------------------------------------
+    def settle(self, ax: Axis) -> None:
+        """Bring ``ax``'s processes up to date and take it out of the fast lanes: call
+        before reading or changing its processes outside a step. It rejoins a lane once
+        it is in a lane's state again (:meth:`offer`)."""
+        for p in ax.processes:
+            if p.lane is not None:
+                p.lane.evict(p)
+
+    def offer(self, ax: Axis) -> None:
+        """After a change or a composition: one active process on a driven axis, with
+        nothing buffered, may go to a fast lane, if something happened to it since it was
+        last offered (``Process.offer_pending``)."""
+        procs = ax.processes
+        if len(procs) == 1 and ax.buffered is None:
+            p = procs[0]
+            if p.offer_pending and p.lane is None and p.state is ProcessState.ACTIVE:
+                lanes = self._offer_to.get(ax.group)
+                if lanes is not None and self.s.drive_on.item(ax.index):
+                    p.offer_pending = False
+                    lanes.offer(ax, p)
+
+    def coupling_changed(self) -> None:
+        """Call after adding or removing a process that has masters."""
+        self.order_dirty = True
+
+    def sort(self) -> None:
+        """Order each group's axes so that masters compose before their slaves."""
+        for g in self.groups:
+            order: list[Axis] = []
+            placed: set[int] = set()
+            for ax in g.axes:
+                self._visit(ax, g.number, order, placed, ())
+            g.order = order
+            self.lanes[g.number].dirty = True
+        self.order_dirty = False
+
+    def _visit(
+        self, ax: Axis, group: int, order: list[Axis], placed: set[int], path: tuple[int, ...]
+    ) -> None:
+        if ax.index in placed or ax.number in path:
+            return
+        for p in ax.processes:
+            for m in p.masters:
+                master = self._by_number.get(m)
+                if master is not None and master.group == group:
+                    self._visit(master, group, order, placed, (*path, ax.number))
+        order.append(ax)
+        placed.add(ax.index)
+
+    def would_cycle(self, slave: int, masters: Collection[int]) -> bool:
+        """True if making ``slave`` follow ``masters`` closes a loop of master/slave links."""
+        frontier = list(masters)
+        seen: set[int] = set()
+        while frontier:
+            m = frontier.pop()
+            if m == slave:
+                return True
+            if m in seen:
+                continue
+            seen.add(m)
+            ax = self._by_number.get(m)
+            if ax is not None:
+                for p in ax.processes:
+                    if p.active:
+                        frontier.extend(p.masters)
+        return False
+
+    # -- commands -------------------------------------------------------------------------
+    def retire(
+        self, ax: Axis, kinds: Collection[ProcessKind] | None, reason: AbortReason
+    ) -> tuple[float, float]:
+        """Abort matching processes, fold them into ``base``; return their velocity and
+        acceleration so that a successor can inherit them."""
+        self.settle(ax)
+        v = a = 0.0
+        keep: list[Process] = []
+        for p in ax.processes:
+            if p.active and (kinds is None or p.kind in kinds):
+                p.abort(reason)
+                v += p.velocity
+                a += p.acceleration
+            if p.active:
+                keep.append(p)
+            else:
+                ax.base += p.position
+        if len(keep) != len(ax.processes):
+            ax.processes = keep
+            self.coupling_changed()
+        ax.motion_changed()
+        return v, a
+
+    def start(
+        self,
+        ax: Axis,
+        make: ProcessFactory,
+        replace: Collection[ProcessKind] | None = (),
+        reason: AbortReason = AbortReason.SUPERSEDED,
+    ) -> Process:
+        """Start a process. ``replace`` names the kinds it supersedes (``None``: all of
+        them, the PLCopen aborting mode and Logix merge); the new process is built by
+        ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
+        raises, nothing has changed: the processes it would replace keep running."""
+        if not ax.processes:
+            # an axis without motion may be a master its lane followers read as constant
+            self.lanes[ax.group].dirty = True
+        self.settle(ax)
+        matching = [p for p in ax.processes if p.active and (replace is None or p.kind in replace)]
+        p = make(
+            sum((q.velocity for q in matching), 0.0), sum((q.acceleration for q in matching), 0.0)
+        )
+        self.retire(ax, replace, reason)
+        if replace is None and ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        ax.processes.append(p)
+        if p.masters:
+            self.coupling_changed()
+        ax.motion_changed()
+        self.offer(ax)
+        return p
+
+    def buffer(self, ax: Axis, make: ProcessFactory, owner: object = None) -> Pending:
+        """Queue ``make`` to start when the axis's active motion is done (PLCopen buffered)."""
+        if ax.buffered is not None:
+            raise MotionError(ErrorCode.BUFFER_FULL, f"{ax.name} already has a buffered command")
+        self.settle(ax)
+        pend = Pending(make, owner)
+        if not any(p.active for p in ax.processes):
+            pend.process = self.start(ax, make, replace=None)
+        else:
+            ax.buffered = pend
+        return pend
+
+    def abort(self, ax: Axis, reason: AbortReason) -> None:
+        """End every process on the axis at once (no ramp): disable, shutdown, fault."""
+        self.retire(ax, None, reason)
+        if ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        ax.stop_latch = None
+
+    def release(self, ax: Axis, processes: Collection[Process], reason: AbortReason) -> None:
+        """Switch ``processes`` of ``ax`` to a time-driven stop, as a controller does when a
+        slave loses its master: they are aborted with ``reason`` and the axis decelerates
+        their velocity to rest at its maximum deceleration (trapezoidal, StoppingStatus
+        set), keeping its power state; its other processes go on. An axis whose drive is
+        off simply coasts."""
+        hit = [p for p in processes if p.active and p in ax.processes]
+        if not hit:
+            return
+        self.settle(ax)
+        v = sum(p.velocity for p in hit)
+        for p in hit:
+            p.abort(reason)
+            ax.base += p.position
+        ax.processes = [p for p in ax.processes if p.active]
+        self.coupling_changed()
+        if self.s.drive_on[ax.index] and v != 0.0:
+            ax.processes.append(StopRamp(ax.period, ax.config.max_deceleration, 0.0, v))
+        ax.motion_changed()
+        self.offer(ax)
+
+    def release_followers(self, master: Axis, reason: AbortReason) -> None:
+        """Release every process on another axis that reads ``master`` (its ``masters``):
+        a shut-down master no longer drives anything (see :meth:`release`)."""
+        for ax in self.axes:
+            if ax is not master:
+                hit = [p for p in ax.processes if p.active and master.number in p.masters]
+                self.release(ax, hit, reason)
+
+    # -- composition ----------------------------------------------------------------------
+    def compose(self, ax: Axis, dt: float) -> None:
+        """Step ``ax``'s processes and sum them into its command (Logix superposition)."""
+        s = self.s
+        active = ProcessState.ACTIVE
+        procs = ax.processes
+        failed_moving: list[Process] = []
+        for p in procs:
+            if p.state is active:
+                before = (p.position, p.velocity, p.acceleration)
+                try:
+                    p.step(s, dt)
+                except MotionError as exc:
+                    p.fail(exc.code)
+                except Exception as exc:  # a bug or a library failing: contained here
+                    p.position, p.velocity, p.acceleration = before
+                    p.fail(ErrorCode.INTERNAL_ERROR)
+                    self.internal_errors.append((ax.name, repr(p), exc))
+                if p.state is ProcessState.ERROR and p.velocity != 0.0:
+                    failed_moving.append(p)
+        for p in failed_moving:
+            # a process that fails while moving hands its velocity to a stop ramp at the
+            # axis maximum deceleration: an error never makes a velocity step
+            ramp = StopRamp(dt, ax.config.max_deceleration, 0.0, p.velocity)
+            ramp.step(s, dt)
+            procs.append(ramp)
+        i = ax.index
+        if len(procs) == 1 and procs[0].state is active and ax.buffered is None:
+            # the common case, one running process: no lists, no sums
+            p = procs[0]
+            s.cmd_pos[i] = ax.base + p.position
+            s.cmd_vel[i] = p.velocity
+            s.cmd_acc[i] = p.acceleration
+            ax.motion_changed(True)
+            return
+        keep: list[Process] = []
+        landing: float | None = None
+        for p in procs:
+            if p.state is active:
+                keep.append(p)
+            else:
+                ax.base += p.position
+                if p.state == ProcessState.DONE and p.landing is not None:
+                    landing = p.landing
+        ax.processes = keep
+        if landing is not None and not keep and _rounding_apart(ax.base, landing):
+            ax.base = landing  # an absolute move ends exactly on its target
+        pos = vel = acc = 0.0
+        for p in keep:
+            pos += p.position
+            vel += p.velocity
+            acc += p.acceleration
+        s.cmd_pos[i] = ax.base + pos
+        s.cmd_vel[i] = vel
+        s.cmd_acc[i] = acc
+        pend = ax.buffered
+        if pend is not None and all(p.reached for p in keep):
+            ax.buffered = None
+            if not pend.cancelled:
+                try:
+                    pend.process = self.start(
+                        ax, pend.make, replace=None, reason=AbortReason.SUPERSEDED
+                    )
+                except MotionError as exc:
+                    # it cannot start from where the axis is now: its owner reports it
+                    pend.error_code = int(exc.code)
+                    pend.cancelled = True
+                except Exception as exc:  # contained as a failing step is
+                    pend.error_code = int(ErrorCode.INTERNAL_ERROR)
+                    pend.cancelled = True
+                    self.internal_errors.append((ax.name, f"buffered start {pend.make!r}", exc))
+        ax.motion_changed()

@@ -1,0 +1,159 @@
+"""The power state of an axis (Logix AxisState) as a table: state x event -> next state, or
+the error code that refuses the event.
+
+Commands (MSO, MSF, MAFR, MASD, MASR and their PLCopen and group forms), faults and the
+after-stop actions of a group stop are events; so are the two preconditions every motion
+command and every MDAC check (:attr:`PowerEvent.MOTION`, :attr:`PowerEvent.ASSIGN`),
+which never change the state: they are written here once. A pair missing from the table
+is a bug: :class:`~.errors.TransitionError`.
+
+Leaving Servo Control aborts the axis's processes (no ramp) with the event's reason,
+cancels a buffered command, releases a Stopping latch and drops a waiting after-stop
+action; entering it starts the command where the axis is, at rest. A transition to the
+same state does nothing, except a fault on a faulted axis and a shutdown of a shut-down
+one (:data:`REAPPLIED`), which end again whatever was started on the axis since.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+from .axis import Axis
+from .drive import DriveModel
+from .enums import AbortReason, AfterStop, AxisState, AxisType
+from .errors import ErrorCode, MotionError, TransitionError
+from .motion import Motion
+
+
+class PowerEvent(IntEnum):
+    SERVO_ON = 0  # MSO, MC_Power Enable rising
+    SERVO_OFF = 1  # MSF, MC_Power Enable falling, hard disable
+    FAULT = 2  # a fault bit was raised
+    FAULT_RESET = 3  # MAFR, MC_Reset
+    SHUTDOWN = 4  # MASD, MGSD, hard or fast shutdown
+    SHUTDOWN_RESET = 5  # MASR, MGSR
+    STOPPED_DISABLE = 6  # a fast disable's ramp reached rest
+    STOPPED_SHUTDOWN = 7  # a fast shutdown's ramp reached rest
+    MOTION = 8  # precondition of every motion command
+    ASSIGN = 9  # precondition of naming the axis in an MDAC (slave or master)
+
+
+R, S, F, D = (
+    AxisState.AXIS_READY,
+    AxisState.SERVO_CONTROL,
+    AxisState.AXIS_FAULTED,
+    AxisState.AXIS_SHUTDOWN,
+)
+E = PowerEvent
+#: (state, event) -> next state, or the error code that refuses the event
+TRANSITIONS: dict[tuple[AxisState, PowerEvent], AxisState | ErrorCode] = {
+    (R, E.SERVO_ON): S,
+    (S, E.SERVO_ON): S,
+    (F, E.SERVO_ON): ErrorCode.AXIS_FAULTED,
+    (D, E.SERVO_ON): ErrorCode.SHUTDOWN_STATE,
+    (R, E.SERVO_OFF): R,
+    (S, E.SERVO_OFF): R,
+    (F, E.SERVO_OFF): F,
+    (D, E.SERVO_OFF): D,
+    (R, E.FAULT): F,
+    (S, E.FAULT): F,
+    (F, E.FAULT): F,
+    (D, E.FAULT): D,  # shut down stays shut down (the fault bits are kept)
+    (R, E.FAULT_RESET): R,
+    (S, E.FAULT_RESET): S,
+    (F, E.FAULT_RESET): R,
+    (D, E.FAULT_RESET): D,
+    (R, E.SHUTDOWN): D,
+    (S, E.SHUTDOWN): D,
+    (F, E.SHUTDOWN): D,
+    (D, E.SHUTDOWN): D,
+    (R, E.SHUTDOWN_RESET): R,
+    (S, E.SHUTDOWN_RESET): S,
+    (F, E.SHUTDOWN_RESET): R,
+    (D, E.SHUTDOWN_RESET): R,
+    # an after-stop action waits only in Servo Control (leaving it drops the action)
+    (S, E.STOPPED_DISABLE): R,
+    (S, E.STOPPED_SHUTDOWN): D,
+    (R, E.MOTION): ErrorCode.SERVO_OFF_STATE,
+    (S, E.MOTION): S,
+    (F, E.MOTION): ErrorCode.AXIS_FAULTED,
+    (D, E.MOTION): ErrorCode.SHUTDOWN_STATE,
+    (R, E.ASSIGN): R,
+    (S, E.ASSIGN): S,
+    (F, E.ASSIGN): ErrorCode.AXIS_FAULTED,
+    (D, E.ASSIGN): ErrorCode.SHUTDOWN_STATE,
+}
+#: self-transitions that apply the event again (abort, drop the latch)
+REAPPLIED = frozenset({(F, E.FAULT), (D, E.SHUTDOWN)})
+del R, S, F, D, E
+
+#: events a feedback-only axis refuses whatever its state (it has no drive)
+NEEDS_DRIVE = frozenset({PowerEvent.SERVO_ON, PowerEvent.MOTION})
+
+#: the reason the processes of an axis end with when an event takes it out of Servo Control
+ABORT_REASON: dict[PowerEvent, AbortReason] = {
+    PowerEvent.SERVO_OFF: AbortReason.DISABLED,
+    PowerEvent.FAULT: AbortReason.FAULTED,
+    PowerEvent.SHUTDOWN: AbortReason.SHUTDOWN,
+    PowerEvent.STOPPED_DISABLE: AbortReason.DISABLED,
+    PowerEvent.STOPPED_SHUTDOWN: AbortReason.SHUTDOWN,
+}
+
+_REFUSAL_TEXT: dict[ErrorCode, str] = {
+    ErrorCode.WRONG_AXIS_TYPE: "{} is feedback only",
+    ErrorCode.SHUTDOWN_STATE: "{} is shut down",
+    ErrorCode.AXIS_FAULTED: "{} is faulted",
+    ErrorCode.SERVO_OFF_STATE: "{} is not in Servo Control",
+}
+
+
+def next_state(ax: Axis, event: PowerEvent) -> AxisState:
+    """The state ``event`` takes ``ax`` to; MotionError when the event is refused."""
+    if event in NEEDS_DRIVE and ax.type == AxisType.FEEDBACK_ONLY:
+        code = ErrorCode.WRONG_AXIS_TYPE
+    else:
+        nxt = TRANSITIONS.get((ax.state, event))
+        if nxt is None:
+            raise TransitionError(f"axis {ax.name} power", ax.state, event)
+        if isinstance(nxt, AxisState):
+            return nxt
+        code = nxt
+    raise MotionError(code, _REFUSAL_TEXT[code].format(ax.name))
+
+
+def require(ax: Axis, event: PowerEvent) -> None:
+    """Raise the error that refuses ``event`` on ``ax``, if any (a precondition)."""
+    next_state(ax, event)
+
+
+class Power:
+    """Applies power events to axes: their processes and drives follow."""
+
+    def __init__(self, motion: Motion, drive: DriveModel) -> None:
+        self._motion = motion
+        self._drive = drive
+
+    def fire(self, ax: Axis, event: PowerEvent) -> None:
+        """Apply ``event`` (MotionError if the table refuses it)."""
+        state = next_state(ax, event)
+        if state != ax.state or (state, event) in REAPPLIED:
+            self._enter(ax, state, ABORT_REASON.get(event, AbortReason.NONE))
+
+    def _enter(self, ax: Axis, state: AxisState, reason: AbortReason) -> None:
+        if state != AxisState.SERVO_CONTROL:
+            self._motion.abort(ax, reason)
+            ax.after_stop = AfterStop.NOTHING
+        ax.state = state
+        s = self._motion.s
+        on = state == AxisState.SERVO_CONTROL and ax.type != AxisType.FEEDBACK_ONLY
+        i = ax.index
+        if on and not s.drive_on[i]:
+            # the command starts where the axis is, at rest
+            ax.base = float(s.act_pos[i])
+            s.cmd_pos[i] = ax.base
+            s.drv_cmd[i] = ax.base
+            s.cmd_vel[i] = 0.0
+            s.cmd_acc[i] = 0.0
+        if bool(s.drive_on[i]) != on:
+            self._drive.switched()
+        s.drive_on[i] = on
