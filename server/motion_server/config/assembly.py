@@ -103,7 +103,7 @@ def assemble(
         try:
             payload = retain.load(retain_path, site.site.name)
             if payload is not None:
-                out.retain_notes = retain.restore(system, payload)
+                out.retain_notes = retain.restore(system, payload, retain_path)
                 out.restored = True
         except retain.RetainError as exc:
             raise SiteMapError(f"{exc} ({RETAIN_HINT})") from None
