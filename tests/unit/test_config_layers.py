@@ -139,8 +139,7 @@ def _cycles(graph: dict[str, set[str]]) -> list[set[str]]:
             if len(comp) > 1:
                 out.append(comp)
 
-    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))
-    for v in graph:
+    for v in graph:  # a few hundred modules: recursion stays shallow
         if v not in index:
             strong(v)
     return out
