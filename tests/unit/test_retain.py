@@ -5,14 +5,20 @@ cycles of 2 ms, so after 400 cycles Axis1 rests at exactly 5 mm."""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import math
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from motion_server import config
+from motion_server.config.assembly import RETAIN_HINT, assemble
 from motion_server.kernel import AxisState
 from motion_server.runtime import Runtime
-from motion_server.safety.retain import RetainError, retain_path
+from motion_server.safety.retain import FORMAT, RetainError, restore, retain_path
 
 SITE = """
 data_dir = "{data_dir}"
@@ -145,3 +151,104 @@ def test_a_file_of_another_site_is_refused(tmp_path: Path) -> None:
     )
     with pytest.raises(RetainError, match="not 'other'"):
         Runtime(other)
+
+
+# -- a sound checksum over a payload of the wrong shape ----------------------------------------
+def _signed(payload: object) -> str:
+    """A retain file whose checksum matches ``payload``, whatever it holds (the checksum
+    proves integrity, not sense: a hand-edited file re-signed is still to be judged)."""
+    canonical = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    digest = hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+    return json.dumps({"format": FORMAT, "sha256": digest, "payload": payload})
+
+
+def _payload(tmp_path: Path) -> dict[str, Any]:
+    run_and_save(tmp_path)
+    doc = json.loads(retain_path(site(tmp_path)).read_text())
+    return dict(doc["payload"])
+
+
+MALFORMED: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
+    ("axes as a list", lambda p: p.__setitem__("axes", []), "axes: not a table"),
+    ("operands as a list", lambda p: p.__setitem__("operands", [1]), "operands: not a table"),
+    ("an axis as a list", lambda p: p["axes"].__setitem__("Axis1", [5.0]), "axes.Axis1: not a"),
+    (
+        "operands of an instance as a number",
+        lambda p: p["operands"].__setitem__("MAM_1", 5),
+        "operands.MAM_1: not a table",
+    ),
+    ("NaN position", lambda p: p["axes"]["Axis1"].__setitem__("position", math.nan), "NaN"),
+    ("inf position", lambda p: p["axes"]["Axis1"].__setitem__("position", math.inf), "Infinity"),
+    (
+        "a position of 1e308",
+        lambda p: p["axes"]["Axis1"].__setitem__("position", 1e308),
+        "axes.Axis1.position: 1e+308 mm is beyond 2**53 encoder counts (1000 counts/mm)",
+    ),
+    (
+        "a boolean position",
+        lambda p: p["axes"]["Axis1"].__setitem__("position", True),
+        "axes.Axis1.position: True is not a finite number",
+    ),
+    (
+        "a string position",
+        lambda p: p["axes"]["Axis1"].__setitem__("position", "5"),
+        "axes.Axis1.position: '5' is not a finite number",
+    ),
+    (
+        "homed as a number",
+        lambda p: p["axes"]["Axis1"].__setitem__("homed", 1),
+        "axes.Axis1: expected homed (a boolean)",
+    ),
+    ("NaN operand", lambda p: p["operands"]["MAM_1"].__setitem__("Position", math.nan), "NaN"),
+    (
+        "an operand beyond its type",
+        lambda p: p["operands"]["MAM_1"].__setitem__("MoveType", 2**40),
+        "operands.MAM_1.MoveType: 1099511627776 is outside the DINT range",
+    ),
+    (
+        "an operand as a table",
+        lambda p: p["operands"]["MAM_1"].__setitem__("Position", {"x": 1}),
+        "operands.MAM_1.Position: {'x': 1} is not a finite number or boolean",
+    ),
+    ("an extra key", lambda p: p.__setitem__("extra", 1), "payload keys"),
+    ("no axes", lambda p: p.pop("axes"), "payload keys"),
+    ("a negative cycle", lambda p: p.__setitem__("cycle", -1), "cycle: not a cycle count"),
+]
+
+
+@pytest.mark.parametrize(
+    ("damage", "reason"), [(d, r) for _, d, r in MALFORMED], ids=[name for name, _, _ in MALFORMED]
+)
+def test_a_signed_but_malformed_payload_is_refused_in_one_line(
+    tmp_path: Path, damage: Callable[[dict[str, Any]], None], reason: str
+) -> None:
+    payload = _payload(tmp_path)
+    damage(payload)
+    path = retain_path(site(tmp_path))
+    path.write_text(_signed(payload))
+    # as the server starts
+    with pytest.raises(RetainError) as info:
+        Runtime(site(tmp_path))
+    message = str(info.value)
+    assert message.startswith(f"{path}: ") and "\n" not in message and reason in message
+    # as check does: one line, nothing restored
+    with pytest.raises(config.SiteMapError) as err:
+        assemble(site(tmp_path), environ={}, probe=False)
+    assert str(err.value) == f"{message} ({RETAIN_HINT})"
+
+
+def test_nothing_is_applied_when_one_value_is_refused(tmp_path: Path) -> None:
+    payload = _payload(tmp_path)
+    payload["operands"]["MSO_2"]["Axis"] = 2**40  # refused; MAM_1's values are sound
+    fresh = Runtime(site(tmp_path), fresh=True)
+    with pytest.raises(RetainError, match=r"operands\.MSO_2\.Axis"):
+        restore(fresh.system, payload, "retain.json")
+    assert fresh.image.read("MAM_1.Position") == 0.0
+    assert fresh.ctl.axis(1).actual_position == 0.0 and not fresh.ctl.axis(1).homed
+
+
+def test_a_sound_payload_still_restores_through_assemble(tmp_path: Path) -> None:
+    run_and_save(tmp_path)
+    out = assemble(site(tmp_path), environ={}, probe=False)
+    assert out.restored and out.system.ctl.axis(1).actual_position == pytest.approx(5.0)
+    assert out.system.instances["MAM_1"].inputs["Position"] == 5.0

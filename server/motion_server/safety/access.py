@@ -22,7 +22,7 @@ import re
 from dataclasses import dataclass
 
 from ..config import ModbusAccessSection
-from ..tagmap import Folder, TagMap
+from ..tagmap import TagMap
 
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 
@@ -41,21 +41,14 @@ def _address(host: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
 
 def writable_registers(tagmap: TagMap, entries: list[str]) -> frozenset[int]:
     """The registers ``entries`` (folders, owners, tags, ranges) let a client write."""
-    folders = {f.value for f in Folder}
     out: set[int] = set()
     for entry in entries:
         m = _RANGE.match(entry)
         if m:
             out.update(range(int(m.group(1)), int(m.group(2)) + 1))
             continue
-        for tag in tagmap:
-            if not tag.writable:
-                continue
-            if (
-                (entry in folders and tag.folder.value == entry)
-                or tag.owner == entry
-                or tag.name == entry
-            ):
+        for tag in tagmap.named(entry):
+            if tag.writable:
                 out.update(range(tag.address, tag.address + tag.count))
     return frozenset(out)
 

@@ -13,24 +13,46 @@ written atomically (a temporary file in the same directory, flushed and fsynced,
 renamed over the old one), at shutdown and periodically. A file that is torn, corrupt,
 of another format or of another site raises :class:`RetainError` naming the file and
 the reason; it is never loaded silently. ``motion-server run --fresh`` ignores it.
+
+A sound checksum is not enough: the payload must have the shape :func:`snapshot` writes
+(tables where tables belong, a boolean ``homed``, positions and operands that are finite
+numbers of their tag's type, positions within 2**53 encoder counts, where every count is
+still a distinct float). Anything else is refused as a whole, before a single value is
+applied, with one line naming the file and the entry.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
+import stat
 from pathlib import Path
 from typing import Any
 
-from ..config import SiteMap
+from ..config.checks import operand_problem
+from ..config.schema import SiteMap
 from ..instructions import MotionSystem
 
 FORMAT = "motion-server-retain/1"
+#: a retain file larger than this is refused unread (it holds a few numbers per tag)
+MAX_RETAIN_BYTES = 64 * 2**20
+#: a retained position may be at most this many encoder counts from zero (float64 holds
+#: every integer up to 2**53: beyond, positions could not be quantised to single counts)
+MAX_POSITION_COUNTS = 2.0**53
 
 
 class RetainError(RuntimeError):
     """A retain file that cannot be trusted; the message names the file and the reason."""
+
+
+class Payload(dict[str, Any]):
+    """The payload of a retain file, and the file it came from (for messages)."""
+
+    def __init__(self, data: dict[str, Any], path: Path) -> None:
+        super().__init__(data)
+        self.path = path
 
 
 def retain_path(site: SiteMap) -> Path:
@@ -83,30 +105,114 @@ def save(path: Path, payload: dict[str, Any]) -> None:
 
 def load(path: Path, site_name: str) -> dict[str, Any] | None:
     """The payload of a sound retain file; None when there is none; else RetainError."""
-    try:
-        text = path.read_text("utf-8")
-    except FileNotFoundError:
+    text = _read(path)
+    if text is None:
         return None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RetainError(f"{path}: cannot read the retain file: {exc}") from None
     try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise RetainError(f"{path}: torn or corrupt retain file ({exc})") from None
+        doc = json.loads(text, parse_constant=_no_constant)
+    except (json.JSONDecodeError, ValueError, RecursionError) as exc:
+        raise RetainError(f"{path}: torn or corrupt retain file ({_reason(exc)})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise RetainError(f"{path}: not a {FORMAT} file")
     payload = doc.get("payload")
     if not isinstance(payload, dict) or doc.get("sha256") != _digest(payload):
         raise RetainError(f"{path}: checksum mismatch: the retain file is corrupt")
-    if payload.get("site") != site_name:
-        raise RetainError(f"{path}: retained for site {payload.get('site')!r}, not {site_name!r}")
-    return payload
+    problem = _shape_problem(payload)
+    if problem:
+        raise RetainError(f"{path}: malformed retain file: {problem}")
+    if payload["site"] != site_name:
+        raise RetainError(f"{path}: retained for site {payload['site']!r}, not {site_name!r}")
+    return Payload(payload, path)
 
 
-def restore(system: MotionSystem, payload: dict[str, Any]) -> list[str]:
-    """Apply a payload to a system that has not run yet. Returns notes on what was
-    skipped (axes or operands the site map no longer has, values of the wrong type)."""
+def _read(path: Path) -> str | None:
+    """The file's text; None when there is none. Regular files of a bounded size only."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as exc:
+        raise RetainError(f"{path}: cannot read the retain file: {_reason(exc)}") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise RetainError(f"{path}: cannot read the retain file: not a regular file")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read(MAX_RETAIN_BYTES + 1)
+    except OSError as exc:
+        raise RetainError(f"{path}: cannot read the retain file: {_reason(exc)}") from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_RETAIN_BYTES:
+        raise RetainError(f"{path}: retain file larger than {MAX_RETAIN_BYTES // 2**20} MiB")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise RetainError(f"{path}: torn or corrupt retain file (not UTF-8)") from None
+
+
+def _reason(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    if isinstance(exc, RecursionError):
+        return "nested too deeply"
+    return str(exc)
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number a retain file may hold")
+
+
+def _number(value: Any) -> bool:
+    """A finite int or float (not a boolean)."""
+    return (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )
+
+
+def _shape_problem(payload: dict[str, Any]) -> str | None:
+    """Why a payload does not have the shape :func:`snapshot` writes (None: it does)."""
+    keys = {"site", "cycle", "axes", "operands"}
+    if set(payload) != keys:
+        return f"payload keys {sorted(payload)}, expected {sorted(keys)}"
+    if not isinstance(payload["site"], str):
+        return "site: not a string"
+    cycle = payload["cycle"]
+    if isinstance(cycle, bool) or not isinstance(cycle, int) or cycle < 0:
+        return "cycle: not a cycle count"
+    axes, operands = payload["axes"], payload["operands"]
+    if not isinstance(axes, dict):
+        return "axes: not a table"
+    for name, entry in axes.items():
+        if not isinstance(entry, dict):
+            return f"axes.{name}: not a table"
+        if not set(entry) <= {"homed", "position"} or not isinstance(entry.get("homed"), bool):
+            return f"axes.{name}: expected homed (a boolean) and position"
+        if "position" in entry and not _number(entry["position"]):
+            return f"axes.{name}.position: {entry['position']!r} is not a finite number"
+    if not isinstance(operands, dict):
+        return "operands: not a table"
+    for name, values in operands.items():
+        if not isinstance(values, dict):
+            return f"operands.{name}: not a table"
+        for key, value in values.items():
+            if not (isinstance(value, bool) or _number(value)):
+                return f"operands.{name}.{key}: {value!r} is not a finite number or boolean"
+    return None
+
+
+def restore(system: MotionSystem, payload: dict[str, Any], path: Path | str = "") -> list[str]:
+    """Apply a payload (from :func:`load`) to a system that has not run yet. Returns notes
+    on what was skipped (axes or operands the site map no longer has, values of another
+    type). A value the system cannot hold raises :class:`RetainError` naming the file
+    (``path``, else the one the payload was loaded from) before anything is applied."""
     ctl = system.ctl
+    problem = _value_problem(system, payload)
+    if problem:
+        where = path or getattr(payload, "path", "") or "retain file"
+        raise RetainError(f"{where}: malformed retain file: {problem}")
     notes: list[str] = []
     names = {ax.name: ax for ax in ctl.axes}
     for name, entry in payload.get("axes", {}).items():
@@ -133,3 +239,30 @@ def restore(system: MotionSystem, payload: dict[str, Any]) -> list[str]:
         if inst.TRIGGER == "Execute":
             inst._last_trigger = bool(inst.inputs["Execute"])  # high: already seen
     return notes
+
+
+def _value_problem(system: MotionSystem, payload: dict[str, Any]) -> str | None:
+    """Why a well-shaped payload cannot be applied to ``system`` (None: it can)."""
+    axes = {ax.name: ax for ax in system.ctl.axes}
+    for name, entry in payload["axes"].items():
+        ax = axes.get(name)
+        pos = entry.get("position")
+        if ax is None or pos is None:
+            continue
+        cpu, units = ax.config.counts_per_unit, ax.config.units
+        if not abs(float(pos)) * cpu <= MAX_POSITION_COUNTS:
+            return (
+                f"axes.{name}.position: {pos:g} {units} is beyond 2**53 encoder counts "
+                f"({cpu:g} counts/{units})"
+            )
+    for name, values in payload["operands"].items():
+        inst = system.instances.get(name)
+        if inst is None:
+            continue
+        for key, value in values.items():
+            if key not in inst.inputs or type(value) is not type(inst.inputs[key]):
+                continue  # a changed map: skipped with a note
+            problem = operand_problem(type(inst).operand(key), value)
+            if problem:
+                return f"operands.{name}.{key}: {problem}"
+    return None

@@ -12,6 +12,7 @@ protocol-neutral (:mod:`.errors`); each front-end maps them to its own codes.
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -239,8 +240,11 @@ class TagImage:
         #: bumped by every write: part of the key of the block copies
         self.generation = 0
         self._copies: dict[int, tuple[tuple[int, int], list[int]]] = {}
+        # the slots of every block (both sorted by address: one pass, not blocks x slots)
+        starts = [slot.address for slot in self._slots]
         self._block_slots = {
-            b.base: [s for s in self._slots if b.base <= s.address < b.end] for b in tagmap.blocks
+            b.base: self._slots[bisect_left(starts, b.base) : bisect_left(starts, b.end)]
+            for b in tagmap.blocks
         }
 
     # -- by tag -----------------------------------------------------------------------------

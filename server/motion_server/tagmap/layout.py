@@ -36,8 +36,9 @@ unused ones read 0; writes to the read-only part answer a Modbus exception.
 from __future__ import annotations
 
 import builtins
+import functools
 import itertools
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import TYPE_CHECKING
@@ -61,9 +62,13 @@ from .model import MAX_ADDRESS, Access, Block, Folder, Tag, TagMap, TagMapError,
 from .units import axis_range, fixed_range, narrowed
 
 if TYPE_CHECKING:
-    from ..config import InstanceSection, SiteMap
+    # the site map's schema only: the tag map never imports the config package at run
+    # time (the config's loader imports this module to check the layout)
+    from ..config.schema import InstanceSection, SiteMap
 
 CLOCK_BASE = 0
+#: the axis configuration blocks of a site whose axis blocks end at or below it
+AXIS_CONFIG_BASE = 3000
 DIAGNOSTICS_BASE = 50
 GROUP_STRIDE = 20
 AXIS_STRIDE = 50
@@ -152,6 +157,19 @@ def block_size(items: Sequence[_Item], bools_last: bool = False) -> tuple[int, i
     return status_end, start, alloc.next
 
 
+Placed = tuple[tuple["_Item", int, int | None, int], ...]
+
+
+@functools.lru_cache(maxsize=256)
+def _block_plan(items: tuple[_Item, ...], bools_last: bool) -> tuple[int, int, Placed]:
+    """(command start, command end, (item, offset, bit, words) of every item) of a
+    block: the same for every block of one kind, so a site of 10,000 axes plans it once."""
+    _, cmd_start, cmd_end = block_size(items, bools_last)
+    placed = _region(_Allocator(0), [i for i in items if not i.writable], bools_last)
+    placed += _region(_Allocator(cmd_start), [i for i in items if i.writable], bools_last)
+    return cmd_start, cmd_end, tuple((i, off, bit, i.type.words) for i, off, bit in placed)
+
+
 def _place(
     owner: str,
     folder: Folder,
@@ -162,14 +180,24 @@ def _place(
     node_prefix: str = "",
     part: str = "",
     bools_last: bool = False,
-) -> tuple[Block, list[Tag]]:
-    _, cmd_start, cmd_end = block_size(items, bools_last)
+) -> tuple[Block, Callable[[], list[Tag]]]:
+    """The block of one owner, and a function making its tags (made only once the
+    layout is known to be sound: a refused map of 10,000 axes needs blocks, not tags)."""
+    cmd_start, cmd_end, placed = _block_plan(tuple(items), bools_last)
     size = max(cmd_end, 1)
     span = -(-size // stride) * stride
-    placed = _region(_Allocator(base), [i for i in items if not i.writable], bools_last)
-    placed += _region(_Allocator(base + cmd_start), [i for i in items if i.writable], bools_last)
-    prefix = node_prefix or f"{folder.value}.{owner}"
-    tags = [
+    block = Block(
+        owner, folder, base, base + span, base + cmd_start, base + cmd_end, instruction, part
+    )
+    return block, functools.partial(
+        _tags, owner, folder, base, placed, node_prefix or f"{folder.value}.{owner}", instruction
+    )
+
+
+def _tags(
+    owner: str, folder: Folder, base: int, placed: Placed, prefix: str, instruction: str
+) -> list[Tag]:
+    return [
         Tag(
             name=f"{owner}.{item.field}",
             owner=owner,
@@ -177,8 +205,8 @@ def _place(
             folder=folder,
             type=item.type,
             access=Access.READ_WRITE if item.writable else Access.READ,
-            address=address,
-            count=item.type.words,
+            address=base + offset,
+            count=words,
             bit=bit,
             node_id=f"{prefix}.{item.field}",
             units=item.units,
@@ -190,12 +218,8 @@ def _place(
             instruction=instruction,
             eu_range=item.eu_range,
         )
-        for item, address, bit in placed
+        for item, offset, bit, words in placed
     ]
-    block = Block(
-        owner, folder, base, base + span, base + cmd_start, base + cmd_end, instruction, part
-    )
-    return block, tags
 
 
 def _spec_items(
@@ -333,7 +357,7 @@ def _instance_units(inst: InstanceSection, axis_units: dict[int, str]) -> dict[s
 
 def build_tagmap(site: SiteMap) -> TagMap:
     """The tag map of a site; raises :class:`TagMapError` when blocks overlap."""
-    tagmap, problems = _build(site)
+    tagmap, problems = plan_tagmap(site)
     if problems:
         raise TagMapError(problems)
     return tagmap
@@ -341,18 +365,20 @@ def build_tagmap(site: SiteMap) -> TagMap:
 
 def layout_problems(site: SiteMap) -> Problems:
     """Layout errors of a site map as (field location, message) pairs."""
-    return _build(site)[1]
+    return plan_tagmap(site)[1]
 
 
-def _build(site: SiteMap) -> tuple[TagMap, Problems]:
+def plan_tagmap(site: SiteMap) -> tuple[TagMap, Problems]:
+    """The tag map of a site and its layout errors ((field location, message) pairs);
+    when there are errors the tag map holds the blocks only, no tags."""
     mb = site.modbus
     blocks: list[tuple[Block, tuple[int | str, ...]]] = []
-    tags: list[Tag] = []
+    makers: list[Callable[[], list[Tag]]] = []
 
-    def add(result: tuple[Block, list[Tag]], where: tuple[int | str, ...]) -> int:
-        block, new = result
+    def add(result: tuple[Block, Callable[[], list[Tag]]], where: tuple[int | str, ...]) -> int:
+        block, make = result
         blocks.append((block, where))
-        tags.extend(new)
+        makers.append(make)
         return block.end
 
     group_configs = site.group_configs()
@@ -404,14 +430,22 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
         items = _spec_items(specs, cfg, period)
         block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items)
         base = add(block, ("axes", ai))
-    base = mb.axis_config_base
-    for ai, (a, cfg) in enumerate(zip(site.axes, configs, strict=True)):
-        period = period_of.get(cfg.number, DEFAULT_PERIOD)
-        items = _spec_items(CONFIG_FIELDS, cfg, period, static=True)
-        if mb.real_mirrors:
-            items += _spec_items(mirror_fields(AXIS_FIELDS), cfg, period)
-        block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items, part="configuration")
-        base = add(block, ("modbus", "axis_config_base") if ai == 0 else ("axes", ai))
+    def place_configuration(base: int) -> None:
+        for ai, (a, cfg) in enumerate(zip(site.axes, configs, strict=True)):
+            period = period_of.get(cfg.number, DEFAULT_PERIOD)
+            items = _spec_items(CONFIG_FIELDS, cfg, period, static=True)
+            if mb.real_mirrors:
+                items += _spec_items(mirror_fields(AXIS_FIELDS), cfg, period)
+            block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items, part="configuration")
+            base = add(block, ("modbus", "axis_config_base") if ai == 0 else ("axes", ai))
+
+    # the axis configuration blocks: where the site map says, else at 3000 when the axis
+    # blocks end there, else after every other block (a large site keeps its defaults)
+    config_base = mb.axis_config_base
+    if config_base is None and base <= AXIS_CONFIG_BASE:
+        config_base = AXIS_CONFIG_BASE
+    if config_base is not None:
+        place_configuration(config_base)
     axis_units = {c.number: c.units for c in configs}
     by_number = {c.number: c for c in configs}
     declared = {inst.name: i for i, inst in enumerate(site.instructions.instances)}
@@ -448,6 +482,9 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
                 inst.name, Folder.INSTRUCTIONS, base, INSTRUCTION_STRIDE, items, cls.TYPE
             )
             base = add(block, where)
+    if config_base is None and site.axes:
+        last = max(b.end for b, _ in blocks)
+        place_configuration(-(-last // 1000) * 1000)
     problems = _overlaps(blocks) + _owner_clashes(site)
     for inst in site.instances():
         if inst.modbus_base is not None and inst.modbus_base % 2:
@@ -464,7 +501,7 @@ def _build(site: SiteMap) -> tuple[TagMap, Problems]:
         namespace_uri=site.site.namespace_uri or f"urn:motion-server:{site.site.name}",
         unit_id=mb.unit_id,
         word_order=WordOrder(mb.word_order),
-        tags=tuple(tags),
+        tags=() if problems else tuple(t for make in makers for t in make()),
         blocks=tuple(b for b, _ in blocks),
         source=site,
     )
@@ -492,18 +529,27 @@ def _overlaps(blocks: list[tuple[Block, tuple[int | str, ...]]]) -> Problems:
 
 
 def _owner_clashes(site: SiteMap) -> Problems:
-    """Tag names are ``Owner.Field``: axis, group and instance names must differ."""
+    """Tag names are ``Owner.Field``: group, axis, instance (declared or every_type) and
+    watchdog names must differ, else their tags would merge into one owner's."""
     out: Problems = []
     seen: dict[str, str] = {name: "the server" for name in RESERVED_OWNERS}
     owners: list[tuple[str, tuple[int | str, ...], str]] = [
         (g.name, ("groups", i, "name"), "group") for i, g in enumerate(site.groups)
     ]
     owners += [(a.name, ("axes", i, "name"), "axis") for i, a in enumerate(site.axes)]
-    owners += [(w.name, ("watchdogs", i, "name"), "watchdog") for i, w in enumerate(site.watchdogs)]
+    # declared instances, then the every_type ones (their tags would merge just the same)
+    declared = len(site.instructions.instances)
     owners += [
-        (inst.name, ("instructions", "instances", i, "name"), "instance")
-        for i, inst in enumerate(site.instructions.instances)
+        (
+            inst.name,
+            ("instructions", "instances", i, "name")
+            if i < declared
+            else ("instructions", "every_type"),
+            "instance",
+        )
+        for i, inst in enumerate(site.instances())
     ]
+    owners += [(w.name, ("watchdogs", i, "name"), "watchdog") for i, w in enumerate(site.watchdogs)]
     for name, where, what in owners:
         if name in seen and seen[name] != what:
             out.append((where, f"{what} name {name!r} is already used by {seen[name]}"))

@@ -150,6 +150,7 @@ class TagMap:
     _by_name: dict[str, Tag] = field(init=False, repr=False)
     _by_node: dict[str, Tag] = field(init=False, repr=False)
     _starts: list[int] = field(init=False, repr=False)
+    _by_entry: dict[str, list[Tag]] | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         self.tags = tuple(sorted(self.tags, key=lambda t: (t.address, t.bit or 0)))
@@ -215,6 +216,17 @@ class TagMap:
 
     def in_folder(self, folder: Folder) -> list[Tag]:
         return [t for t in self.tags if t.folder == folder]
+
+    def named(self, entry: str) -> list[Tag]:
+        """The tags an entry of an access rule names: a folder (``Instructions``), an
+        owner (``MAJ_1``) or a tag (``MAJ_1.Speed``), in map order; empty: it names none."""
+        if self._by_entry is None:
+            by_entry: dict[str, list[Tag]] = {}
+            for t in self.tags:
+                for key in {t.folder.value, t.owner, t.name}:
+                    by_entry.setdefault(key, []).append(t)
+            self._by_entry = by_entry
+        return list(self._by_entry.get(entry, ()))
 
     def owners(self, folder: Folder) -> list[str]:
         """Owners of a folder in block order (instances, axes ...)."""

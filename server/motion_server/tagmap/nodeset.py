@@ -395,10 +395,3 @@ def enum_text(tag: Tag, value: Any) -> str:
         if v == value:
             return name
     return str(value)
-
-
-def to_nodeset(tagmap: TagMap) -> str:
-    """The site's namespace as NodeSet2 XML (:func:`.nodeset_xml.to_nodeset`)."""
-    from .nodeset_xml import to_nodeset as write
-
-    return write(tagmap)

@@ -1,29 +1,40 @@
-"""Site maps: TOML files naming the axes, groups and instruction instances of a site.
+"""Site-map schema: the sections of a site map as pydantic models, their cross-field
+checks, and the kernel configuration they describe.
 
-Validated with pydantic; every error names the file, the line and the field. The demo
-map embedded in the package (``data/demo.toml``) is what ``motion-server run`` uses when
-given none (unless ``MOTION_SERVER_MAP`` names a file). Settings of the single-table
-sections can be overridden from the environment (containers, CI benches): see
-:func:`environment_settings`.
+Every number is finite (TOML's ``inf`` and ``nan`` are refused everywhere). Axis
+attributes follow the Logix axis object (Rockwell MOTION-RM003): they are REALs, so a
+limit, rate or signal is at most :data:`REAL_MAX` in magnitude, and the conversion
+constant (feedback counts per position unit) lies in [1e-12, 1e12]. The axis fields and
+their defaults are those of :class:`~motion_server.kernel.AxisConfig` (the kernel's
+dataclass is the one definition; a test keeps the two field lists equal).
+
+This module reads no file and builds nothing: :mod:`.loading` turns TOML text into a
+:class:`SiteMap` and names file and line for every problem; :mod:`.assembly` builds the
+running system from it.
 """
 
 from __future__ import annotations
 
 import ipaddress
-import os
 import re
-import tomllib
 import typing
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from enum import Enum
-from importlib import resources
-from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Protocol
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
-from .instructions import MotionSystem, catalog
-from .kernel import (
+from ..instructions import MotionSystem, catalog
+from ..kernel import (
     AxisConfig,
     AxisType,
     ConfigError,
@@ -32,7 +43,9 @@ from .kernel import (
     GroupConfig,
     ProgrammedStopMode,
 )
-from .kernel.config import MAX_PERIOD, MIN_PERIOD
+from ..kernel.config import MAX_PERIOD, MIN_PERIOD
+from ..safety.passwords import parse_hash
+from .checks import Problem, duplicates, number_clashes, operand_problem, period_problems
 
 DEMO_MAP = "demo.toml"
 #: environment variable naming the site map file used when none is given
@@ -40,10 +53,31 @@ MAP_ENV = "MOTION_SERVER_MAP"
 #: prefix of the per-setting overrides: MOTION_SERVER_<SECTION>_<FIELD>
 ENV_PREFIX = "MOTION_SERVER_"
 NAME_RE = r"^[A-Za-z][A-Za-z0-9_]*$"
+#: the largest and the smallest normal Logix REAL (IEEE 754 binary32): axis attributes
+#: are REALs, and a positive limit below the normal range makes no stop computable (a
+#: speed over a deceleration of 5e-324 is an infinite time)
+REAL_MAX = 3.4028234663852886e38
+REAL_MIN = 1.1754943508222875e-38
+#: the longest time a limit may imply: reaching max_velocity at max_acceleration, stopping
+#: from it at max_deceleration, reaching either rate at max_jerk. A day is beyond any
+#: machine; more is a rate in the wrong units (and a stop the profile generator cannot plan)
+MAX_RAMP_TIME = 86400.0
+#: feedback counts per position unit: the Logix Conversion Constant range (MOTION-RM003)
+MIN_COUNTS_PER_UNIT = 1e-12
+MAX_COUNTS_PER_UNIT = 1e12
 
 
 class SiteMapError(ValueError):
-    """A site map that cannot be used; the message names file, line and field."""
+    """A site map that cannot be used; every line of the message names file, line and
+    field (or the environment variable) of one problem."""
+
+
+class Locator(Protocol):
+    """Where the fields of a site map were written (see :class:`.loading.Locations`)."""
+
+    def describe(self, loc: Sequence[int | str], message: str) -> str: ...
+
+    def overridden(self, origins: Mapping[tuple[str, str], str]) -> Locator: ...
 
 
 def _enum_by_name(enum: type[Enum]) -> Any:
@@ -59,8 +93,53 @@ def _enum_by_name(enum: type[Enum]) -> Any:
     return parse
 
 
+def _ip_address(value: str) -> str:
+    try:
+        ipaddress.ip_address(value)
+    except ValueError:
+        raise ValueError(
+            f"{value!r} is not an IP address (a bind address such as 127.0.0.1, 0.0.0.0 or ::)"
+        ) from None
+    return value
+
+
+def _no_nul(value: str) -> str:
+    if "\0" in value:
+        raise ValueError("a path cannot contain a NUL character")
+    return value
+
+
+def _within(lo: float, hi: float, zero: bool = False) -> AfterValidator:
+    """A bound check whose message prints the bounds as numbers are written (``1e+12``,
+    not forty digits); ``zero``: 0 is allowed too (off, or unlimited)."""
+    allowed = f"0 or {lo:.7g}..{hi:.7g}" if zero else f"{lo:.7g}..{hi:.7g}"
+
+    def check(value: float) -> float:
+        if not (lo <= value <= hi or (zero and value == 0.0)):
+            raise ValueError(f"{value:.7g} is outside {allowed}")
+        return value
+
+    return AfterValidator(check)
+
+
+#: an IP address to bind to
+BindAddress = Annotated[str, AfterValidator(_ip_address)]
+#: a file or directory name (relative ones as the section says)
+PathText = Annotated[str, Field(min_length=1), AfterValidator(_no_nul)]
+#: a file name that may be left empty
+OptionalPath = Annotated[str, AfterValidator(_no_nul)]
+#: a magnitude a Logix REAL can hold
+Real = Annotated[float, _within(-REAL_MAX, REAL_MAX)]
+NonNegativeReal = Annotated[float, _within(0.0, REAL_MAX)]
+#: a positive REAL of the normal range
+PositiveReal = Annotated[float, _within(REAL_MIN, REAL_MAX)]
+#: 0 (off, or unlimited: as the field says) or a positive REAL
+ZeroOrReal = Annotated[float, _within(REAL_MIN, REAL_MAX, zero=True)]
+CountsPerUnit = Annotated[float, _within(MIN_COUNTS_PER_UNIT, MAX_COUNTS_PER_UNIT)]
+
+
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class SiteSection(_Model):
@@ -72,30 +151,39 @@ class ControllerSection(_Model):
     clock: Literal["realtime", "scaled", "manual", "fast"] = "realtime"
     scale: Annotated[float, Field(ge=0.1, le=100.0)] = 1.0
     remote_clock: bool = True
-    status_log_interval: Annotated[float, Field(ge=0.0)] = 10.0
+    status_log_interval: Annotated[float, Field(ge=0.0, le=86400.0)] = 10.0
     max_catch_up: Annotated[int, Field(ge=1, le=1000)] = 50
 
 
+#: the kernel's defaults: one definition of every axis field's default
+_AXIS = AxisConfig(number=1, name="Axis1")
+
+
 class AxisSection(_Model):
+    """An axis (``[[axes]]``): the fields of :class:`~motion_server.kernel.AxisConfig`,
+    with its defaults; ``number`` defaults to the axis's place in the list (1-based)."""
+
     name: str = Field(pattern=NAME_RE)
     number: Annotated[int, Field(ge=1, le=65535)] | None = None
-    type: AxisType = AxisType.SERVO
-    units: str = "mm"
-    conversion_constant: Annotated[float, Field(gt=0.0)] = 1000.0
-    rollover: Annotated[float, Field(ge=0.0)] = 0.0
-    max_velocity: Annotated[float, Field(gt=0.0)] = 1000.0
-    max_acceleration: Annotated[float, Field(gt=0.0)] = 10000.0
-    max_deceleration: Annotated[float, Field(gt=0.0)] = 10000.0
-    max_jerk: Annotated[float, Field(ge=0.0)] = 0.0
-    programmed_stop_mode: ProgrammedStopMode = ProgrammedStopMode.FAST_STOP
-    coast_deceleration: Annotated[float, Field(ge=0.0)] = 1000.0
-    drive_bandwidth: Annotated[float, Field(gt=0.0, le=10000.0)] = 40.0
-    encoder_resolution: Annotated[float, Field(ge=0.0)] = 0.0
-    following_error_limit: Annotated[float, Field(ge=0.0)] = 0.0
-    feedback_signal: FeedbackSignal = FeedbackSignal.INPUT
-    signal_velocity: float = 0.0
-    signal_amplitude: float = 0.0
-    signal_frequency: Annotated[float, Field(ge=0.0)] = 0.0
+    type: AxisType = _AXIS.type
+    units: str = Field(default=_AXIS.units, max_length=32)
+    conversion_constant: CountsPerUnit = _AXIS.conversion_constant
+    rollover: ZeroOrReal = _AXIS.rollover
+    max_velocity: PositiveReal = _AXIS.max_velocity
+    max_acceleration: PositiveReal = _AXIS.max_acceleration
+    max_deceleration: PositiveReal = _AXIS.max_deceleration
+    max_jerk: ZeroOrReal = _AXIS.max_jerk
+    programmed_stop_mode: ProgrammedStopMode = _AXIS.programmed_stop_mode
+    coast_deceleration: ZeroOrReal = _AXIS.coast_deceleration
+    drive_bandwidth: Annotated[float, Field(gt=0.0, le=10000.0)] = _AXIS.drive_bandwidth
+    encoder_resolution: Annotated[
+        float, _within(MIN_COUNTS_PER_UNIT, MAX_COUNTS_PER_UNIT, zero=True)
+    ] = _AXIS.encoder_resolution
+    following_error_limit: NonNegativeReal = _AXIS.following_error_limit
+    feedback_signal: FeedbackSignal = _AXIS.feedback_signal
+    signal_velocity: Real = _AXIS.signal_velocity
+    signal_amplitude: Real = _AXIS.signal_amplitude
+    signal_frequency: NonNegativeReal = _AXIS.signal_frequency
 
     _parse_type = field_validator("type", mode="before")(_enum_by_name(AxisType))
     _parse_stop = field_validator("programmed_stop_mode", mode="before")(
@@ -116,7 +204,7 @@ class GroupSection(_Model):
 class InstanceSection(_Model):
     name: str = Field(pattern=NAME_RE)
     type: str
-    operands: dict[str, float | int | bool] = Field(default_factory=dict)
+    operands: dict[str, Any] = Field(default_factory=dict)
     #: explicit Modbus base register of the instance block (overrides the kind's default)
     modbus_base: Annotated[int, Field(ge=0, le=65535)] | None = None
 
@@ -128,16 +216,23 @@ class InstanceSection(_Model):
             raise ValueError(f"unknown instruction type {value!r}; known: {', '.join(types)}")
         return value
 
-    @model_validator(mode="after")
-    def _known_operands(self) -> InstanceSection:
-        cls = catalog()[self.type]
-        names = {op.name for op in cls.OPERANDS}
-        for key in self.operands:
-            if key not in names:
+    @field_validator("operands")
+    @classmethod
+    def _known_operands(cls, value: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
+        type_name = info.data.get("type")
+        if type_name is None:  # the type itself was refused
+            return value
+        ops = {op.name: op for op in catalog()[type_name].OPERANDS}
+        for key, item in value.items():
+            op = ops.get(key)
+            if op is None:
                 raise ValueError(
-                    f"{self.type} has no operand {key!r}; operands: {', '.join(sorted(names))}"
+                    f"{type_name} has no operand {key!r}; operands: {', '.join(sorted(ops))}"
                 )
-        return self
+            problem = operand_problem(op, item)
+            if problem:
+                raise ValueError(f"{key}: {problem}")
+        return value
 
 
 class InstructionsSection(_Model):
@@ -220,10 +315,10 @@ class ModbusTlsSection(_Model):
     enabled: bool = False
     port: Annotated[int, Field(ge=0, le=65535)] = 802
     tls_only: bool = False
-    cert_file: str = ""
-    key_file: str = ""
-    ca_file: str = ""
-    data_dir: str = "modbus-tls-data"
+    cert_file: OptionalPath = ""
+    key_file: OptionalPath = ""
+    ca_file: OptionalPath = ""
+    data_dir: PathText = "modbus-tls-data"
     default_role: RoleName = "viewer"
     roles: dict[str, RoleName] = Field(default_factory=lambda: dict(DEFAULT_CERTIFICATE_ROLES))
     handshake_timeout: Annotated[float, Field(gt=0.0, le=300.0)] = 10.0
@@ -271,7 +366,7 @@ class AuditSection(_Model):
     ``path`` is taken in the data directory."""
 
     enabled: bool = False
-    path: str = "audit.jsonl"
+    path: PathText = "audit.jsonl"
     max_bytes: Annotated[int, Field(ge=1024)] = 10_000_000
     backups: Annotated[int, Field(ge=0, le=1000)] = 5
 
@@ -282,8 +377,8 @@ class RetainSection(_Model):
     time; 0 = only at shutdown) to ``path`` (relative: in the data directory)."""
 
     enabled: bool = False
-    path: str = "retain.json"
-    interval: Annotated[float, Field(ge=0.0)] = 10.0
+    path: PathText = "retain.json"
+    interval: Annotated[float, Field(ge=0.0, le=86400.0)] = 10.0
     #: axes with absolute feedback: their positions are retained
     axes: list[str] = Field(default_factory=list)
 
@@ -295,7 +390,7 @@ class ModbusSection(_Model):
     Modbus/TCP Security beside (or instead of) plain Modbus TCP."""
 
     enabled: bool = True
-    host: str = "127.0.0.1"
+    host: BindAddress = "127.0.0.1"
     port: Annotated[int, Field(ge=0, le=65535)] = 5020
     unit_id: Annotated[int, Field(ge=0, le=255)] = 1
     word_order: Literal["big", "little"] = "big"
@@ -306,8 +401,10 @@ class ModbusSection(_Model):
     every_type_base: Annotated[int, Field(ge=100, le=60000, multiple_of=2)] = 20000
     #: watchdog blocks (``[[watchdogs]]``): safety_base + 20·k
     safety_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] = 900
-    #: axis configuration blocks (read-only, and the REAL mirrors): axis_config_base + 50·k
-    axis_config_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] = 3000
+    #: axis configuration blocks (read-only, and the REAL mirrors): axis_config_base + 50·k;
+    #: unset: 3000 when the axis blocks end there (up to 40 axes at the default axis_base),
+    #: else the first multiple of 1000 after every other block
+    axis_config_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] | None = None
     #: float32 (REAL) copies of the LREAL axis values, for panels that cannot read LREAL
     real_mirrors: bool = False
     access: ModbusAccessSection = ModbusAccessSection()
@@ -331,6 +428,16 @@ class OpcUaUser(_Model):
     role: Literal["viewer", "operator", "admin"] = "viewer"
     password_hash: str = Field(pattern=HASH_RE)
 
+    @field_validator("password_hash")
+    @classmethod
+    def _computable(cls, value: str) -> str:
+        try:
+            parse_hash(value)
+        except ValueError as exc:
+            # the message names the cost, never the hash itself
+            raise ValueError(f"unusable password hash: {exc}") from None
+        return value
+
 
 class OpcUaSection(_Model):
     """OPC UA front-end. ``port = 0`` binds an ephemeral port (tests). The server
@@ -339,9 +446,9 @@ class OpcUaSection(_Model):
     a loopback bind unless ``allow_insecure_remote`` is set as well."""
 
     enabled: bool = True
-    host: str = "127.0.0.1"
+    host: BindAddress = "127.0.0.1"
     port: Annotated[int, Field(ge=0, le=65535)] = 4840
-    data_dir: str = "opcua-data"
+    data_dir: PathText = "opcua-data"
     security_policies: list[SecurityPolicy] = Field(
         default_factory=lambda: list(typing.get_args(SecurityPolicy)), min_length=1
     )
@@ -398,8 +505,8 @@ class UsersFile(_Model):
 class SiteMap(_Model):
     site: SiteSection = SiteSection()
     controller: ControllerSection = ControllerSection()
-    axes: list[AxisSection]
-    groups: list[GroupSection]
+    axes: list[AxisSection] = Field(min_length=1)
+    groups: list[GroupSection] = Field(min_length=1)
     instructions: InstructionsSection = InstructionsSection()
     modbus: ModbusSection = ModbusSection()
     opcua: OpcUaSection = OpcUaSection()
@@ -407,29 +514,52 @@ class SiteMap(_Model):
     audit: AuditSection = AuditSection()
     retain: RetainSection = RetainSection()
     #: directory of the audit log and the retain file (relative: to the working directory)
-    data_dir: str = "."
+    data_dir: PathText = "."
     #: where the map came from (for messages); not a TOML field
     source: str = Field("<memory>", exclude=True)
+    #: where each field was written (set by the loader; messages name file and line)
+    _locator: Locator | None = PrivateAttr(default=None)
+
+    def located(self, loc: Sequence[int | str], message: str) -> str:
+        """One line for a problem at field ``loc``: file, line and field, or the
+        environment variable that set it."""
+        if self._locator is not None:
+            return self._locator.describe(loc, message)
+        field = ".".join(str(p) for p in loc) or "(top level)"
+        return f"{self.source}: {field}: {message}"
+
+    def locate_overrides(self, origins: Mapping[tuple[str, str], str]) -> None:
+        """Note fields set elsewhere than in the file (``(section, field) -> "option
+        --modbus-port"``): messages about them name that instead of a line."""
+        if self._locator is not None:
+            self._locator = self._locator.overridden(origins)
 
     # -- derived --------------------------------------------------------------------------
+    def axis_numbers(self) -> list[int]:
+        """Every axis's number: its own, else its place in ``[[axes]]`` (1-based)."""
+        return [a.number or i + 1 for i, a in enumerate(self.axes)]
+
+    def group_numbers(self) -> list[int]:
+        return [g.number or i + 1 for i, g in enumerate(self.groups)]
+
     def axis_configs(self) -> list[AxisConfig]:
         out = []
-        for i, a in enumerate(self.axes):
+        for a, number in zip(self.axes, self.axis_numbers(), strict=True):
             data = a.model_dump()
-            data["number"] = a.number or i + 1
+            data["number"] = number
             out.append(AxisConfig(**data))
         return out
 
     def group_configs(self) -> list[GroupConfig]:
-        numbers = {a.name: a.number for a in self.axis_configs()}
+        numbers = dict(zip((a.name for a in self.axes), self.axis_numbers(), strict=True))
         return [
             GroupConfig(
-                number=g.number or i + 1,
+                number=number,
                 name=g.name,
                 axes=tuple(numbers[name] for name in g.axes),
                 coarse_update_period=g.coarse_update_period_ms / 1000.0,
             )
-            for i, g in enumerate(self.groups)
+            for g, number in zip(self.groups, self.group_numbers(), strict=True)
         ]
 
     def instances(self) -> list[InstanceSection]:
@@ -444,219 +574,77 @@ class SiteMap(_Model):
         return out
 
     def build(self) -> MotionSystem:
-        """The controller and its instruction instances."""
+        """The controller and its instruction instances, as the map describes them.
+        :func:`motion_server.config.assembly.assemble` is what ``run`` and ``check`` use:
+        it builds this and everything around it, and names file and line on failure."""
         try:
             ctl = Controller(self.axis_configs(), self.group_configs())
-        except ConfigError as exc:
+        except ConfigError as exc:  # the cross-field checks of problems() catch these first
             raise SiteMapError(f"{self.source}: {exc}") from exc
         system = MotionSystem(ctl)
         for inst in self.instances():
             system.add(inst.type, inst.name, inst.operands)
         return system
 
-    def problems(self) -> list[tuple[tuple[int | str, ...], str]]:
-        """Cross-field checks: (location, message) pairs, empty when the map is sound."""
-        out: list[tuple[tuple[int | str, ...], str]] = []
-        out += _duplicates([a.name for a in self.axes], ("axes",), "name")
-        out += _duplicates([a.number for a in self.axes], ("axes",), "number")
-        out += _duplicates([g.name for g in self.groups], ("groups",), "name")
-        out += _duplicates(
+    def problems(self) -> list[Problem]:
+        """Cross-field checks: (location, message) pairs, empty when the map is sound.
+        Everything the kernel would refuse at construction is found here first."""
+        out: list[Problem] = []
+        out += duplicates([a.name for a in self.axes], ("axes",), "name")
+        out += number_clashes(
+            [a.name for a in self.axes], [a.number for a in self.axes], "axes", "axis"
+        )
+        out += duplicates([g.name for g in self.groups], ("groups",), "name")
+        out += number_clashes(
+            [g.name for g in self.groups], [g.number for g in self.groups], "groups", "group"
+        )
+        out += duplicates(
             [i.name for i in self.instructions.instances], ("instructions", "instances"), "name"
         )
-        out += _duplicates([u.name for u in self.opcua.users], ("opcua", "users"), "name")
-        out += _duplicates([w.name for w in self.watchdogs], ("watchdogs",), "name")
+        out += duplicates([u.name for u in self.opcua.users], ("opcua", "users"), "name")
+        out += duplicates([w.name for w in self.watchdogs], ("watchdogs",), "name")
         groups = {g.name for g in self.groups}
         for wi, w in enumerate(self.watchdogs):
             if w.group not in groups:
                 out.append((("watchdogs", wi, "group"), f"watchdog {w.name}: unknown group"))
         known = {a.name for a in self.axes}
+        member_of: dict[str, str] = {}
         for gi, g in enumerate(self.groups):
             for name in g.axes:
                 if name not in known:
                     out.append((("groups", gi, "axes"), f"group {g.name}: unknown axis {name!r}"))
+                elif name in member_of:
+                    out.append(
+                        (
+                            ("groups", gi, "axes"),
+                            f"group {g.name}: axis {name!r} is already in group {member_of[name]}",
+                        )
+                    )
+                else:
+                    member_of[name] = g.name
+        for ai, a in enumerate(self.axes):
+            if a.name not in member_of:
+                out.append((("axes", ai, "name"), f"axis {a.name!r} is in no motion group"))
+        out += period_problems([g.coarse_update_period_ms for g in self.groups])
+        for ai, a in enumerate(self.axes):
+            out += [(("axes", ai, *loc), msg) for loc, msg in _ramp_problems(a)]
+        for name in self.retain.axes:
+            if name not in known:
+                out.append((("retain", "axes"), f"unknown axis {name!r}"))
         return out
 
 
-def _duplicates(
-    values: list[Any], where: tuple[str, ...], field: str
-) -> list[tuple[tuple[int | str, ...], str]]:
-    seen: set[Any] = set()
-    out: list[tuple[tuple[int | str, ...], str]] = []
-    for i, v in enumerate(values):
-        if v is None:
-            continue
-        if v in seen:
-            out.append(((*where, i, field), f"duplicate {field} {v!r}"))
-        seen.add(v)
-    return out
-
-
-# -- loading -------------------------------------------------------------------------------
-
-
-def _locate(text: str, loc: tuple[int | str, ...]) -> int:
-    """Best line number (1-based) for a pydantic error location in TOML text: the line of
-    the field's assignment, else of its table header, else of the enclosing table."""
-    lines = text.splitlines()
-    line, start, end = 1, 0, len(lines)
-    i = 0
-    while i < len(loc):
-        key = loc[i]
-        idx: int | None = None
-        if i + 1 < len(loc):
-            following = loc[i + 1]
-            if isinstance(following, int):
-                idx = following
-        i += 1 if idx is None else 2
-        if not isinstance(key, str):
-            continue
-        header = re.compile(rf"^\s*\[\[?\s*(?:[\w.]+\.)?{re.escape(key)}\s*\]\]?\s*(?:#.*)?$")
-        hits = [n for n in range(start, end) if header.match(lines[n])]
-        if hits:
-            n = hits[idx] if idx is not None and idx < len(hits) else hits[0]
-            line, start = n + 1, n + 1
-            # the table runs to the next header that is not one of its own sub-tables
-            end = next(
-                (
-                    m
-                    for m in range(start, len(lines))
-                    if lines[m].lstrip().startswith("[") and f"{key}." not in lines[m]
-                ),
-                len(lines),
-            )
-            continue
-        assign = re.compile(rf"^\s*{re.escape(key)}\s*=")
-        n2 = next((m for m in range(start, end) if assign.match(lines[m])), None)
-        if n2 is None:
-            # a dotted header names this key with the next one ([[instructions.instances]])
-            if i < len(loc) and isinstance(loc[i], str):
-                continue
-            break
-        line = n2 + 1
-    return line
-
-
-def parse(text: str, source: str = "<memory>", environ: Mapping[str, str] | None = None) -> SiteMap:
-    """Validate a site map text; ``environ`` settings (see :func:`environment_settings`)
-    replace the TOML values before validation, so every check sees them."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SiteMapError(f"{source}: invalid TOML: {exc}") from exc
-    overrides = environment_settings(environ or {})
-    for (section, field), (_, value) in overrides.items():
-        table = data.setdefault(section, {})
-        if isinstance(table, dict):
-            table[field] = value
-    try:
-        site = SiteMap.model_validate({**data, "source": source})
-    except ValidationError as exc:
-        found = [(tuple(e["loc"]), e["msg"].removeprefix("Value error, ")) for e in exc.errors()]
-    else:
-        found = site.problems()
-        if not found:
-            from .tagmap import layout_problems  # the tag map builds on this module
-
-            found = layout_problems(site)
-    if found:
-        lines = []
-        for loc, msg in found:
-            field = ".".join(str(p) for p in loc) or "(top level)"
-            var = overrides.get((str(loc[0]), str(loc[1]))) if len(loc) > 1 else None
-            if var:
-                lines.append(f"{source}: environment {var[0]}: {msg}")
-            else:
-                lines.append(f"{source}:{_locate(text, loc)}: {field}: {msg}")
-        raise SiteMapError("\n".join(lines))
-    return site
-
-
-def environment_settings(environ: Mapping[str, str]) -> dict[tuple[str, str], tuple[str, str]]:
-    """``MOTION_SERVER_<SECTION>_<FIELD>`` variables: (section, field) -> (variable, value).
-
-    Every field of a single-table section (``[site]``, ``[controller]``, ``[modbus]``, ...)
-    can be set this way, e.g. ``MOTION_SERVER_MODBUS_HOST=0.0.0.0`` in a container or
-    ``MOTION_SERVER_CONTROLLER_CLOCK=manual`` on a test bench. The values are validated like
-    the TOML ones; an invalid one is a :class:`SiteMapError` naming the variable.
-    """
-    found: dict[tuple[str, str], tuple[str, str]] = {}
-    for section, info in SiteMap.model_fields.items():
-        model = info.annotation
-        if not (isinstance(model, type) and issubclass(model, _Model)):
-            continue
-        for field in model.model_fields:
-            var = f"{ENV_PREFIX}{section}_{field}".upper()
-            if var in environ:
-                found[(section, field)] = (var, environ[var])
-    return found
-
-
-def load(path: str | Path | None = None, environ: Mapping[str, str] | None = None) -> SiteMap:
-    """Load a site map file, or (``path`` None) the file named by ``MOTION_SERVER_MAP``,
-    else the embedded demo map, with the settings of the environment (``environ``,
-    default ``os.environ``) applied."""
-    env = os.environ if environ is None else environ
-    if path is None and env.get(MAP_ENV):
-        path = env[MAP_ENV]
-    if path is None:
-        text = resources.files("motion_server").joinpath("data", DEMO_MAP).read_text("utf-8")
-        return parse(text, f"<embedded {DEMO_MAP}>", env)
-    p = Path(path)
-    try:
-        text = p.read_text("utf-8")
-    except OSError as exc:
-        raise SiteMapError(f"{p}: cannot read site map: {exc.strerror}") from exc
-    return parse(text, str(p), env)
-
-
-def users_file_path(environ: dict[str, str] | None = None) -> Path | None:
-    """The users secret file: ``$MOTION_SERVER_USERS_FILE``, else
-    ``/run/secrets/motion_server_users`` when it exists, else None."""
-    env = os.environ if environ is None else environ
-    named = env.get(USERS_FILE_ENV)
-    if named:
-        return Path(named)
-    default = Path(DEFAULT_USERS_FILE)
-    return default if default.is_file() else None
-
-
-def load_users_file(path: str | Path) -> list[OpcUaUser]:
-    """The ``[[users]]`` of a users secret file; :class:`SiteMapError` naming file, line
-    and field (never the hash itself) when it cannot be used."""
-    p = Path(path)
-    try:
-        text = p.read_text("utf-8")
-    except OSError as exc:
-        raise SiteMapError(f"{p}: cannot read users file: {exc.strerror}") from exc
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SiteMapError(f"{p}: invalid TOML: {exc}") from exc
-    try:
-        parsed = UsersFile.model_validate(data)
-    except ValidationError as exc:
-        lines = []
-        for e in exc.errors():
-            loc = tuple(e["loc"])
-            msg = e["msg"].removeprefix("Value error, ")
-            if loc and loc[-1] == "password_hash":
-                msg = "not a password hash (motion-server hash-password prints one)"
-            lines.append(f"{p}:{_locate(text, loc)}: {'.'.join(map(str, loc))}: {msg}")
-        raise SiteMapError("\n".join(lines)) from None
-    problems = _duplicates([u.name for u in parsed.users], ("users",), "name")
-    if problems:
-        raise SiteMapError(
-            "\n".join(
-                f"{p}:{_locate(text, loc)}: {'.'.join(map(str, loc))}: {m}" for loc, m in problems
-            )
-        )
-    return parsed.users
-
-
-def opcua_users(site: SiteMap, environ: dict[str, str] | None = None) -> list[OpcUaUser]:
-    """The site map's OPC UA users, overridden by name by those of the users secret file."""
-    users = {u.name: u for u in site.opcua.users}
-    path = users_file_path(environ)
-    if path is not None:
-        users |= {u.name: u for u in load_users_file(path)}
-    return list(users.values())
+def _ramp_problems(a: AxisSection) -> list[Problem]:
+    """Limits that imply a ramp longer than :data:`MAX_RAMP_TIME`."""
+    ramps = [
+        ("max_acceleration", a.max_velocity / a.max_acceleration, "reaching max_velocity"),
+        ("max_deceleration", a.max_velocity / a.max_deceleration, "stopping from max_velocity"),
+    ]
+    if a.max_jerk:
+        rate = max(a.max_acceleration, a.max_deceleration)
+        ramps.append(("max_jerk", rate / a.max_jerk, "reaching the largest rate"))
+    return [
+        ((name,), f"{what} takes {t:.3g} s at {getattr(a, name):g}; at most {MAX_RAMP_TIME:g} s")
+        for name, t, what in ramps
+        if t > MAX_RAMP_TIME
+    ]
