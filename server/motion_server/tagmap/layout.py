@@ -430,6 +430,7 @@ def plan_tagmap(site: SiteMap) -> tuple[TagMap, Problems]:
         items = _spec_items(specs, cfg, period)
         block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items)
         base = add(block, ("axes", ai))
+
     def place_configuration(base: int) -> None:
         for ai, (a, cfg) in enumerate(zip(site.axes, configs, strict=True)):
             period = period_of.get(cfg.number, DEFAULT_PERIOD)
