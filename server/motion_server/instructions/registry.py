@@ -40,6 +40,11 @@ TYPE_CODES: dict[str, int] = {
     "MC_GearOut": 29,
     "MC_GearInPos": 30,
     "MC_CombineAxes": 31,
+    # homing, redefined positions, status and parameter blocks: 50-69
+    "MAH": 50,
+    "MRP": 51,
+    "MC_Home": 52,
+    "MC_SetPosition": 53,
 }
 _SUBPACKAGES = ("logix", "plcopen")
 _loaded = False
