@@ -1,5 +1,5 @@
-"""MAH and MRP over Modbus TCP against ``motion-server run`` (the pytest plugin's server,
-manual clock), on the demo map's Axis2.
+"""MAH, MRP and MC_ReadActualPosition over Modbus TCP against ``motion-server run`` (the
+pytest plugin's server, manual clock), on the demo map's Axis2.
 
 Axis2 (data/demo.toml) homes actively, bidirectional forward, switch then marker: forward
 at 20 mm/s to the home switch (a cam on [50, 55] mm of the raw feedback), back off it at
@@ -69,3 +69,17 @@ def test_mah_homes_axis2_to_its_marker_over_modbus(motion_server: MotionServer) 
     srv.run_for(0.5)
     assert srv.read("Axis2.HomeSwitch") is False
     assert srv.read("Axis2.MotionStatus") & HOMED  # MRP leaves Homed as it is
+    # MC_ReadActualPosition over the same connection: the trigger handshake waits for
+    # Valid and leaves Enable high; the block reads every cycle until Enable falls
+    out = srv.trigger("MC_ReadActualPosition_1", Axis=2)
+    assert out.ok and out.flag == "Valid", out
+    assert srv.read("MC_ReadActualPosition_1.Position") == srv.read("Axis2.ActualPosition")
+    move_to(srv, 98.0)
+    srv.run_for(0.5)
+    assert srv.read("MC_ReadActualPosition_1.Position") == pytest.approx(98.0, abs=1e-3)
+    srv.write("MC_ReadActualPosition_1.Enable", False)
+    srv.step(1)
+    assert srv.read("MC_ReadActualPosition_1.Valid") is False
+    assert srv.read("MC_ReadActualPosition_1.Busy") is False
+    move_to(srv, 99.0)
+    assert srv.read("MC_ReadActualPosition_1.Position") == pytest.approx(98.0, abs=1e-3)

@@ -45,6 +45,10 @@ TYPE_CODES: dict[str, int] = {
     "MRP": 51,
     "MC_Home": 52,
     "MC_SetPosition": 53,
+    "MC_ReadStatus": 54,
+    "MC_ReadAxisError": 55,
+    "MC_ReadActualPosition": 56,
+    "MC_ReadActualVelocity": 57,
 }
 _SUBPACKAGES = ("logix", "plcopen")
 _loaded = False
