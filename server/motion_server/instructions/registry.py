@@ -49,6 +49,9 @@ TYPE_CODES: dict[str, int] = {
     "MC_ReadAxisError": 55,
     "MC_ReadActualPosition": 56,
     "MC_ReadActualVelocity": 57,
+    "MC_ReadParameter": 58,
+    "MC_WriteParameter": 59,
+    "MC_ReadBoolParameter": 60,
 }
 _SUBPACKAGES = ("logix", "plcopen")
 _loaded = False
