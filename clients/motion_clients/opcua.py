@@ -3,9 +3,10 @@
 Nodes are ``ns=<site namespace>;s=<tag.node_id>``. Secure by default, as the server is:
 Basic256Sha256 with SignAndEncrypt, a self-signed client certificate generated (once) in
 ``cert_dir``, and a user name and password. ``security="None"`` uses the None endpoint
-(only when the server allows it). Writes carry the node's exact DataType, so the server
-never answers BadTypeMismatch; a refused write (BadUserAccessDenied, BadOutOfRange...)
-raises :class:`~.backend.ClientError` with the status code's name.
+(only when the server allows it; it takes no user name: anonymous only). Writes carry
+the node's exact DataType, so the server never answers BadTypeMismatch; a refused write
+(BadUserAccessDenied, BadOutOfRange...) raises :class:`~.backend.ClientError` with the
+status code's name.
 """
 
 from __future__ import annotations
@@ -60,6 +61,9 @@ class OpcUaBackend(Backend):
             raise ClientError(f"security {security!r}: expected Basic256Sha256 or None")
         if mode not in MODES:
             raise ClientError(f"mode {mode!r}: expected {' or '.join(MODES)}")
+        if security == "None" and user is not None:
+            # the server refuses user names on a channel without security
+            raise ClientError("a user name needs security Basic256Sha256, not None")
         self.endpoint = f"opc.tcp://{host}:{self.port}/"
         self.user, self.password = user, password
         self.security, self.mode = security, mode

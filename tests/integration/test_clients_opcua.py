@@ -65,3 +65,10 @@ async def test_wrong_password_is_a_clear_connection_error(
     with pytest.raises(ClientError, match="cannot connect to OPC UA"):
         async with connect(bench, password="guess"):
             pass
+
+
+def test_a_user_name_without_security_is_refused_before_connecting(
+    bench: tuple[int, ClientMap, Path],
+) -> None:
+    with pytest.raises(ClientError, match="needs security Basic256Sha256"):
+        connect(bench, security="None")

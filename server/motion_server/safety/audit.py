@@ -9,7 +9,8 @@ One line per event, for example::
 
 ``result`` is ``accepted`` or ``refused`` (then ``reason`` says why and ``registers`` or
 ``tag`` says what); ``event`` is ``write``, ``connect`` or ``disconnect`` (connections
-refused by the allowlist or the limit, idle timeouts, Modbus/TCP Security handshakes).
+refused by the allowlist or the limit, idle timeouts, Modbus/TCP Security handshakes,
+OPC UA protocol faults).
 ``user`` is the OPC UA user name or the common name of a Modbus/TCP Security client
 certificate (plain Modbus has none); ``role`` is the client's role (``viewer``,
 ``operator``, ``admin``; empty for plain Modbus). No credential is ever written: values
