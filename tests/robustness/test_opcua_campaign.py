@@ -15,7 +15,8 @@ Every connection refused for a fault of its channel (a chunk with a wrong sequen
 channel id or token, a message before any channel) gets an Error message, then its end.
 Then, against the same server: a chunk size lie streamed on four connections at once
 (64 MiB each) keeps the OPC UA process within 20 MB of its memory and drops no motion
-cycle.
+cycle; and every operation limit is answered with ``BadTooManyOperations`` one operation
+past it, while a request of exactly the limit is served.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from asyncua import Client, ua
 from asyncua.crypto.security_policies import SecurityPolicyNone
 
 from motion_server import config
+from tests.integration.test_opcua_limits import outcome, requests
 from tests.opcua_raw import RawChannel, header, patch
 from tests.opcua_support import SITE, USERS, secure_client_at, user_hashes
 from tests.robustness.server_process import ServerProcess
@@ -48,6 +50,20 @@ MAX_SESSIONS = 12
 CHUNK = 8192
 CHUNKS = 8
 MESSAGE = 32768
+#: operation limits and quotas of the campaign's site (requests past them fit in MESSAGE)
+LIMITS = {
+    "max_nodes_per_read": 50,
+    "max_nodes_per_write": 40,
+    "max_nodes_per_browse": 10,
+    "max_nodes_per_translate_browse_paths": 10,
+    "max_nodes_per_register_nodes": 50,
+    "max_nodes_per_method_call": 10,
+    "max_nodes_per_history_read": 10,
+    "max_nodes_per_node_management": 10,
+    "max_monitored_items_per_call": 50,
+    "max_subscriptions_per_session": 5,
+    "max_monitored_items_per_session": 100,
+}
 #: the lying-header stream: connections at once, bytes each, the memory the process may grow
 STREAMS = 4
 STREAM_BYTES = 64 << 20
@@ -66,7 +82,7 @@ def campaign_site(data_dir: Path) -> str:
     limits = (
         f"max_sessions = {MAX_SESSIONS}\nmax_chunk_size = {CHUNK}\n"
         f"max_chunk_count = {CHUNKS}\nmax_message_size = {MESSAGE}\n"
-    )
+    ) + "".join(f"{name} = {value}\n" for name, value in LIMITS.items())
     text = text.replace("[opcua]\n", "[opcua]\n" + limits, 1)
     config.parse(text, "opcua-campaign.toml")  # a bad map fails here, not in the child
     return text
@@ -472,3 +488,27 @@ async def test_a_chunk_size_lie_streamed_on_four_connections_costs_no_memory(
         assert sent >= STREAMS * STREAM_BYTES
         elapsed, cycle = await checker.check("chunk size lie")  # no cycle dropped, still served
         print(f"after it: a read in {elapsed * 1000:.1f} ms, cycle {cycle}")
+
+
+# -- operation limits --------------------------------------------------------------------------
+async def test_each_operation_limit_is_answered_with_bad_too_many_operations(
+    server: ServerProcess, tmp_path: Path
+) -> None:
+    srv = server
+    client = await secure_client_at(srv.endpoint, tmp_path, "admin")
+    await client.connect()
+    try:
+        ns = await client.get_namespace_index(srv.namespace_uri)
+        published = ua.ObjectIds.Server_ServerCapabilities_OperationLimits_MaxNodesPerRead
+        assert (
+            await client.get_node(ua.NodeId(published)).read_value() == LIMITS["max_nodes_per_read"]
+        )
+        sub = await client.create_subscription(100, None)
+        for label, request in requests(client, ns, sub.subscription_id).items():
+            limit = LIMITS[label.split(" ")[0]]
+            assert await outcome(request(limit + 1)) == ua.StatusCodes.BadTooManyOperations, label
+            assert await outcome(request(limit)) != ua.StatusCodes.BadTooManyOperations, label
+            print(f"{label}: {limit + 1} operations refused, {limit} served")
+        await sub.delete()
+    finally:
+        await client.disconnect()

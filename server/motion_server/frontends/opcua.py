@@ -59,7 +59,8 @@ The wire (:mod:`.opcua_wire`): chunks are framed and judged before they are buff
 fault of a connection or its secure channel is answered with an Error message and the
 connection closed (audited ``disconnect``, ``refused``, with the status code's name), a
 user name is refused on a channel without security, and a session ends with its
-connection, subscriptions included.
+connection, subscriptions included. Operation limits and per-session quotas
+(:mod:`.opcua_limits`) are enforced and published in ``Server.ServerCapabilities``.
 
 Silent clients: a session that receives no request for its session timeout (revised by
 the server, at most ``max_session_timeout_s``) is closed by asyncua, and with it its
@@ -107,6 +108,7 @@ from ..safety.roles import Role, required_role
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagType
 from ..tagmap.nodeset import enum_text
 from .certificates import self_signed
+from .opcua_limits import OperationLimits, OperationScreen, QuotaSession, publish_capabilities
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
 from .opcua_wire import ChannelFault, GuardedProtocol, Wire, WireServer
@@ -185,8 +187,10 @@ class OpcUaFrontend:
         )
         self.server: Server | None = None  # set once listening
         self._server: Server | None = None
-        #: the guarded wire (opcua_wire)
-        self.wire = Wire(cfg.max_chunk_size, on_fault=self._fault)
+        #: the guarded wire (opcua_wire) and the operation limits (opcua_limits)
+        self.limits = OperationLimits.of(cfg)
+        self.screen = OperationScreen(self.limits)
+        self.wire = Wire(cfg.max_chunk_size, self.screen, self._fault)
         self.namespace_index = 0
         self.port = 0
         self._published: list[_Published] = []
@@ -225,6 +229,7 @@ class OpcUaFrontend:
             max_message_size=cfg.max_message_size,
         )
         await server.init()
+        await publish_capabilities(server, cfg)
         iserver = server.iserver
         iserver.max_connections = cfg.max_sessions
         iserver.max_subscriptions = cfg.max_subscriptions
@@ -335,13 +340,14 @@ class OpcUaFrontend:
         assert self._server is not None
         iserver = self._server.iserver
         user = user if user is not None else User(role=UserRole.Anonymous)
-        return PeerSession(
+        return QuotaSession(
             iserver,
             iserver.aspace,
             iserver.subscription_service,
             name,
             user=user,
             external=external,
+            limits=self.limits,
         )
 
     def _fault(self, peer: Any, fault: ChannelFault) -> None:

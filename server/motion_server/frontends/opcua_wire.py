@@ -29,7 +29,7 @@ This module replaces those parts without forking asyncua (subclasses only):
   encrypted with the server's key, since the unsigned channel carrying the session
   could be taken over), lets a session be activated only on the channel that created
   it, closes a session with its connection, and passes each request to a ``screen``
-  (when the front-end gives one) once its session is activated.
+  (the operation limits, :mod:`.opcua_limits`) once its session is activated.
 - :class:`WireServer` is asyncua's ``Server`` with these parts, and with no user name
   token offered on an endpoint without security.
 """
