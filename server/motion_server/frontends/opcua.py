@@ -61,6 +61,8 @@ connection closed (audited ``disconnect``, ``refused``, with the status code's n
 user name is refused on a channel without security, and a session ends with its
 connection, subscriptions included. Operation limits and per-session quotas
 (:mod:`.opcua_limits`) are enforced and published in ``Server.ServerCapabilities``.
+Writes refused to nodes outside the tag map (namespace 0, properties) are audited with
+``node=`` and the status code's name, as refused tag writes are with ``tag=``.
 
 Silent clients: a session that receives no request for its session timeout (revised by
 the server, at most ``max_session_timeout_s``) is closed by asyncua, and with it its
@@ -431,16 +433,24 @@ class OpcUaFrontend:
             )
             if pub is None:  # another namespace, or a property: asyncua's own rules
                 single = ua.WriteParameters(NodesToWrite=[wv])
-                results += await self._standard_write(single, user=user)
+                codes = await self._standard_write(single, user=user)
+                for code in codes:
+                    if not code.is_good():
+                        self._refused(code, node=nid.to_string())
+                results += codes
                 continue
             code = await self._write_tag(pub, wv, user)
             if not code.is_good():
-                self.refused += 1
-                if self.audit is not None:
-                    reason = status_codes.get_name_and_doc(code.value)[0]
-                    self.audit.refused(reason, tag=pub.tag.name)
+                self._refused(code, tag=pub.tag.name)
             results.append(code)
         return results
+
+    def _refused(self, code: ua.StatusCode, **what: str) -> None:
+        """Count and audit one refused write item (``tag=`` or, outside the tag map,
+        ``node=``)."""
+        self.refused += 1
+        if self.audit is not None:
+            self.audit.refused(status_codes.get_name_and_doc(code.value)[0], **what)
 
     async def _write_tag(self, pub: _Published, wv: ua.WriteValue, user: User) -> ua.StatusCode:
         tag = pub.tag
