@@ -27,13 +27,14 @@ import pytest
 import pytest_asyncio
 from asyncua import ua
 
+from motion_server.config import OpcUaSection
 from motion_server.runtime import Runtime
 from tests.opcua_raw import RawChannel, header, hello, patch
 from tests.opcua_support import USERS, opcua_site, running, secure_client, user_hashes
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 Codes = ua.StatusCodes
-CHUNK = 65535  # max_chunk_size of the test site (the default)
+CHUNK = OpcUaSection().max_chunk_size  # the test site keeps the default
 
 
 @pytest_asyncio.fixture(loop_scope="module", scope="module")
