@@ -1,13 +1,14 @@
 """OPC UA publishing under load: motion-server vs a bare asyncua server, side by side.
 
 - **motion-server**, run as users start it (``motion-server run``: a supervisor, the scan
-  and the OPC UA front-end, each a process of its own): a generated site map of
-  ``--axes`` (default 334) servo axes, all jogging at 123.4567 mm/s (started one by one by
-  retriggering one MSO and one MAJ instance with another Axis operand), at a 2 ms cycle
-  in realtime. At a constant speed three analog tags of every axis change at every
-  publishing pass (CommandPosition, ActualPosition, PositionError: the drive's quantised
-  following error); the velocities do not, so the subscriber watches those three: 1,000
-  tags. Published at the default 20 Hz.
+  and one front-end per protocol, each a process of its own): a generated site map of
+  ``--axes`` (default 334) servo axes, all jogging at 123.4567 mm/s (started one by one
+  over Modbus, which is served for that set-up only, by retriggering one MSO and one MAJ
+  instance with another Axis operand), at a 2 ms cycle in realtime. At a constant speed
+  three analog tags of every axis change at every publishing pass (CommandPosition,
+  ActualPosition, PositionError: the drive's quantised following error); the velocities
+  do not, so the subscriber watches those three: 1,000 tags. Published at the default
+  20 Hz.
 - **bare asyncua**: 1,000 Double variables that a loop rewrites with ``Node.write_value``
   at the same 20 Hz (the naive pattern), plus Execute/EN/DN variables that the loop
   handles like an MSO: it reads Execute each pass and sets EN and DN on its rising edge.
@@ -49,7 +50,17 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from modbus_client import OPCUA_ENDPOINT, ServerProcess, cpu_seconds, load_average, percentile
+from modbus_client import (
+    MODBUS_PORT,
+    OPCUA_ENDPOINT,
+    ServerProcess,
+    TagClient,
+    cpu_seconds,
+    load_average,
+    percentile,
+)
+from motion_server import config
+from motion_server.tagmap import TagMap, build_tagmap
 
 #: the analog tags of a jogging axis that change at every pass (constant speed)
 ANALOG = ("CommandPosition", "ActualPosition", "PositionError")
@@ -204,8 +215,9 @@ def _free_port() -> int:
         return port
 
 
-def start(args: list[str], log: Path, pattern: str) -> ServerProcess:
-    """Start a server process (standard error to ``log``); ``.found`` is its endpoint."""
+def start(args: list[str], log: Path, pattern: str = MODBUS_PORT) -> ServerProcess:
+    """Start a server process (standard error to ``log``); ``.found``: what ``pattern``
+    matched first (motion-server's Modbus port, the bare server's endpoint)."""
     return ServerProcess(args, pattern, log=log)
 
 
@@ -257,49 +269,41 @@ async def read_values(endpoint: str, node_ids: list[str]) -> list[Any]:
         return [await client.get_node(ua.NodeId(n, ns)).read_value() for n in node_ids]
 
 
-async def start_jogs(endpoint: str, axes: int) -> None:
-    """MSO_1 then MAJ_1 on every axis in turn (a few cycles between the levels of
-    Execute); then check that every axis jogs, and retry those that do not."""
-    from asyncua import Client, ua
+def start_jogs(port: int, tagmap: TagMap, axes: int) -> None:
+    """MSO_1 then MAJ_1 on every axis in turn, over Modbus (set-up only). Each level of
+    Execute is written once the image shows that the scan took the previous one: a scan
+    that runs late applies every write that waited in one cycle, which would merge a
+    false and a true into no edge at all. Then check that every axis jogs."""
+    tags = TagClient(port, tagmap, timeout=30)
 
-    async with Client(endpoint, timeout=30, watchdog_intervall=WATCHDOG_S) as client:
-        ns = await client.get_namespace_index(NS_URI)
+    def until(name: str, value: bool) -> None:
+        give_up = time.monotonic() + 30
+        while tags.read(name) != value:
+            if time.monotonic() > give_up:
+                raise RuntimeError(f"{name} did not become {value}")
 
-        async def write(*items: tuple[str, Any, ua.VariantType]) -> None:
-            params = ua.WriteParameters()
-            for name, value, vt in items:
-                wv = ua.WriteValue()
-                wv.NodeId = ua.NodeId(name, ns)
-                wv.AttributeId = ua.AttributeIds.Value
-                wv.Value = ua.DataValue(ua.Variant(value, vt))
-                params.NodesToWrite.append(wv)
-            codes = await client.uaclient.write(params)
-            assert all(c.is_good() for c in codes), codes
-
-        i32, b = ua.VariantType.Int32, ua.VariantType.Boolean
-        todo = list(range(1, axes + 1))
-        for _ in range(5):
-            for k in todo:
-                await write(
-                    ("Instructions.MSO_1.Axis", k, i32),
-                    ("Instructions.MAJ_1.Axis", k, i32),
-                    ("Instructions.MSO_1.Execute", False, b),
-                    ("Instructions.MAJ_1.Execute", False, b),
-                )
-                await asyncio.sleep(0.006)
-                await write(("Instructions.MSO_1.Execute", True, b))
-                await asyncio.sleep(0.006)
-                await write(("Instructions.MAJ_1.Execute", True, b))
-                await asyncio.sleep(0.006)
-            await asyncio.sleep(0.2)  # a publishing pass
-            speeds = [
-                await client.get_node(ua.NodeId(f"Axes.Axis{k}.CommandVelocity", ns)).read_value()
-                for k in todo
-            ]
-            todo = [k for k, v in zip(todo, speeds, strict=True) if abs(v - SPEED) > 1e-3]
-            if not todo:
-                return
-        raise RuntimeError(f"axes {todo[:10]} do not jog")
+    try:
+        for k in range(1, axes + 1):
+            for name in ("MSO_1", "MAJ_1"):
+                tags.write(f"{name}.Axis", k)
+                tags.write(f"{name}.Execute", False)
+            for name in ("MSO_1", "MAJ_1"):
+                until(f"{name}.EN", False)
+            for name in ("MSO_1", "MAJ_1"):
+                tags.write(f"{name}.Execute", True)
+                until(f"{name}.EN", True)  # the cycle that saw the edge
+                if tags.read(f"{name}.ER"):
+                    raise RuntimeError(f"{name} on Axis{k}: ERR {tags.read(f'{name}.ERR')}")
+        time.sleep(0.1)
+        slow = [
+            k
+            for k in range(1, axes + 1)
+            if abs(float(tags.read(f"Axis{k}.CommandVelocity")) - SPEED) > 1e-3
+        ]
+        if slow:
+            raise RuntimeError(f"axes {slow[:10]} do not jog")
+    finally:
+        tags.close()
 
 
 def run_subscriber(
@@ -362,22 +366,25 @@ def measure(
     }
 
 
-DIAGNOSTICS = ["Diagnostics.Overruns", "Diagnostics.DroppedCycles", "Clock.Cycle"]
+DIAGNOSTICS = [
+    "Diagnostics.Overruns",
+    "Diagnostics.DroppedCycles",
+    "Clock.Cycle",
+    "Diagnostics.ScanLoad",
+    "Diagnostics.CycleTime",
+]
 
 
 def bench_motion_server(args: argparse.Namespace, tmp: Path) -> dict[str, Any]:
     axes, seconds = args.axes, args.seconds
     site = tmp / "bench-opcua.toml"
-    site.write_text(site_map(axes, tmp / "opcua-data", args.publish_hz, args.chunk))
-    server = start(
-        ["-m", "motion_server.cli", "run", str(site), "--no-modbus"],
-        tmp / "motion-server.log",
-        OPCUA_ENDPOINT,
-    )
-    endpoint = server.found
+    text = site_map(axes, tmp / "opcua-data", args.publish_hz, args.chunk, modbus=True)
+    site.write_text(text)
+    server = start(["-m", "motion_server.cli", "run", str(site)], tmp / "motion-server.log")
     try:
+        endpoint = server.wait_for(OPCUA_ENDPOINT)
         t = time.perf_counter()
-        asyncio.run(start_jogs(endpoint, axes))
+        start_jogs(server.port, build_tagmap(config.parse(text, str(site))), axes)
         print(f"{axes} axes jogging after {time.perf_counter() - t:.1f} s", flush=True)
         before = asyncio.run(read_values(endpoint, DIAGNOSTICS))
         result = measure(
@@ -393,6 +400,8 @@ def bench_motion_server(args: argparse.Namespace, tmp: Path) -> dict[str, Any]:
         result["overruns"] = after[0] - before[0]
         result["dropped"] = after[1] - before[1]
         result["cycles"] = after[2] - before[2]
+        result["scan_load"] = after[3]
+        result["cycle_us"] = after[4]
         result["processes"] = len(server.tree())
         return result
     finally:
@@ -458,7 +467,8 @@ def main() -> None:
             extra = (
                 f"\n{'':>16}overruns {r['overruns']} in {r['cycles']} cycles = "
                 f"{share * 100:.3f} % (target <= {MAX_OVERRUN_SHARE * 100:.1f} %), "
-                f"dropped {r['dropped']} (target 0)"
+                f"dropped {r['dropped']} (target 0); at the end: scan load "
+                f"{r['scan_load']:.0f} %, last cycle {r['cycle_us']:.0f} us"
             )
         print(
             f"{r['server']:>14}: {r['notif_per_s']:8.0f} notif/s; write -> DN p50 "

@@ -20,7 +20,6 @@ Usage: ``python bench/write_to_done.py [--samples N] [--poll-gap MS] [--opcua-lo
 from __future__ import annotations
 
 import argparse
-import asyncio
 import random
 import struct
 import sys
@@ -165,7 +164,7 @@ def with_opcua_load(args: argparse.Namespace) -> None:
         try:
             endpoint = server.wait_for(OPCUA_ENDPOINT)
             t = time.perf_counter()
-            asyncio.run(opcua_publish.start_jogs(endpoint, args.axes))
+            opcua_publish.start_jogs(server.port, tagmap, args.axes)
             print(f"{args.axes} axes jogging after {time.perf_counter() - t:.1f} s", flush=True)
             probe = Probe(server.port, tagmap, "MSO_LAT", args.poll_gap)
             before = probe.diagnostics()
@@ -173,9 +172,8 @@ def with_opcua_load(args: argparse.Namespace) -> None:
             quiet_polls, probe.polls = probe.polls, 0
             quiet_diag = window(before, probe.diagnostics())
 
-            sub = opcua_publish.run_subscriber(
-                endpoint, opcua_publish.monitored_tags(args.axes), 3.0, 0.0, tmp
-            )
+            monitored = opcua_publish.monitored_tags(args.axes)
+            sub = opcua_publish.run_subscriber(endpoint, monitored, 3.0, 0.0, tmp)
             opcua_publish.subscriber_ready(sub, "motion-server")
             time.sleep(3.0)  # the subscriber's warm-up: it counts from now on
             before = probe.diagnostics()
@@ -192,7 +190,7 @@ def with_opcua_load(args: argparse.Namespace) -> None:
     )
     report("no OPC UA client", quiet, period, quiet_polls, quiet_diag)
     report(
-        f"OPC UA subscriber: 1,000 tags, {notif:.0f} notifications/s",
+        f"OPC UA subscriber: {len(monitored)} tags, {notif:.0f} notifications/s",
         loaded,
         period,
         probe.polls,
