@@ -232,6 +232,33 @@ def cpu_seconds(pid: int) -> float:
     return sum(own_cpu_seconds(p) for p in process_tree(pid))
 
 
+def role(pid: int) -> str:
+    """What a process of a motion-server tree is: "scan", "modbus", "opcua" (front-ends),
+    or its command's last word (the supervisor: "run" or the site map)."""
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv = [a.decode(errors="replace") for a in f.read().split(b"\0") if a]
+    except OSError:
+        return "gone"
+    if "motion_server.scan" in argv:
+        return "scan"
+    if "motion_server.frontends" in argv:
+        i = argv.index("motion_server.frontends")
+        return argv[i + 1] if i + 1 < len(argv) else "front-end"
+    if "motion_server.cli" in argv:
+        return "supervisor"
+    return Path(argv[-1]).name if argv else str(pid)
+
+
+def cpu_by_role(pid: int) -> dict[str, float]:
+    """CPU seconds so far of each process of the tree, by :func:`role`."""
+    out: dict[str, float] = {}
+    for p in process_tree(pid):
+        name = role(p)
+        out[name] = out.get(name, 0.0) + own_cpu_seconds(p)
+    return out
+
+
 def rss_kib(pid: int) -> int:
     """Resident memory of ``pid`` and its descendants (KiB, summed)."""
     total = 0
