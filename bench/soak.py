@@ -314,7 +314,8 @@ def soak(duration: float) -> int:
         print(f"   new: {extra[:20]}")
     print(
         f"cycles {diag['Cycle']:.0f}, overruns {diag['Overruns']:.0f} "
-        f"({diag['Overruns'] / max(diag['Cycle'], 1) * 100:.1f} %), dropped "
+        f"({diag['Overruns'] / max(diag['Cycle'] + diag['DroppedCycles'], 1) * 100:.1f} %), "
+        "dropped "
         f"{diag['DroppedCycles']:.0f}, max cycle {diag['MaxCycleTime']:.0f} us, front-end "
         f"restarts {diag['FrontendRestarts']:.0f}"
     )

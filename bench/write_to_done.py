@@ -119,8 +119,9 @@ def report(name: str, samples: list[float], period_ms: float, polls: int, diag: 
 
 def window(before: tuple[int, int, int], after: tuple[int, int, int]) -> str:
     overruns, dropped, cycles = (a - b for a, b in zip(after, before, strict=True))
-    share = overruns / max(cycles, 1) * 100
-    return f"overruns {overruns} of {cycles} cycles ({share:.2f} %), dropped {dropped}"
+    due = cycles + dropped  # a dropped cycle was due, and is counted late (an overrun)
+    share = overruns / max(due, 1) * 100
+    return f"overruns {overruns} of {due} cycles due ({share:.2f} %), dropped {dropped}"
 
 
 def demo(args: argparse.Namespace) -> None:
