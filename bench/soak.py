@@ -247,6 +247,9 @@ def soak(duration: float) -> int:
         endpoint = server.wait_for(OPCUA_ENDPOINT)
         tags = TagClient(server.port, tagmap, timeout=10)
         start_motion(tags)
+        # the server closes a Modbus connection idle for idle_timeout (60 s): a new one
+        # reads the diagnostics at the end
+        tags.close()
         base_fds = open_fds(server.pid)
         ctx = mp.get_context("spawn")
         out = ctx.Queue()
@@ -281,6 +284,7 @@ def soak(duration: float) -> int:
         out.join_thread()
         time.sleep(3.0)  # connections close, sessions end
         end_fds = open_fds(server.pid)
+        tags = TagClient(server.port, tagmap, timeout=10)
         diag = diagnostics(tags)
         tags.close()
         processes = len(server.tree())
