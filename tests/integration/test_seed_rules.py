@@ -174,3 +174,145 @@ async def test_a_trapezoidal_jog_does_not_judge_its_jerk_operands(
         DecelJerk=100.0,
     )
     assert (await mc.read("MAJ_1.ER"), await mc.read("MAJ_1.ERR")) == (True, 13)
+
+
+# -- MC_GearInPos ---------------------------------------------------------------------------
+async def test_gear_in_pos_immediate_synchronizes_a_slave_beyond_its_sync_position(
+    motion_client: MotionClient,
+) -> None:
+    """plcopen-MC_GearInPos, SyncMode 1: "If either the master or slave axis are beyond
+    their respective sync start positions, the slave axis will immediately synchronize
+    to the master axis. [...] If the slave axis is ahead of the master axis at the time of
+    synchronization, the slave axis will move backwards."
+
+    The master M1 jogs at 100 mm/s far before its start point (MasterSyncPosition 100,
+    MasterStartDistance 10); the slave S stands at 0, already 30 mm beyond its
+    SlaveSyncPosition -30. The lock-on starts in the scan the block executes, the slave
+    moves backwards, and it is at -30 with the master's velocity (ratio 1:1) exactly when
+    the master reaches 100."""
+    mc = motion_client
+    await power(mc, M1, S)
+    await jog(mc, "JogM1", M1, 100.0)
+    await mc.step(4)  # at speed: 100 mm/s from 0.01 s on
+    await execute(
+        mc,
+        "MC_GearInPos_1",
+        Master=M1,
+        Slave=S,
+        RatioNumerator=1,
+        RatioDenominator=1,
+        MasterSyncPosition=100.0,
+        SlaveSyncPosition=-30.0,
+        SyncMode=1,
+        MasterStartDistance=10.0,
+        BufferMode=0,
+    )
+    status = await mc.read_many(["MC_GearInPos_1.Error", "MC_GearInPos_1.StartSync"])
+    assert status == {"MC_GearInPos_1.Error": False, "MC_GearInPos_1.StartSync": True}
+    assert await mc.read("M1.CommandPosition") < 90.0 - 50.0  # far before its start point
+    # the block reads the master's actual position, sampled as the cycle begins: the
+    # position the previous cycle published
+    velocities = []
+    seen = await mc.read("M1.ActualPosition")
+    while seen < 100.0:
+        assert await mc.read("MC_GearInPos_1.InSync") is False
+        velocities.append(await mc.read("S.CommandVelocity"))
+        await mc.step(1)
+        seen, before = await mc.read("M1.ActualPosition"), seen
+    assert min(velocities) < -10.0, "the slave moves backwards"
+    await mc.step(1)  # the cycle that reads the master at or past 100
+    assert await mc.read("MC_GearInPos_1.InSync") is True
+    s = await mc.read("S.CommandPosition")
+    assert s == pytest.approx(-30.0 + (seen - 100.0), abs=1e-9)
+    assert before < 100.0 <= seen
+    assert await mc.read("S.CommandVelocity") == pytest.approx(100.0, abs=1e-6)
+
+
+# -- MDAC -----------------------------------------------------------------------------------
+#: master-driven ramps so steep (per master mm²) that a change of speed takes one cycle
+STEEP = master_units(AccelRate=1e6, DecelRate=1e6)
+
+
+async def follow_m1(mc: MotionClient) -> None:
+    """M1 jogs at 100 mm/s, M2 at 50 mm/s; S follows M1 under MDAC_1 with a master-driven
+    jog (1.0 mm per master mm) and a master-driven incremental move (0.5 mm per master
+    mm) superimposed: 1.5 · 100 = 150 mm/s."""
+    await power(mc, M1, M2, S)
+    await jog(mc, "JogM1", M1, 100.0)
+    await jog(mc, "JogM2", M2, 50.0)
+    await mc.step(10)
+    await execute(mc, "MDAC_1", SlaveAxis=S, MasterAxis=M1, MotionType=0, MasterReference=1)
+    await execute(mc, "MAJ_1", Axis=S, Direction=0, Speed=1.0, **STEEP)
+    await execute(mc, "MAM_1", Axis=S, MoveType=1, Position=1e6, Speed=0.5, **STEEP)
+    await mc.step(5)
+    assert await mc.read("S.CommandVelocity") == pytest.approx(150.0, abs=1e-6)
+
+
+async def test_mdac_change_moves_all_master_driven_motion_to_the_new_master(
+    motion_client: MotionClient,
+) -> None:
+    """logix-MDAC: "The axis becomes unlocked from the first Master Axis and reassigned
+    to the second Master Axis when this new motion instruction is executed (goes IP)."
+
+    The second MDAC makes the change pending; the new MAJ replaces the jog, and from the
+    scan in which it goes IP the move that keeps running follows M2 too: 1.5 · 50 =
+    75 mm/s (not 1.0 · 50 + 0.5 · 100). Stopping M1 then leaves the slave alone."""
+    mc = motion_client
+    await follow_m1(mc)
+    await execute(mc, "MDAC_2", SlaveAxis=S, MasterAxis=M2, MotionType=0, MasterReference=1)
+    assert await mc.read_many(["MDAC_2.IP", "MDAC_2.AC", "MDAC_1.AC"]) == {
+        "MDAC_2.IP": True,
+        "MDAC_2.AC": False,
+        "MDAC_1.AC": True,
+    }
+    assert await mc.read("S.CommandVelocity") == pytest.approx(150.0, abs=1e-6)
+    await execute(mc, "MAJ_2", Axis=S, Direction=0, Speed=1.0, **STEEP)
+    # the scan in which MAJ_2 goes IP
+    assert await mc.read_many(["MAJ_2.IP", "MAJ_2.ER", "MDAC_1.IP", "MDAC_2.AC"]) == {
+        "MAJ_2.IP": True,
+        "MAJ_2.ER": False,
+        "MDAC_1.IP": False,
+        "MDAC_2.AC": True,
+    }
+    assert await mc.read("MAM_1.IP") is True
+    assert await mc.read("S.CommandVelocity") == pytest.approx(75.0, abs=1e-6)
+    await mc.step(20)
+    assert await mc.read("S.CommandVelocity") == pytest.approx(75.0, abs=1e-6)
+    await execute(mc, "MAS_1", Axis=M1, StopType=0, ChangeDecel=0)
+    await mc.step(20)
+    assert await mc.read("M1.CommandVelocity") == 0.0
+    assert await mc.read("S.CommandVelocity") == pytest.approx(75.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("history", [10, 37, 111, 250])
+async def test_mdac_five_percent_rule_is_judged_from_programmed_values(
+    motion_client: MotionClient, history: int
+) -> None:
+    """logix-MDAC: "If the new final effective Slave Axis speed is less than 5% of its
+    original speed after a change in the Master Axis, then the change is not be allowed".
+
+    The slave runs at 1.0 mm per M1 mm, M1 at 100 mm/s: 100 mm/s. After an MDAC to M2
+    (40 mm/s) a MAJ at 0.125 mm per master mm would run the slave at 0.125 · 40 = 5 mm/s:
+    exactly 5 %, not less, so allowed, however long the axes ran before (``history``
+    cycles); 0.12 · 40 = 4.8 mm/s is refused (ERR 103) and changes nothing."""
+    mc = motion_client
+    await power(mc, M1, M2, S)
+    await jog(mc, "JogM1", M1, 100.0)
+    await jog(mc, "JogM2", M2, 40.0)
+    await execute(mc, "MDAC_1", SlaveAxis=S, MasterAxis=M1, MotionType=0, MasterReference=1)
+    await execute(mc, "MAJ_1", Axis=S, Direction=0, Speed=1.0, **STEEP)
+    await mc.step(history)
+    await execute(mc, "MDAC_2", SlaveAxis=S, MasterAxis=M2, MotionType=0, MasterReference=1)
+    await execute(mc, "MAJ_2", Axis=S, Direction=0, Speed=0.12, **STEEP)
+    assert (await mc.read("MAJ_2.ER"), await mc.read("MAJ_2.ERR")) == (True, 103)
+    assert await mc.read_many(["MAJ_1.IP", "MDAC_1.AC", "MDAC_2.IP"]) == {
+        "MAJ_1.IP": True,
+        "MDAC_1.AC": True,
+        "MDAC_2.IP": True,
+    }
+    await mc.step(1)
+    await execute(mc, "MAJ_2", Axis=S, Direction=0, Speed=0.125, **STEEP)
+    assert (await mc.read("MAJ_2.ER"), await mc.read("MAJ_2.IP")) == (False, True)
+    assert await mc.read("MDAC_2.AC") is True
+    await mc.step(1)
+    assert await mc.read("S.CommandVelocity") == pytest.approx(5.0, abs=1e-6)
