@@ -114,9 +114,7 @@ def test_logix_mcd_beyond_maximum_speed_is_limited() -> None:
     maj = system.add("MAJ", "MAJ_1", {"Axis": 1, "Speed": 100.0, "AccelRate": D, "DecelRate": D})
     trigger(system, maj)
     velocities(system, 10)
-    mcd = system.add(
-        "MCD", "MCD_1", {"Axis": 1, "MotionType": 0, "ChangeSpeed": 1, "Speed": 1e6}
-    )
+    mcd = system.add("MCD", "MCD_1", {"Axis": 1, "MotionType": 0, "ChangeSpeed": 1, "Speed": 1e6})
     trigger(system, mcd)
     assert not bit(mcd, "ER")
     # 100 -> 1000 mm/s at 10 000 mm/s²: 0.09 s = 45 cycles, then at the maximum
