@@ -75,6 +75,12 @@ def test_homing_fields_reach_the_axis_configuration() -> None:
         ),
         ('home_mode = "absolute"\nhome_sequence = "marker"', "home_sequence", "immediate only"),
         ("home_switch = 3.0", "home_switch_width", "width"),
+        # within the axis's limits (max_velocity 1000, max_acceleration and deceleration
+        # 10000 by default)
+        ("home_speed = 1000.5", "home_speed", "must not exceed max_velocity (1000)"),
+        ("home_return_speed = 2000.0", "home_return_speed", "max_velocity (1000)"),
+        ("home_acceleration = 10001.0", "home_acceleration", "max_acceleration (10000)"),
+        ("home_deceleration = 1e5", "home_deceleration", "max_deceleration (10000)"),
         ('home_mode = "passivity"', "home_mode", ""),
     ],
 )

@@ -696,6 +696,15 @@ def _homing_problems(a: AxisSection) -> list[Problem]:
     speeds it moves at) and sensors that cannot exist."""
     out: list[Problem] = []
     seq, mode, rollover = a.home_sequence, a.home_mode, a.rollover
+    # a homing moves within the axis's limits, as every command must
+    for name, value, limit, what in (
+        ("home_speed", a.home_speed, a.max_velocity, "max_velocity"),
+        ("home_return_speed", a.home_return_speed, a.max_velocity, "max_velocity"),
+        ("home_acceleration", a.home_acceleration, a.max_acceleration, "max_acceleration"),
+        ("home_deceleration", a.home_deceleration, a.max_deceleration, "max_deceleration"),
+    ):
+        if value > limit:
+            out.append(((name,), f"must not exceed {what} ({limit:g})"))
     if a.home_switch is not None:
         if a.home_switch_width <= 0.0:
             out.append((("home_switch_width",), "a home switch needs its width (> 0)"))
