@@ -73,7 +73,8 @@ class Handshake:
 
     @property
     def level(self) -> bool:
-        """MC_Power's Enable stays high after the trigger: its falling edge disables."""
+        """An Enable input stays high after the trigger: MC_Power's falling edge
+        disables, the Enable-style read blocks read every cycle while it is high."""
         return self.trigger.field == "Enable"
 
 
@@ -88,7 +89,8 @@ def handshake(tagmap: ClientMap, instance: str, until: Sequence[str] = ()) -> Ha
             raise ClientError(f"{instance} has no output {', '.join(missing)}")
         success = tuple(tags[u] for u in until)
     elif trig.field == "Enable":
-        success = (tags["Status"],)
+        # MC_Power: Status; the Enable-style read blocks (MC_ReadStatus, ...): Valid
+        success = (tags["Status"] if "Status" in tags else tags["Valid"],)
     else:
         success = tuple(tags[s] for s in SUCCESS if s in tags)[:1]
     return Handshake(

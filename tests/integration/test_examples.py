@@ -55,8 +55,8 @@ def run(name: str, tmp_path: Path, opcua: bool = False) -> Trace:
     return Trace.read_csv(tmp_path / f"{name}.csv")
 
 
-def test_examples_01_to_10_are_all_here() -> None:
-    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 11)]
+def test_examples_01_to_13_are_all_here() -> None:
+    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 14)]
 
 
 def test_01_power_and_jog(tmp_path: Path) -> None:
@@ -224,3 +224,66 @@ def test_10_opcua_scada_subscription(tmp_path: Path) -> None:
     # 5 cycles of 2 ms at 50 mm/s between samples: 0.5 mm
     for a, b in itertools.pairwise(p[k:]):
         assert b - a == pytest.approx(0.5, abs=1e-9)
+
+
+def test_11_mc_home_rotary_switch_then_marker(tmp_path: Path) -> None:
+    t = run("11_mc_home_rotary_switch_marker", tmp_path)
+    v = t.column("RotSlave.CommandVelocity")
+    x = t.column("RotSlave.CommandPosition")
+    done = t.column("Home_RotSlave.Done").index(1.0)
+    # the search at the home speed forward, the back-off at the return speed reverse
+    assert max(v[:done]) == pytest.approx(90.0, abs=1e-9)
+    assert min(v[:done]) == pytest.approx(-10.0, abs=1e-9)
+    assert 5 in t.column("RotSlave.PLCopenState")[:done]  # Homing
+    # done at the home position, 45° (MC_Home's Position, home_offset 0)
+    assert x[done] == pytest.approx(45.0, abs=1e-9)
+    # after MC_SetPosition -15° the cam reads [35°, 55°]: on at 40°, off at 20°
+    switch = t.column("RotSlave.HomeSwitch")
+    on = [k for k in range(done, len(t)) if switch[k]]
+    assert on and all(35.0 <= x[k] <= 55.0 for k in on)
+    assert x[-1] == pytest.approx(20.0, abs=1e-9) and not switch[-1]
+
+
+def test_12_mah_to_a_marker_then_mrp(tmp_path: Path) -> None:
+    t = run("12_mah_marker_and_mrp", tmp_path)
+    ip, pc = t.column("MAH_1.IP"), t.column("MAH_1.PC")
+    x, v = t.column("Slave.CommandPosition"), t.column("Slave.CommandVelocity")
+    first, done = ip.index(1.0), pc.index(1.0)
+    # unidirectional: forward only, at most the home speed, 20 mm/s
+    assert all(0.0 <= v[k] <= 20.0 + 1e-9 for k in range(first, done))
+    assert max(v[first:done]) == pytest.approx(20.0, abs=1e-9)
+    # the sequence ends at the home position 0 mm, then MRP shifts it to 102.5 mm
+    assert x[done] == pytest.approx(0.0, abs=1e-9)
+    assert x[-1] == pytest.approx(102.5, abs=1e-6) and v[-1] == 0.0
+    # on a fresh server the load starts at raw 0: the first marker is at 2.5 mm, where
+    # the coordinates shift so that it reads -5 mm: one drop of 7.5 mm less the travel
+    # between two samples (5 cycles at 20 mm/s: 0.2 mm). The marker sees the load, which
+    # trails the command by 2v/ω = 40/(2π·40) mm; the shift comes one cycle (0.04 mm)
+    # after the crossing at the latest
+    lag = 2.0 * 20.0 / (2.0 * math.pi * 40.0)
+    assert x[first - 1] == 0.0
+    drops = [k for k in range(first, done) if x[k + 1] - x[k] < -1.0]
+    assert len(drops) == 1
+    k = drops[0]
+    assert 2.5 + lag - 0.2 < x[k] <= 2.5 + lag + 0.04 + 1e-9
+    assert -7.5 < x[k + 1] - x[k] <= -7.5 + 0.2 + 1e-9
+
+
+def test_13_read_blocks_and_the_lag_limit(tmp_path: Path) -> None:
+    t = run("13_mc_read_blocks_lag_limit", tmp_path)
+    limit = t.column("LagLimit_PSlave.Value")
+    stop = t.column("Status_PSlave.ErrorStop")
+    moving = t.column("Status_PSlave.ContinuousMotion")
+    err = t.column("AxisError_PSlave.AxisErrorID")
+    va = t.column("PSlave.ActualVelocity")
+    # the limit as MC_ReadParameter saw it: 0 (off), 1.2, 0.5, 0 again
+    steps = [limit[0]] + [limit[k] for k in range(1, len(t)) if limit[k] != limit[k - 1]]
+    assert steps == [0.0, 1.2, 0.5, 0.0]
+    # at 1.2 mm the move runs (steady error 2v/ω = 0.796 mm): no fault
+    under = [k for k in range(len(t)) if limit[k] == 1.2]
+    assert any(moving[k] for k in under) and not any(stop[k] for k in under)
+    assert max(va[k] for k in under) == pytest.approx(100.0, abs=1e-6)
+    # the fault comes with the 0.5 mm limit, the position error bit with it
+    first = stop.index(1.0)
+    assert limit[first] == 0.5 and err[first] == 1.0
+    assert err[-1] == 0.0 and not stop[-1]

@@ -252,3 +252,17 @@ def test_a_sound_payload_still_restores_through_assemble(tmp_path: Path) -> None
     out = assemble(site(tmp_path), environ={}, probe=False)
     assert out.restored and out.system.ctl.axis(1).actual_position == pytest.approx(5.0)
     assert out.system.instances["MAM_1"].inputs["Position"] == 5.0
+
+
+def test_a_redefined_absolute_axis_keeps_its_offset_across_a_restart(tmp_path: Path) -> None:
+    """An absolute axis redefined by +100 mm (homed, or MRP) reads 105 after its 5 mm
+    move and again after a restart; what it added to the raw feedback is retained too,
+    so the homing sensors, fixed to the machine at raw positions, stay where they are."""
+    rt = run_and_save(tmp_path)
+    rt.ctl.redefine_position(rt.ctl.axis(1), 100.0, relative=True)
+    rt.save_retained()
+    again = Runtime(site(tmp_path))
+    ax = again.ctl.axis(1)
+    assert ax.actual_position == pytest.approx(105.0)
+    assert ax.position_offset == 100.0
+    assert again.ctl.homing.raw(ax) == pytest.approx(5.0)

@@ -44,6 +44,7 @@ from ..kernel import (
     ProgrammedStopMode,
 )
 from ..kernel.config import MAX_PERIOD, MIN_PERIOD
+from ..kernel.enums import HomeDirection, HomeMode, HomeSequence
 from ..safety.passwords import parse_hash
 from .checks import Problem, duplicates, number_clashes, operand_problem, period_problems
 
@@ -184,12 +185,32 @@ class AxisSection(_Model):
     signal_velocity: Real = _AXIS.signal_velocity
     signal_amplitude: Real = _AXIS.signal_amplitude
     signal_frequency: NonNegativeReal = _AXIS.signal_frequency
+    home_mode: HomeMode = _AXIS.home_mode
+    home_sequence: HomeSequence = _AXIS.home_sequence
+    home_direction: HomeDirection = _AXIS.home_direction
+    home_position: Real = _AXIS.home_position
+    home_offset: Real = _AXIS.home_offset
+    home_speed: ZeroOrReal = _AXIS.home_speed
+    home_return_speed: ZeroOrReal = _AXIS.home_return_speed
+    home_acceleration: ZeroOrReal = _AXIS.home_acceleration
+    home_deceleration: ZeroOrReal = _AXIS.home_deceleration
+    home_switch: Real | None = _AXIS.home_switch
+    home_switch_width: ZeroOrReal = _AXIS.home_switch_width
+    marker_interval: ZeroOrReal = _AXIS.marker_interval
+    marker_offset: Real = _AXIS.marker_offset
 
     _parse_type = field_validator("type", mode="before")(_enum_by_name(AxisType))
     _parse_stop = field_validator("programmed_stop_mode", mode="before")(
         _enum_by_name(ProgrammedStopMode)
     )
     _parse_signal = field_validator("feedback_signal", mode="before")(_enum_by_name(FeedbackSignal))
+    _parse_home_mode = field_validator("home_mode", mode="before")(_enum_by_name(HomeMode))
+    _parse_home_sequence = field_validator("home_sequence", mode="before")(
+        _enum_by_name(HomeSequence)
+    )
+    _parse_home_direction = field_validator("home_direction", mode="before")(
+        _enum_by_name(HomeDirection)
+    )
 
 
 class GroupSection(_Model):
@@ -646,6 +667,7 @@ class SiteMap(_Model):
         out += period_problems([g.coarse_update_period_ms for g in self.groups])
         for ai, a in enumerate(self.axes):
             out += [(("axes", ai, *loc), msg) for loc, msg in _ramp_problems(a)]
+            out += [(("axes", ai, *loc), msg) for loc, msg in _homing_problems(a)]
         for name in self.retain.axes:
             if name not in known:
                 out.append((("retain", "axes"), f"unknown axis {name!r}"))
@@ -666,3 +688,47 @@ def _ramp_problems(a: AxisSection) -> list[Problem]:
         for name, t, what in ramps
         if t > MAX_RAMP_TIME
     ]
+
+
+def _homing_problems(a: AxisSection) -> list[Problem]:
+    """A homing configuration MAH could not run (MOTION-RM003: an absolute homing mode
+    is immediate only; a sequence needs the sensors it names and, when active, the
+    speeds it moves at) and sensors that cannot exist."""
+    out: list[Problem] = []
+    seq, mode, rollover = a.home_sequence, a.home_mode, a.rollover
+    # a homing moves within the axis's limits, as every command must
+    for name, value, limit, what in (
+        ("home_speed", a.home_speed, a.max_velocity, "max_velocity"),
+        ("home_return_speed", a.home_return_speed, a.max_velocity, "max_velocity"),
+        ("home_acceleration", a.home_acceleration, a.max_acceleration, "max_acceleration"),
+        ("home_deceleration", a.home_deceleration, a.max_deceleration, "max_deceleration"),
+    ):
+        if value > limit:
+            out.append(((name,), f"must not exceed {what} ({limit:g})"))
+    if a.home_switch is not None:
+        if a.home_switch_width <= 0.0:
+            out.append((("home_switch_width",), "a home switch needs its width (> 0)"))
+        elif rollover > 0.0 and a.home_switch_width >= rollover:
+            out.append(
+                (("home_switch_width",), f"must be shorter than the rollover ({rollover:g})")
+            )
+    if rollover > 0.0 and not 0.0 <= a.home_position < rollover:
+        out.append((("home_position",), f"a rotary axis homes to [0, {rollover:g})"))
+    if mode == HomeMode.ABSOLUTE and seq != HomeSequence.IMMEDIATE:
+        out.append((("home_sequence",), "absolute homing is immediate only"))
+        return out
+    if seq == HomeSequence.IMMEDIATE:
+        return out
+    if seq in (HomeSequence.SWITCH, HomeSequence.SWITCH_THEN_MARKER) and a.home_switch is None:
+        out.append((("home_sequence",), f"{seq.name.lower()} homing needs home_switch"))
+    if seq in (HomeSequence.MARKER, HomeSequence.SWITCH_THEN_MARKER) and not a.marker_interval:
+        out.append((("home_sequence",), f"{seq.name.lower()} homing needs marker_interval"))
+    if mode != HomeMode.ACTIVE:
+        return out
+    if a.type == AxisType.FEEDBACK_ONLY:
+        out.append((("home_mode",), "a feedback-only axis cannot home actively (passive)"))
+    if not a.home_speed:
+        out.append((("home_speed",), "active homing needs a home speed > 0"))
+    if a.home_direction.bidirectional and not a.home_return_speed:
+        out.append((("home_return_speed",), "bidirectional homing needs a return speed > 0"))
+    return out

@@ -413,3 +413,87 @@ class PLCopenBlock(Instruction):
 
     def publish_extra(self) -> None:
         """Set block-specific outputs (InVelocity, InGear ...) from the state."""
+
+
+# -- PLCopen, Enable-style -----------------------------------------------------------------
+
+#: the outputs of an Enable-style block (PLCopen Part 1: "Valid", "Busy", "Error", ErrorID)
+ENABLE_STATUS: tuple[StatusField, ...] = (
+    StatusField("Valid", TagType.BOOL, "the value outputs are valid (Enable high, no error)"),
+    StatusField("Busy", TagType.BOOL, "Enable is high: the block reads every cycle"),
+    StatusField("Error", TagType.BOOL, "the value cannot be read, see ErrorID"),
+    StatusField("ErrorID", TagType.UDINT, "error code (the shared .ERR table)"),
+)
+
+
+class EnableBlock(Instruction):
+    """PLCopen Enable-style block (MC_ReadStatus, MC_ReadParameter, ...): while ``Enable``
+    is high the block works every cycle, not once per edge.
+
+    Each scan with Enable high latches the operands (they may change while enabled,
+    PLCopen: "get the value ... continuously while enabled") and judges them; after the
+    kernel step :meth:`read` sets the value outputs from the axis as the cycle left it.
+    Busy follows Enable; Valid and Error are exclusive: an error (a bad operand, an axis
+    that does not exist) sets Error with its ErrorID and clears Valid, and is judged again
+    every cycle. Enable low: Valid, Busy, Error and ErrorID clear; the value outputs keep
+    their last valid reading.
+    """
+
+    DIALECT = Dialect.PLCOPEN
+    TRIGGER = "Enable"
+    COMMON_STATUS = ENABLE_STATUS
+
+    def __init__(self, name: str, ctl: Controller, defaults: dict[str, Any] | None = None) -> None:
+        super().__init__(name, ctl, defaults)
+        self._error = 0
+
+    @classmethod
+    def trigger_operand(cls) -> Operand:
+        return Operand(cls.TRIGGER, TagType.BOOL, False, description="read while high (level)")
+
+    def read(self) -> None:
+        """Set the value outputs from the latched operands (raise MotionError)."""
+        raise NotImplementedError
+
+    def commanded_axes(self) -> list[Axis]:
+        """None: a block that reads commands no axis (an internal error in it stops
+        nothing)."""
+        return []
+
+    def scan(self) -> None:
+        enable = bool(self.inputs[self.TRIGGER])
+        if not enable:
+            if self._last_trigger:
+                self._last_trigger = False
+                self._error = 0
+                self._publish()
+            return
+        self._last_trigger = True
+        self.latch()
+        try:
+            self.validate()
+            self._error = 0
+        except MotionError as exc:
+            self._error = int(exc.code)
+
+    def update(self) -> None:
+        if not self._last_trigger:
+            return
+        if not self._error:
+            try:
+                self.read()
+            except MotionError as exc:
+                self._error = int(exc.code)
+        self._publish()
+
+    def fail_internal(self) -> None:
+        self._error = int(ErrorCode.INTERNAL_ERROR)
+        self._publish()
+
+    def _publish(self) -> None:
+        enabled = self._last_trigger
+        out = self.outputs
+        out["Busy"] = enabled
+        out["Error"] = enabled and bool(self._error)
+        out["Valid"] = enabled and not self._error
+        out["ErrorID"] = self._error if enabled else 0

@@ -40,6 +40,18 @@ TYPE_CODES: dict[str, int] = {
     "MC_GearOut": 29,
     "MC_GearInPos": 30,
     "MC_CombineAxes": 31,
+    # homing, redefined positions, status and parameter blocks: 50-69
+    "MAH": 50,
+    "MRP": 51,
+    "MC_Home": 52,
+    "MC_SetPosition": 53,
+    "MC_ReadStatus": 54,
+    "MC_ReadAxisError": 55,
+    "MC_ReadActualPosition": 56,
+    "MC_ReadActualVelocity": 57,
+    "MC_ReadParameter": 58,
+    "MC_WriteParameter": 59,
+    "MC_ReadBoolParameter": 60,
 }
 _SUBPACKAGES = ("logix", "plcopen")
 _loaded = False

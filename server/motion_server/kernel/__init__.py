@@ -3,9 +3,9 @@
 ``Controller.step()`` advances one cycle; same inputs give bit-identical traces.
 
 Imports point one way, from the leaves up: ``enums``, ``errors``, ``config``, ``limits``
--> ``trapezoid``, ``profiles``, ``state`` -> ``processes`` -> ``axis`` -> ``gearing``,
-``gear_in_pos``, ``master_driven``, ``group`` -> ``lanes`` -> ``drive``, ``motion`` ->
-``power`` -> ``mdac_links`` -> ``controller``.
+-> ``trapezoid``, ``profiles``, ``state``, ``sensors`` -> ``processes`` -> ``axis`` ->
+``gearing``, ``gear_in_pos``, ``master_driven``, ``group`` -> ``lanes`` -> ``drive``,
+``motion`` -> ``redefine`` -> ``homing``, ``power`` -> ``mdac_links`` -> ``controller``.
 """
 
 from .axis import Axis
@@ -18,6 +18,9 @@ from .enums import (
     AxisState,
     AxisType,
     FeedbackSignal,
+    HomeDirection,
+    HomeMode,
+    HomeSequence,
     MasterReference,
     MotionStatusBit,
     PLCopenState,
@@ -46,6 +49,9 @@ __all__ = [
     "GroupConfig",
     "GroupState",
     "GroupStop",
+    "HomeDirection",
+    "HomeMode",
+    "HomeSequence",
     "JogProcess",
     "Limits",
     "MasterReference",

@@ -33,7 +33,9 @@ _BITS: dict[ProcessKind, int] = {
     ProcessKind.MOVE: 1 << MotionStatusBit.MOVE,
     ProcessKind.JOG: 1 << MotionStatusBit.JOG,
     ProcessKind.GEAR: 1 << MotionStatusBit.GEARING,
+    ProcessKind.HOME: 1 << MotionStatusBit.HOMING,
 }
+_HOMING = 1 << MotionStatusBit.HOMING
 
 
 class Axis:
@@ -59,6 +61,10 @@ class Axis:
         #: +1 (same) or -1 (opposite): the direction of the latest gear started on this
         #: slave; MAG Reverse and Unchanged act relative to it (+1 if never geared)
         self.gear_direction = 1
+        #: what a redefinition added to the raw feedback: the axis reads raw + offset
+        #: (:mod:`.redefine`; the homing sensors sit in raw coordinates, :mod:`.sensors`)
+        self.position_offset = 0.0
+        self._homing_armed: object | None = None
 
     # -- status attributes (each keeps the shared status arrays current) ---------------------
     @property
@@ -88,6 +94,17 @@ class Axis:
     @homed.setter
     def homed(self, value: bool) -> None:
         self._homed = bool(value)
+        self._s.dirty.add(self.index)
+
+    @property
+    def homing_armed(self) -> object | None:
+        """The passive homing waiting for its home event on this axis (HomingStatus
+        while it waits), or None."""
+        return self._homing_armed
+
+    @homing_armed.setter
+    def homing_armed(self, watch: object | None) -> None:
+        self._homing_armed = watch
         self._s.dirty.add(self.index)
 
     @property
@@ -209,6 +226,8 @@ class Axis:
             bits |= 1 << MotionStatusBit.STOPPING
         if self._homed:
             bits |= 1 << MotionStatusBit.HOMED
+        if self._homing_armed is not None:
+            bits |= _HOMING
         return bits
 
     @property
@@ -230,6 +249,8 @@ class Axis:
         if self.stopping:
             return PLCopenState.STOPPING
         kinds = {p.kind for p in self.processes if p.active}
+        if ProcessKind.HOME in kinds:
+            return PLCopenState.HOMING
         if ProcessKind.GEAR in kinds:
             return PLCopenState.SYNCHRONIZED_MOTION
         if ProcessKind.JOG in kinds:

@@ -8,7 +8,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .enums import AxisType, FeedbackSignal, ProgrammedStopMode
+from .enums import (
+    AxisType,
+    FeedbackSignal,
+    HomeDirection,
+    HomeMode,
+    HomeSequence,
+    ProgrammedStopMode,
+)
 
 DEFAULT_PERIOD = 0.002
 MIN_PERIOD = 0.001
@@ -25,6 +32,17 @@ class AxisConfig:
     ``encoder_resolution`` is the number of counts per unit the actual position is
     quantised to (0: the conversion constant). ``following_error_limit`` 0 disables the
     position-error fault.
+
+    Homing (Logix axis attributes, MOTION-RM003): ``home_mode``, ``home_sequence``,
+    ``home_direction``; the position the axis reads at the home event is
+    ``home_position - home_offset`` and an active sequence ends at ``home_position``
+    (see :mod:`.homing`). ``home_speed`` and ``home_return_speed`` in units/s;
+    ``home_acceleration`` and ``home_deceleration`` 0 mean the axis maximum.
+    The simulated sensors are fixed to the machine, in raw feedback coordinates (the
+    positions the axis reads before any redefinition, see :mod:`.sensors`): a home
+    switch engaged from ``home_switch`` over ``home_switch_width`` (0: to the end of
+    positive travel; repeated every turn on a rotary axis), and an encoder marker every
+    ``marker_interval`` from ``marker_offset`` (0: no marker).
     """
 
     number: int
@@ -46,6 +64,19 @@ class AxisConfig:
     signal_velocity: float = 0.0
     signal_amplitude: float = 0.0
     signal_frequency: float = 0.0
+    home_mode: HomeMode = HomeMode.ACTIVE
+    home_sequence: HomeSequence = HomeSequence.IMMEDIATE
+    home_direction: HomeDirection = HomeDirection.BIDIRECTIONAL_FORWARD
+    home_position: float = 0.0
+    home_offset: float = 0.0
+    home_speed: float = 0.0
+    home_return_speed: float = 0.0
+    home_acceleration: float = 0.0
+    home_deceleration: float = 0.0
+    home_switch: float | None = None
+    home_switch_width: float = 0.0
+    marker_interval: float = 0.0
+    marker_offset: float = 0.0
 
     @property
     def counts_per_unit(self) -> float:

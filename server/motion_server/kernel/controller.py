@@ -37,18 +37,25 @@ from .enums import (
     AxisFault,
     AxisState,
     AxisType,
+    HomeMode,
     MasterReference,
     ProcessKind,
     ProgrammedStopMode,
 )
 from .errors import ErrorCode, MotionError
 from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode, after_stops_due
+from .homing import HomeHandle, HomeProcess, HomeRequest, Homing, PassiveHoming, judge
 from .limits import group_stop_deceleration
 from .mdac_links import MasterDrivenControl
 from .motion import InternalError, Motion
 from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
+from .redefine import shift_coordinates
 from .state import AxisArrays, MasterArrays
+
+#: a redefined position may be at most this many encoder counts from zero (float64 holds
+#: every integer up to 2**53: beyond, positions could not be quantised to single counts)
+MAX_POSITION_COUNTS = 2.0**53
 
 __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArrays"]
 
@@ -105,6 +112,8 @@ class Controller:
         self.power = Power(self.motion, self.drive)
         #: MDAC master assignments (master-driven speed control)
         self.mdsc = MasterDrivenControl(self.motion)
+        #: homing sensors (home switch, marker) and the homings waiting for their events
+        self.homing = Homing(self.motion, self.axes, self.groups)
         self.tick = 0
         self.mode = OperatingMode.RUN
         #: per group: compose one axis in Python now (and offer it to the lanes)
@@ -244,6 +253,8 @@ class Controller:
             beyond = [i for i in beyond if i not in repaired]  # held at their command
         for i in beyond:
             self.fault(self.axes[i], AxisFault.POSITION_ERROR)
+        if g.number in self.homing.groups:
+            self.homing.update(g.number)
         if g.after_stops:
             due, g.after_stops = after_stops_due(s, g, dt)
             for ax in due:
@@ -489,3 +500,104 @@ class Controller:
         if not math.isfinite(position):
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "feedback input must be finite")
         ax.feedback_input = float(position)
+
+    # -- positions and homing -------------------------------------------------------------
+    def redefine_position(
+        self, ax: Axis, position: float, relative: bool = False, actual: bool = True
+    ) -> float:
+        """MRP / MC_SetPosition: the axis's actual (or command) position becomes
+        ``position`` (``relative``: moves by it); the other moves with it, keeping the
+        following error, and nothing moves (:mod:`.redefine`). Returns the shift."""
+        require(ax, PowerEvent.REDEFINE)
+        position = float(position)
+        rollover = ax.config.rollover
+        if not math.isfinite(position):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "position must be finite")
+        if not relative and rollover > 0.0 and not 0.0 <= position < rollover:
+            raise MotionError(
+                ErrorCode.PARAMETER_OUT_OF_RANGE,
+                f"{ax.name} is rotary: an absolute position must be in [0, {rollover:g})",
+            )
+        here = ax.actual_position if actual else ax.command_position
+        d = position if relative else position - here
+        self._judge_shift(ax, d)
+        exact = None if relative or rollover > 0.0 else position
+        if actual:
+            shift_coordinates(self.motion, ax, d, actual=exact)
+        else:
+            shift_coordinates(self.motion, ax, d, command=exact)
+        return d
+
+    def _judge_shift(self, ax: Axis, d: float) -> None:
+        """A shift that would take a position beyond 2**53 counts is refused (ERR 13)."""
+        i = ax.index
+        cpu = max(float(self.cpu[i]), float(self.conversion[i]))
+        reach = max(abs(float(self.cmd_pos[i]) + d), abs(float(self.act_x[i]) + d))
+        if not (math.isfinite(d) and reach * cpu <= MAX_POSITION_COUNTS):
+            raise MotionError(
+                ErrorCode.PARAMETER_OUT_OF_RANGE,
+                f"{ax.name}: the redefined position would lie beyond 2**53 counts",
+            )
+
+    def home(self, ax: Axis, req: HomeRequest, owner: object = None) -> HomeHandle | None:
+        """Start a homing (MAH, MC_Home; :mod:`.homing`). Immediate and absolute homing
+        is done at once (returns None); passive homing returns the watch waiting for its
+        event, active homing its process, which replaces all motion on the axis
+        (inheriting its velocity). Refused with MotionError before anything changes."""
+        mode = req.mode
+        if mode == HomeMode.ABSOLUTE:
+            require(ax, PowerEvent.ABSOLUTE_HOME)
+        elif mode == HomeMode.ACTIVE and not req.immediate:
+            require(ax, PowerEvent.MOTION)
+            if ax.stopping:
+                raise MotionError(
+                    ErrorCode.NOT_ALLOWED_WHILE_STOPPING, f"{ax.name} is stopping: homing refused"
+                )
+        else:
+            require(ax, PowerEvent.REDEFINE)
+        sensors = self.homing.sensors.get(ax.index)
+        judge(ax, req, sensors)
+        d = req.value - ax.actual_position
+        if req.immediate:
+            self._judge_shift(ax, d)
+        if (mode != HomeMode.ACTIVE or req.immediate) and ax.active(ProcessKind.HOME):
+            # an active sequence in progress is superseded: it ramps to rest
+            self.stop(ax, (ProcessKind.HOME,), ax.config.max_deceleration)
+        if req.immediate:
+            self.homing.cancel(ax, AbortReason.SUPERSEDED)
+            exact = req.value if ax.config.rollover <= 0.0 else None
+            shift_coordinates(self.motion, ax, d, actual=exact)
+            ax.homed = True
+            return None
+        if mode == HomeMode.PASSIVE:
+            watch = PassiveHoming(ax, req, owner)
+            self.homing.track(ax, watch)
+            ax.homed = False
+            return watch
+        engaged = sensors is not None and sensors.engaged(self.homing.raw(ax))
+
+        def make(v: float, a: float) -> Process:
+            return HomeProcess(ax, req, engaged, v, a, owner=owner)
+
+        proc = self.motion.start(ax, make, replace=None)
+        assert isinstance(proc, HomeProcess)
+        # "all other motion in process is canceled" (MAH): master-driven links too
+        self.mdsc.break_slave(ax, AbortReason.SUPERSEDED)
+        self.homing.track(ax, proc)
+        ax.homed = False
+        return proc
+
+    def cancel_homing(self, ax: Axis) -> bool:
+        """End a passive homing waiting on ``ax`` (MAS Home); True if there was one."""
+        armed = ax.homing_armed is not None
+        self.homing.cancel(ax, AbortReason.STOPPED)
+        return armed
+
+    def set_following_error_limit(self, ax: Axis, limit: float) -> None:
+        """The position error that faults the axis (0: no limit), from now on."""
+        if not (math.isfinite(limit) and limit >= 0.0):
+            raise MotionError(
+                ErrorCode.PARAMETER_OUT_OF_RANGE, f"following error limit {limit!r} must be >= 0"
+            )
+        self.fe_limit[ax.index] = float(limit)
+        self.drive.switched()  # the drive's partitions cache the limits

@@ -209,16 +209,21 @@ class DriveModel:
         s = self.s
         i = ax.index
         old = float(s.act_x[i])
+        # the signal and the input are raw readings: the axis reads them plus the offset
+        # its redefinitions added (Axis.position_offset)
+        offset = ax.position_offset
         if cfg.feedback_signal == FeedbackSignal.CONSTANT_VELOCITY:
             new = cfg.signal_velocity * time
         elif cfg.feedback_signal == FeedbackSignal.SINE:
             new = cfg.signal_amplitude * math.sin(2.0 * math.pi * cfg.signal_frequency * time)
+        elif cfg.rotary:
+            # the input is a wrapped reading: unwind it against the last sample
+            delta = math.remainder(ax.feedback_input - ax.wrap(old - offset), cfg.rollover)
+            new = old - offset + delta
         else:
             new = ax.feedback_input
-            if cfg.rotary:
-                # the input is a wrapped reading: unwind it against the last sample
-                delta = math.remainder(new - ax.wrap(old), cfg.rollover)
-                new = old + delta
+        if offset:
+            new += offset
         cpu = float(s.cpu[i])
         counts = new * cpu
         if not math.isfinite(counts):

@@ -71,6 +71,8 @@ class ProcessKind(IntEnum):
     MOVE = 2
     GEAR = 3
     STOP = 4
+    #: an active homing sequence (MAH, MC_Home): the PLCopen Homing state
+    HOME = 5
 
 
 class ProcessState(IntEnum):
@@ -126,3 +128,44 @@ class AfterStop(IntEnum):
     NOTHING = 0
     DISABLE = 1
     SHUTDOWN = 2
+
+
+class HomeMode(IntEnum):
+    """Logix Home Mode of an axis (MOTION-RM003: passive 0, active 1; absolute 2 as the
+    MAH instruction reference names it for axes with absolute feedback)."""
+
+    PASSIVE = 0
+    ACTIVE = 1
+    ABSOLUTE = 2
+
+
+class HomeSequence(IntEnum):
+    """Logix Home Sequence (MOTION-RM003; the torque sequences 4 and 5 need a torque
+    model the simulated drive does not have)."""
+
+    IMMEDIATE = 0
+    SWITCH = 1
+    MARKER = 2
+    SWITCH_THEN_MARKER = 3
+
+
+class HomeDirection(IntEnum):
+    """Logix Home Direction (MOTION-RM003)."""
+
+    UNIDIRECTIONAL_FORWARD = 0
+    BIDIRECTIONAL_FORWARD = 1
+    UNIDIRECTIONAL_REVERSE = 2
+    BIDIRECTIONAL_REVERSE = 3
+
+    @property
+    def sign(self) -> int:
+        """+1 forward, -1 reverse."""
+        return (
+            1
+            if self in (HomeDirection.UNIDIRECTIONAL_FORWARD, HomeDirection.BIDIRECTIONAL_FORWARD)
+            else -1
+        )
+
+    @property
+    def bidirectional(self) -> bool:
+        return self in (HomeDirection.BIDIRECTIONAL_FORWARD, HomeDirection.BIDIRECTIONAL_REVERSE)

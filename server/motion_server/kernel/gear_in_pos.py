@@ -25,7 +25,7 @@ they are inconsistent) and picks the next occurrence of a sync position on rotar
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import IntEnum
 from typing import Any
 
@@ -258,6 +258,20 @@ class GearInPosProcess(Process):
         if self.plan is None or self.sync_state == SyncState.IN_SYNC:
             return 0.0
         return self.plan.direction * (self.plan.master_sync - self._m_prev)
+
+    def shifted(self, d: float) -> None:
+        super().shifted(d)
+        if self.plan is not None:
+            self.plan = replace(self.plan, slave_sync=self.plan.slave_sync + d)
+
+    def master_shifted(self, index: int, d: float) -> None:
+        if index != self._mi:
+            return
+        if self.plan is not None:
+            plan = self.plan
+            self.plan = replace(plan, master_sync=plan.master_sync + d, start=plan.start + d)
+        self._m_prev += d
+        self._m_a += d
 
     def _begin_lock_on(self) -> None:
         """Plan slave(m) from the last waiting sample to the sync point."""

@@ -31,6 +31,7 @@ had, until a stop.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
@@ -176,6 +177,18 @@ class _Coupling:
                 self.lock_counts = round(self.lock_pos * self.cpu_m)
             except (OverflowError, ValueError):
                 self.lock_counts = 0  # displacement() fails on such a master
+
+    def shift(self, d: float) -> None:
+        """The master's coordinates moved by ``d`` (its position was redefined): the
+        displacement since the lock stays what it was. For a fraction ratio the lock
+        moves by the counts the master's reading moved (exact for a redefinition by a
+        whole number of counts; otherwise the slave may take up a count's share once)."""
+        self.lock_pos += d
+        if self.exact:
+            m = self.pos.item(self.index)
+            # (a master beyond any sensible travel: displacement() fails on it anyway)
+            with contextlib.suppress(OverflowError, ValueError):
+                self.lock_counts += round(m * self.cpu_m) - round((m - d) * self.cpu_m)
 
     def displacement(self) -> float:
         """Slave displacement since the lock, from the absolute master displacement."""
@@ -382,6 +395,11 @@ class GearProcess(Process):
     def reached(self) -> bool:
         """In gear: a buffered successor may start."""
         return self.locked or super().reached
+
+    def master_shifted(self, index: int, d: float) -> None:
+        for c in self._c:
+            if c.index == index:
+                c.shift(d)
 
     def _lock(self) -> None:
         self.offer_pending = True

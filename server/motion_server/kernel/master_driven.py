@@ -200,6 +200,10 @@ class MasterDrivenProcess(Process):
         self._sample()
 
     # -- stepping -------------------------------------------------------------------------
+    def master_shifted(self, index: int, d: float) -> None:
+        if index == self._master.index:
+            self._last_master += d
+
     def step(self, ctx: StepContext, dt: float) -> None:
         m = master_position(ctx, self._master, self.reference)
         ds = max(m - self._last_master, 0.0)

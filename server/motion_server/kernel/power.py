@@ -2,9 +2,11 @@
 the error code that refuses the event.
 
 Commands (MSO, MSF, MAFR, MASD, MASR and their PLCopen and group forms), faults and the
-after-stop actions of a group stop are events; so are the two preconditions every motion
-command and every MDAC check (:attr:`PowerEvent.MOTION`, :attr:`PowerEvent.ASSIGN`),
-which never change the state: they are written here once. A pair missing from the table
+after-stop actions of a group stop are events; so are the preconditions every motion
+command, every MDAC, every redefined position and passive homing, and absolute homing
+check (:attr:`PowerEvent.MOTION`, :attr:`PowerEvent.ASSIGN`, :attr:`PowerEvent.REDEFINE`,
+:attr:`PowerEvent.ABSOLUTE_HOME`), which never change the state: they are written here
+once. A pair missing from the table
 is a bug: :class:`~.errors.TransitionError`.
 
 Leaving Servo Control aborts the axis's processes (no ramp) with the event's reason,
@@ -36,6 +38,8 @@ class PowerEvent(IntEnum):
     STOPPED_SHUTDOWN = 7  # a fast shutdown's ramp reached rest
     MOTION = 8  # precondition of every motion command
     ASSIGN = 9  # precondition of naming the axis in an MDAC (slave or master)
+    REDEFINE = 10  # precondition of a redefined position and of passive homing
+    ABSOLUTE_HOME = 11  # precondition of absolute homing (servo loop disabled)
 
 
 R, S, F, D = (
@@ -82,6 +86,14 @@ TRANSITIONS: dict[tuple[AxisState, PowerEvent], AxisState | ErrorCode] = {
     (S, E.ASSIGN): S,
     (F, E.ASSIGN): ErrorCode.AXIS_FAULTED,
     (D, E.ASSIGN): ErrorCode.SHUTDOWN_STATE,
+    (R, E.REDEFINE): R,
+    (S, E.REDEFINE): S,
+    (F, E.REDEFINE): ErrorCode.AXIS_FAULTED,
+    (D, E.REDEFINE): ErrorCode.SHUTDOWN_STATE,
+    (R, E.ABSOLUTE_HOME): R,
+    (S, E.ABSOLUTE_HOME): ErrorCode.SERVO_ON_STATE,
+    (F, E.ABSOLUTE_HOME): ErrorCode.AXIS_FAULTED,
+    (D, E.ABSOLUTE_HOME): ErrorCode.SHUTDOWN_STATE,
 }
 #: self-transitions that apply the event again (abort, drop the latch)
 REAPPLIED = frozenset({(F, E.FAULT), (D, E.SHUTDOWN)})
@@ -104,6 +116,7 @@ _REFUSAL_TEXT: dict[ErrorCode, str] = {
     ErrorCode.SHUTDOWN_STATE: "{} is shut down",
     ErrorCode.AXIS_FAULTED: "{} is faulted",
     ErrorCode.SERVO_OFF_STATE: "{} is not in Servo Control",
+    ErrorCode.SERVO_ON_STATE: "{} is in Servo Control: disable it first",
 }
 
 

@@ -89,6 +89,20 @@ class Process:
         self.state = ProcessState.ERROR
         self.error_code = int(code)
 
+    # -- redefinitions (:mod:`.redefine`): a shift of coordinates moves nothing ----------
+    def shifted(self, d: float) -> None:
+        """The coordinates of the process's own axis moved by ``d`` (a redefined
+        position): the absolute positions it holds follow, so that it moves the load
+        exactly as before. (Displacements are relative to the axis's ``base``, which
+        the redefinition moves.)"""
+        if self.landing is not None:
+            self.landing += d
+
+    def master_shifted(self, index: int, d: float) -> None:
+        """The coordinates of the master at array index ``index`` moved by ``d``
+        (called after the arrays moved): what the process holds of that master's
+        position follows. Processes without masters ignore it."""
+
 
 #: builds a process from the velocity and acceleration of what it replaces
 ProcessFactory = Callable[[float, float], Process]

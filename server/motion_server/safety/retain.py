@@ -1,7 +1,8 @@
 """Retentive memory: what survives a restart, like a controller's retained tags.
 
 Retained (``[retain]``): the positions of the axes listed in ``axes`` (those with absolute
-feedback: the others start at 0 as an incremental encoder does), every axis's homed flag,
+feedback: the others start at 0 as an incremental encoder does) with what redefinitions
+added to their feedback (the homing sensors stay where they are), every axis's homed flag,
 and every instruction instance's operand values. Triggers: an ``Execute`` is restored as
 it was *and* as already seen, so a trigger that was high makes no rising edge after the
 restart (nothing re-fires); level triggers (MC_Power ``Enable``) are not restored, so a
@@ -69,6 +70,9 @@ def snapshot(site: SiteMap, system: MotionSystem) -> dict[str, Any]:
         entry: dict[str, Any] = {"homed": bool(ax.homed)}
         if ax.name in absolute:
             entry["position"] = float(ctl.act_x[ax.index])
+            if ax.position_offset:
+                # what redefinitions (homing, MRP) added: the sensors stay on the machine
+                entry["offset"] = float(ax.position_offset)
         axes[ax.name] = entry
     operands = {
         name: {
@@ -188,10 +192,13 @@ def _shape_problem(payload: dict[str, Any]) -> str | None:
     for name, entry in axes.items():
         if not isinstance(entry, dict):
             return f"axes.{name}: not a table"
-        if not set(entry) <= {"homed", "position"} or not isinstance(entry.get("homed"), bool):
-            return f"axes.{name}: expected homed (a boolean) and position"
-        if "position" in entry and not _number(entry["position"]):
-            return f"axes.{name}.position: {entry['position']!r} is not a finite number"
+        if not set(entry) <= {"homed", "position", "offset"} or not isinstance(
+            entry.get("homed"), bool
+        ):
+            return f"axes.{name}: expected homed (a boolean), position and offset"
+        for key in ("position", "offset"):
+            if key in entry and not _number(entry[key]):
+                return f"axes.{name}.{key}: {entry[key]!r} is not a finite number"
     if not isinstance(operands, dict):
         return "operands: not a table"
     for name, values in operands.items():
@@ -226,6 +233,7 @@ def restore(system: MotionSystem, payload: dict[str, Any], path: Path | str = ""
             i = ax.index
             ctl.act_x[i] = ctl.act_pos[i] = ctl.cmd_pos[i] = ctl.drv_cmd[i] = float(pos)
             ax.base = float(pos)
+            ax.position_offset = float(entry.get("offset", 0.0))
     for name, values in payload.get("operands", {}).items():
         inst = system.instances.get(name)
         if inst is None:
@@ -246,15 +254,16 @@ def _value_problem(system: MotionSystem, payload: dict[str, Any]) -> str | None:
     axes = {ax.name: ax for ax in system.ctl.axes}
     for name, entry in payload["axes"].items():
         ax = axes.get(name)
-        pos = entry.get("position")
-        if ax is None or pos is None:
+        if ax is None:
             continue
         cpu, units = ax.config.counts_per_unit, ax.config.units
-        if not abs(float(pos)) * cpu <= MAX_POSITION_COUNTS:
-            return (
-                f"axes.{name}.position: {pos:g} {units} is beyond 2**53 encoder counts "
-                f"({cpu:g} counts/{units})"
-            )
+        for key in ("position", "offset"):
+            value = entry.get(key)
+            if value is not None and not abs(float(value)) * cpu <= MAX_POSITION_COUNTS:
+                return (
+                    f"axes.{name}.{key}: {value:g} {units} is beyond 2**53 encoder counts "
+                    f"({cpu:g} counts/{units})"
+                )
     for name, values in payload["operands"].items():
         inst = system.instances.get(name)
         if inst is None:

@@ -22,6 +22,7 @@ from collections.abc import Callable
 
 from ..instructions.schema import Quantity, TagType
 from ..kernel import Axis, ProgrammedStopMode
+from ..kernel.enums import HomeDirection, HomeMode, HomeSequence
 from .codec import Value
 from .fields import FieldSpec
 from .units import unit_id
@@ -64,6 +65,40 @@ CONFIG_FIELDS: tuple[FieldSpec, ...] = (
     FieldSpec("ProgrammedStopMode", TagType.INT, enum=ProgrammedStopMode),
 )
 
+#: the axis's homing configuration (after the REAL mirrors in the configuration block:
+#: they keep their registers)
+HOMING_FIELDS: tuple[FieldSpec, ...] = (
+    FieldSpec(
+        "HomeMode", TagType.INT, enum=HomeMode, description="MAH: 0 passive, 1 active, 2 absolute"
+    ),
+    FieldSpec(
+        "HomeSequence",
+        TagType.INT,
+        enum=HomeSequence,
+        description="0 immediate, 1 switch, 2 marker, 3 switch then marker",
+    ),
+    FieldSpec(
+        "HomeDirection",
+        TagType.INT,
+        enum=HomeDirection,
+        description="0 forward uni-, 1 forward bi-, 2 reverse uni-, 3 reverse bidirectional",
+    ),
+    FieldSpec(
+        "HomePosition",
+        TagType.REAL,
+        quantity=Quantity.POSITION,
+        description="where an active homing sequence leaves the axis",
+    ),
+    FieldSpec(
+        "HomeOffset",
+        TagType.REAL,
+        quantity=Quantity.POSITION,
+        description="the home event reads HomePosition - HomeOffset",
+    ),
+    FieldSpec("HomeSpeed", TagType.REAL, quantity=Quantity.VELOCITY),
+    FieldSpec("HomeReturnSpeed", TagType.REAL, quantity=Quantity.VELOCITY),
+)
+
 #: configuration field -> its value on an axis
 CONFIG_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "ConversionConstant": lambda ax: ax.config.conversion_constant,
@@ -76,6 +111,13 @@ CONFIG_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "FollowingErrorLimit": lambda ax: ax.config.following_error_limit,
     "PositionUnits": lambda ax: unit_id(ax.config.units),
     "ProgrammedStopMode": lambda ax: int(ax.config.programmed_stop_mode),
+    "HomeMode": lambda ax: int(ax.config.home_mode),
+    "HomeSequence": lambda ax: int(ax.config.home_sequence),
+    "HomeDirection": lambda ax: int(ax.config.home_direction),
+    "HomePosition": lambda ax: ax.config.home_position,
+    "HomeOffset": lambda ax: ax.config.home_offset,
+    "HomeSpeed": lambda ax: ax.config.home_speed,
+    "HomeReturnSpeed": lambda ax: ax.config.home_return_speed,
 }
 
 #: REAL mirror field -> the LREAL axis field it copies

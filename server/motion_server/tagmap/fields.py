@@ -81,6 +81,20 @@ FEEDBACK_INPUT = FieldSpec(
     description="hand-wheel reading: the actual position taken at the next cycle",
 )
 
+#: only axes with a home switch (``home_switch``) have it
+HOME_SWITCH = FieldSpec(
+    "HomeSwitch",
+    TagType.BOOL,
+    description="the simulated home switch is engaged (the load is on its cam)",
+)
+
+#: only axes with an encoder marker (``marker_interval`` > 0) have it
+MARKER = FieldSpec(
+    "Marker",
+    TagType.BOOL,
+    description="an encoder marker was passed in the last cycle",
+)
+
 GROUP_FIELDS: tuple[FieldSpec, ...] = (
     FieldSpec("Number", TagType.DINT, description="group number (what group operands hold)"),
     FieldSpec("GroupState", TagType.INT, enum=GroupState),

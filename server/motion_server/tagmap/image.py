@@ -23,6 +23,7 @@ from ..instructions import MotionSystem
 from ..instructions.schema import TagType
 from ..kernel import Axis, Controller, MotionError
 from ..kernel.group import MotionGroup
+from ..kernel.homing import Homing
 from .axis_config import CONFIG_GETTERS, MIRRORS
 from .codec import Value, encoder
 from .errors import AddressError, ReadOnlyError
@@ -128,6 +129,22 @@ AXIS_GETTERS: dict[str, Callable[[Axis], Value]] = {
     **CONFIG_GETTERS,
 }
 AXIS_GETTERS.update({mirror: AXIS_GETTERS[source] for mirror, source in MIRRORS.items()})
+
+
+def _switch_getter(homing: Homing, ax: Axis) -> Getter:
+    return lambda: homing.switch(ax)
+
+
+def _marker_getter(homing: Homing, ax: Axis) -> Getter:
+    seen, i = homing.marker_seen, ax.index
+    return lambda: seen[i]
+
+
+#: axis fields read from the kernel's homing sensors (the axes that have them)
+SENSOR_FIELDS: dict[str, Callable[[Homing, Axis], Getter]] = {
+    "HomeSwitch": _switch_getter,
+    "Marker": _marker_getter,
+}
 
 
 def wrapped(ctl: Controller, positions: np.ndarray) -> np.ndarray:
@@ -403,6 +420,9 @@ class TagImage:
 
     def _bind_axis(self, tag: Tag) -> None:
         ax = self.system.ctl.axis(tag.owner)
+        if tag.field in SENSOR_FIELDS:
+            self._get[tag.name] = SENSOR_FIELDS[tag.field](self.system.ctl.homing, ax)
+            return
         get = AXIS_GETTERS[tag.field]
         self._get[tag.name] = lambda: get(ax)
         if tag.field == "FeedbackInput":

@@ -46,12 +46,14 @@ from typing import TYPE_CHECKING
 from ..instructions import Instruction, Kind, Operand, Quantity, StatusField, TagType, catalog
 from ..instructions.registry import type_code
 from ..kernel.config import DEFAULT_PERIOD, AxisConfig
-from .axis_config import CONFIG_FIELDS, mirror_fields
+from .axis_config import CONFIG_FIELDS, HOMING_FIELDS, mirror_fields
 from .fields import (
     AXIS_FIELDS,
     DIAGNOSTICS_FIELDS,
     FEEDBACK_INPUT,
     GROUP_FIELDS,
+    HOME_SWITCH,
+    MARKER,
     WATCHDOG_FIELDS,
     FieldSpec,
     clock_fields,
@@ -239,7 +241,7 @@ def _spec_items(
         if s.type.is_float:
             if static and axis is not None:
                 value = _config_value(axis, s.name)
-                span = (0.0, value) if value is not None else None
+                span = (min(0.0, value), max(0.0, value)) if value is not None else None
             elif axis is not None:
                 span = axis_range(s.quantity, axis, period, reported=True, field=s.name)
             else:
@@ -432,9 +434,15 @@ def plan_tagmap(site: SiteMap) -> tuple[TagMap, Problems]:
         specs = list(AXIS_FIELDS)
         if cfg.type.name == "FEEDBACK_ONLY" and cfg.feedback_signal.name == "INPUT":
             specs.append(FEEDBACK_INPUT)
+        if cfg.home_switch is not None:
+            specs.append(HOME_SWITCH)
+        if cfg.marker_interval > 0.0:
+            specs.append(MARKER)
         period = period_of.get(cfg.number, DEFAULT_PERIOD)
         items = _spec_items(specs, cfg, period)
-        block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items)
+        # the sensors' BOOLs after the words: an axis with sensors keeps the registers of
+        # one without
+        block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items, bools_last=True)
         base = add(block, ("axes", ai))
 
     def place_configuration(base: int) -> None:
@@ -443,6 +451,7 @@ def plan_tagmap(site: SiteMap) -> tuple[TagMap, Problems]:
             items = _spec_items(CONFIG_FIELDS, cfg, period, static=True)
             if mb.real_mirrors:
                 items += _spec_items(mirror_fields(AXIS_FIELDS), cfg, period)
+            items += _spec_items(HOMING_FIELDS, cfg, period, static=True)
             block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items, part="configuration")
             base = add(block, ("modbus", "axis_config_base") if ai == 0 else ("axes", ai))
 

@@ -1,10 +1,12 @@
 """MAS, Motion Axis Stop: stop one kind of motion process, or all of them.
 
-DN when the stop is initiated, IP until the axis has come to rest, then PC. The
-deceleration is the axis maximum unless ChangeDecel selects DecelRate; the ramp is
-trapezoidal unless ChangeDecelJerk selects DecelJerk. DecelRate and DecelUnits are judged
-only when ChangeDecel is Yes, DecelJerk and JerkUnits only when ChangeDecelJerk is Yes
-(the rule of every instruction: an operand its mode does not use is not judged).
+DN when the stop is initiated, IP until the axis has come to rest, then PC. StopType
+Home stops an active homing sequence, and Home or All ends a passive homing waiting for
+its event (on a feedback-only axis too). The deceleration is the axis maximum unless
+ChangeDecel selects DecelRate; the ramp is trapezoidal unless ChangeDecelJerk selects
+DecelJerk. DecelRate and DecelUnits are judged only when ChangeDecel is Yes, DecelJerk
+and JerkUnits only when ChangeDecelJerk is Yes (the rule of every instruction: an
+operand its mode does not use is not judged).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ STOP_KINDS: dict[StopType, tuple[ProcessKind, ...] | None] = {
     StopType.JOG: (ProcessKind.JOG,),
     StopType.MOVE: (ProcessKind.MOVE,),
     StopType.GEAR: (ProcessKind.GEAR,),
+    StopType.HOME: (ProcessKind.HOME,),
 }
 
 
@@ -80,9 +83,14 @@ class MAS(ProcessInstruction):
 
     def execute(self) -> None:
         ax = self.axis()
+        stop_type = StopType(int(self.op["StopType"]))
+        homing = stop_type in (StopType.ALL, StopType.HOME)
+        if homing and self.ctl.cancel_homing(ax) and ax.type == AxisType.FEEDBACK_ONLY:
+            # a passive homing waiting for its event ended (it commands no motion)
+            self.set_bits(DN=True, PC=True)
+            return
         if ax.type == AxisType.FEEDBACK_ONLY:
             raise MotionError(ErrorCode.WRONG_AXIS_TYPE, f"{ax.name} is feedback only")
-        stop_type = StopType(int(self.op["StopType"]))
         kinds = STOP_KINDS.get(stop_type, ())
         if kinds is None:
             moving = ax.active()

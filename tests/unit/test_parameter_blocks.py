@@ -1,0 +1,153 @@
+"""MC_ReadParameter, MC_ReadBoolParameter, MC_WriteParameter: the PLCopen parameter
+numbers (Part 1; TwinCAT MC_AxisParameter numbers them the same, 1 CommandedPosition
+... 17 MaxJerkAppl) as our axes hold them.
+
+The servo's drive follows its command with bandwidth ω = 2π · 40 rad/s: at a steady
+velocity v the following error is 2v/ω (0.796 mm at 100 mm/s), so a MaxPositionLag of
+0.5 mm faults the axis during a 100 mm/s jog and one of 1.2 mm does not.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from motion_server.instructions import MotionSystem
+from motion_server.kernel import AxisConfig, AxisFault, AxisState, AxisType, ErrorCode
+
+from ..support import make_system, trigger
+from .test_lanes import PREAMBLE, pair, run_pair
+
+JERK = 50000.0
+
+
+def rig(fe_limit: float = 0.0) -> MotionSystem:
+    system = make_system(
+        AxisConfig(
+            1,
+            "Axis1",
+            AxisType.SERVO,
+            max_velocity=250.0,
+            max_acceleration=2000.0,
+            max_deceleration=3000.0,
+            max_jerk=JERK,
+            following_error_limit=fe_limit,
+        )
+    )
+    for name in ("MSO", "MAJ"):
+        system.add(name, f"{name}_1", {"Axis": 1})
+    system.add("MC_ReadParameter", "Read", {"Axis": 1})
+    system.add("MC_ReadBoolParameter", "ReadBool", {"Axis": 1})
+    system.add("MC_WriteParameter", "Write", {"Axis": 1})
+    trigger(system, system["MSO_1"])
+    return system
+
+
+def read(system: MotionSystem, number: int, block: str = "Read") -> dict[str, object]:
+    inst = system[block]
+    inst.inputs.update(Enable=True, ParameterNumber=number)
+    system.cycle()
+    return dict(inst.outputs)
+
+
+def write(system: MotionSystem, number: int, value: float) -> dict[str, object]:
+    inst = system["Write"]
+    inst.inputs["Execute"] = False
+    system.cycle()
+    trigger(system, inst, ParameterNumber=number, Value=value)
+    return dict(inst.outputs)
+
+
+@pytest.mark.parametrize(
+    ("number", "value"),
+    [(8, 250.0), (9, 250.0), (12, 2000.0), (13, 2000.0), (14, 3000.0), (15, 3000.0),
+     (16, JERK), (17, JERK), (7, 0.0)],
+)  # fmt: skip
+def test_the_axis_limits_read_as_configured(number: int, value: float) -> None:
+    out = read(rig(), number)
+    assert out["Valid"] and not out["Error"] and out["Value"] == value
+
+
+def test_commanded_position_and_velocities_follow_the_axis_every_cycle() -> None:
+    system = rig()
+    ax = system.ctl.axis(1)
+    trigger(system, system["MAJ_1"], Speed=100.0, AccelRate=1000.0, DecelRate=1000.0)
+    for number, attr in ((1, "command_position"), (11, "command_velocity")):
+        for _ in range(3):
+            out = read(system, number)
+            assert out["Valid"] and out["Value"] == getattr(ax, attr)
+    for _ in range(200):
+        system.cycle()
+    assert read(system, 11)["Value"] == 100.0  # at speed
+    v = read(system, 10)["Value"]
+    assert isinstance(v, float) and v == ax.actual_velocity
+    assert v == pytest.approx(100.0, abs=1e-6)
+
+
+def test_bool_parameters_and_the_kinds_kept_apart() -> None:
+    system = rig(fe_limit=2.0)
+    assert read(system, 6, "ReadBool")["Value"] is True
+    for number in (4, 5):  # no software limits on a simulated axis
+        out = read(system, number, "ReadBool")
+        assert out["Valid"] and out["Value"] is False
+    for number, block in ((6, "Read"), (7, "ReadBool"), (2, "Read"), (3, "Read"), (99, "Read")):
+        out = read(system, number, block)
+        assert out["Error"] and not out["Valid"] and out["Busy"]
+        assert out["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
+
+
+def test_write_max_position_lag_faults_a_jog_beyond_it() -> None:
+    system = rig(fe_limit=0.0)
+    assert read(system, 6, "ReadBool")["Value"] is False
+    out = write(system, 7, 0.5)
+    assert out["Done"] and not out["Error"]
+    assert read(system, 7)["Value"] == 0.5
+    assert read(system, 6, "ReadBool")["Value"] is True
+    ax = system.ctl.axis(1)
+    trigger(system, system["MAJ_1"], Speed=100.0, AccelRate=1000.0, DecelRate=1000.0)
+    for _ in range(500):
+        system.cycle()
+        if ax.state == AxisState.AXIS_FAULTED:
+            break
+    assert ax.state == AxisState.AXIS_FAULTED and ax.fault & AxisFault.POSITION_ERROR
+
+
+def test_a_limit_above_the_steady_error_lets_the_jog_run() -> None:
+    system = rig(fe_limit=0.0)
+    assert write(system, 7, 1.2)["Done"]
+    ax = system.ctl.axis(1)
+    trigger(system, system["MAJ_1"], Speed=100.0, AccelRate=1000.0, DecelRate=1000.0)
+    for _ in range(500):
+        system.cycle()
+    assert ax.state == AxisState.SERVO_CONTROL and ax.fault == 0
+    assert ax.position_error == pytest.approx(2 * 100.0 / (2 * math.pi * 40.0), rel=1e-3)
+
+
+@pytest.mark.parametrize(("number", "value"), [(8, 100.0), (1, 5.0), (99, 1.0), (7, -1.0)])
+def test_read_only_unknown_and_negative_writes_are_refused(number: int, value: float) -> None:
+    system = rig(fe_limit=2.0)
+    out = write(system, number, value)
+    assert out["Error"] and not out["Done"]
+    assert out["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
+    assert read(system, 7)["Value"] == 2.0  # unchanged
+    assert system.ctl.axis(1).config.max_velocity == 250.0
+
+
+def test_a_written_lag_limit_acts_the_same_with_and_without_lanes() -> None:
+    """A laned slave (S3 geared 0.3 to a jog at 100 mm/s: 30 mm/s, a steady error of
+    60/ω = 0.24 mm) gets a limit above its error, then one below it: it faults in the
+    same cycle on both paths, and every array and output agrees after every cycle."""
+    fast, ref = pair()
+    run_pair(fast, ref, PREAMBLE, prefix="P")
+    script: list[tuple[str, dict[str, object], int]] = [
+        ("MC_ReadParameter", {"Axis": 3, "ParameterNumber": 7}, 1),
+        ("MC_WriteParameter", {"Axis": 3, "ParameterNumber": 7, "Value": 0.5}, 200),
+        ("MC_ReadActualVelocity", {"Axis": 3}, 1),
+        ("MC_WriteParameter", {"Axis": 3, "ParameterNumber": 7, "Value": 0.05}, 50),
+        ("MC_ReadAxisError", {"Axis": 3}, 5),
+    ]
+    run_pair(fast, ref, script)
+    for s in (fast, ref):
+        assert s.ctl.axis(3).fault & AxisFault.POSITION_ERROR
+        assert s.ctl.axis(1).fault == 0  # the master jogs on
