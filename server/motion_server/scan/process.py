@@ -28,6 +28,7 @@ from ..image import wire
 from ..image.buffer import map_shared
 from ..launch import LaunchSpec, setup_logging
 from ..safety.retain import RetainError
+from ..tagmap.fields import ClockMode
 from .channel import CONTROL, Channel
 from .core import Scan
 
@@ -36,18 +37,45 @@ log = logging.getLogger("motion_server.scan")
 
 #: the scan's scheduling priority (nice value) when the system allows raising it
 SCAN_NICE = -10
+#: the scan's real-time priority (SCHED_FIFO, 1-99) while the clock runs in real time
+SCAN_RT_PRIORITY = 10
 
 
-def _raise_priority() -> None:
-    """Ask the operating system to run the scan before ordinary processes (a front-end
-    busy with a flood of requests, a client on the same machine). Allowed for root or
-    with CAP_SYS_NICE; otherwise the scan keeps the normal priority (said at DEBUG)."""
-    try:
-        os.setpriority(os.PRIO_PROCESS, 0, SCAN_NICE)
-    except (PermissionError, OSError) as exc:
-        log.debug("scan priority unchanged: %s", exc)
-    else:
-        log.debug("scan priority raised (nice %d)", SCAN_NICE)
+class _Priority:
+    """The operating system's scheduling of the scan, following the clock mode.
+
+    While the clock follows the wall clock (realtime, scaled) the scan asks for SCHED_FIFO
+    at priority :data:`SCAN_RT_PRIORITY`, as a controller's motion task runs: a waking
+    cycle then preempts every ordinary process at once (front-ends, clients on the same
+    machine), and the kernel's real-time throttling (``sched_rt_runtime_us``, 95 % by
+    default) still leaves the machine to them should a cycle never end. In the manual and
+    fast modes, where cycles run back to back on demand, it runs under the ordinary
+    policy at nice :data:`SCAN_NICE`. Either needs root or CAP_SYS_NICE (a container
+    without it, an unprivileged user): otherwise the scan keeps what it has, said once
+    at DEBUG."""
+
+    def __init__(self) -> None:
+        self.realtime: bool | None = None
+        try:
+            os.setpriority(os.PRIO_PROCESS, 0, SCAN_NICE)
+        except OSError as exc:
+            log.debug("scan priority unchanged: %s", exc)
+        else:
+            log.debug("scan priority raised (nice %d)", SCAN_NICE)
+
+    def follow(self, mode: ClockMode) -> None:
+        realtime = mode in (ClockMode.REALTIME, ClockMode.SCALED)
+        if realtime == self.realtime:
+            return
+        self.realtime = realtime
+        policy, priority = (os.SCHED_FIFO, SCAN_RT_PRIORITY) if realtime else (os.SCHED_OTHER, 0)
+        try:
+            os.sched_setscheduler(0, policy, os.sched_param(priority))
+        except OSError as exc:
+            if realtime:
+                log.debug("scan keeps the ordinary scheduling policy: %s", exc)
+        else:
+            log.debug("scan scheduling: %s", "SCHED_FIFO" if realtime else "SCHED_OTHER")
 
 
 def main() -> int:
@@ -86,7 +114,8 @@ def main() -> int:
         return 2
     for ch in channels.values():
         scan.attach(ch)
-    _raise_priority()
+    priority = _Priority()
+    priority.follow(scan.mode)
     # the start-up heap (the whole system) is never scanned by the collector again
     gc.collect()
     gc.freeze()
@@ -95,6 +124,7 @@ def main() -> int:
         if stop[0]:
             scan.request_stop()
         wake = scan.service(time.monotonic())
+        priority.follow(scan.mode)
         if scan.finished:
             break
         fds: list[int] = [wake_r, *(ch.fileno() for ch in scan.channels.values())]
