@@ -411,6 +411,8 @@ class OpcUaFrontend:
                 return result, mdata
 
             mis._make_monitored_item_common = make_monitored_item
+            # before any item exists: each item registers mis.datachange_callback
+            mis.datachange_callback = _lean_datachange_callback(mis)
             enqueue = isub.enqueue_datachange_event
 
             async def enqueue_datachange_event(mid: int, event: Any, maxsize: int) -> None:
@@ -712,6 +714,43 @@ def _in_batches(create: Any) -> Any:
         return results
 
     return create_monitored_items
+
+
+def _lean_datachange_callback(mis: Any) -> Any:
+    """``MonitoredItemService.datachange_callback`` without its first statement: asyncua
+    builds a default ``MonitoredItemNotification()`` for every change it is told of (a
+    default DataValue and Variant, whose type it guesses) and then overwrites both of
+    its fields; that was a fifth of the front-end's CPU under a 1,000-tag subscription
+    load. The notification is built once its fields are known; the filter and trigger
+    checks are asyncua's own."""
+    upstream = mis.datachange_callback
+    datachange = mis._monitored_datachange
+    items = mis._monitored_items
+    disabled = ua.MonitoringMode.Disabled
+    status_value = ua.DataChangeTrigger.StatusValue
+
+    async def datachange_callback(
+        handle: int, value: ua.DataValue, error: ua.StatusCode | None = None
+    ) -> None:
+        if error:
+            await upstream(handle, value, error)
+            return
+        mid = datachange[handle]
+        mdata = items[mid]
+        if mdata.mode == disabled:
+            return
+        mdata.mvalue.set_current_datavalue(value)
+        if mdata.filter:
+            changed = mis._is_data_changed(
+                mdata.mvalue, mdata.filter.Trigger
+            ) and mis._is_deadband_exceeded(mdata.mvalue, mdata.filter)
+        else:
+            changed = mis._is_data_changed(mdata.mvalue, status_value)
+        if changed:
+            event = ua.MonitoredItemNotification(ClientHandle=mdata.client_handle, Value=value)
+            await mis.isub.enqueue_datachange_event(mid, event, mdata.queue_size)
+
+    return datachange_callback
 
 
 class _SharedValues(MonitoredItemValues):
