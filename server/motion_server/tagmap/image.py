@@ -22,8 +22,10 @@ import numpy as np
 from ..instructions import MotionSystem
 from ..instructions.schema import TagType
 from ..kernel import Axis, Controller, MotionError
+from ..kernel.faults import axis_error_id_array, servo_fault_array
 from ..kernel.group import MotionGroup
 from .axis_config import CONFIG_GETTERS, MIRRORS
+from .axis_faults import FAULT_GETTERS, INJECT_CAUSES
 from .codec import Value, encoder
 from .errors import AddressError, ReadOnlyError
 from .fields import ClockMode
@@ -126,6 +128,7 @@ AXIS_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "PositionError": lambda ax: ax.position_error,
     "FeedbackInput": lambda ax: ax.feedback_input,
     **CONFIG_GETTERS,
+    **FAULT_GETTERS,
 }
 AXIS_GETTERS.update({mirror: AXIS_GETTERS[source] for mirror, source in MIRRORS.items()})
 
@@ -161,6 +164,13 @@ AXIS_STATUS: dict[str, str] = {
     "PLCopenState": "plcopen_state",
     "MotionStatus": "motion_status",
     "AxisFault": "fault",
+}
+
+#: the axis fault words, computed for every axis at once from the AxisFault bits (the
+#: ``fault`` array of ``Controller.status_arrays()``); equal to ``AXIS_GETTERS``
+AXIS_FAULT_WORDS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "ServoFault": servo_fault_array,
+    "AxisErrorID": axis_error_id_array,
 }
 
 #: fields whose value never changes while the server runs (configuration)
@@ -402,11 +412,17 @@ class TagImage:
             raise KeyError(f"{tag.name} is read-only")
 
     def _bind_axis(self, tag: Tag) -> None:
-        ax = self.system.ctl.axis(tag.owner)
+        ctl = self.system.ctl
+        ax = ctl.axis(tag.owner)
+        cause = INJECT_CAUSES.get(tag.field)
+        if cause is not None:
+            faults = ctl.faults
+            self._get[tag.name] = lambda: faults.holds(ax.index, cause)
+            self._set[tag.name] = lambda value: ctl.inject(ax, cause, bool(value))
+            return
         get = AXIS_GETTERS[tag.field]
         self._get[tag.name] = lambda: get(ax)
         if tag.field == "FeedbackInput":
-            ctl = self.system.ctl
             self._set[tag.name] = lambda value: ctl.set_feedback_input(ax, float(value))
 
     def _bind_group(self, tag: Tag) -> None:
