@@ -27,7 +27,7 @@ from ..kernel.group import MotionGroup
 from .axis_config import CONFIG_GETTERS, MIRRORS
 from .axis_faults import FAULT_GETTERS, INJECT_CAUSES
 from .codec import Value, encoder
-from .errors import AddressError, ReadOnlyError
+from .errors import AddressError, ReadOnlyError, TagAccessError
 from .fields import ClockMode
 from .judge import Judge
 from .model import Folder, Tag, TagMap, UnknownTagError
@@ -55,16 +55,46 @@ class Host(Protocol):
     def ready(self) -> bool:
         """True while the controller runs (cycles are being run, or run on request)."""
 
+    #: ``Clock.Snapshot``, and the snapshot command bits (cleared once done)
+    snapshot_number: int
+    snapshot_save: bool
+    snapshot_restore: bool
+    #: ``Clock.CommFault``, ``CommDelay`` (ms), ``CommDuration`` (ms), ``CommClientPort``
+    comm: CommSettings
+
     def set_mode(self, mode: ClockMode) -> None: ...
 
     def request_cycles(self, count: int) -> None: ...
+
+    def snapshot(self, kind: str) -> None:
+        """A rising edge of ``Clock.SnapshotSave`` (``kind`` "save") or
+        ``SnapshotRestore`` ("restore"), of snapshot ``snapshot_number``;
+        :class:`TagAccessError` when it cannot be done."""
+
+    def comm_changed(self) -> None:
+        """A ``Clock.Comm...`` tag was written."""
 
     async def settle(self) -> None:
         """Return once the cycles requested so far have run."""
 
 
+@dataclass
+class CommSettings:
+    """The communication fault the Clock tags ask for (front-ends apply it)."""
+
+    mode: int = 0
+    delay: int = 0
+    duration: int = 0
+    client_port: int = 0
+
+
 class StandaloneHost:
-    """A host without a clock loop: manual time, requested cycles run at once."""
+    """A host without a clock loop: manual time, requested cycles run at once; no
+    snapshots (the scan keeps them)."""
+
+    snapshot_number = 0
+    snapshot_save = False
+    snapshot_restore = False
 
     def __init__(self, system: MotionSystem, version: str = "0.0.0") -> None:
         self.system = system
@@ -80,9 +110,16 @@ class StandaloneHost:
         self.queued_writes = 0
         self.restarts = 0
         self.ready = True
+        self.comm = CommSettings()
 
     def set_mode(self, mode: ClockMode) -> None:
         self.mode = mode
+
+    def snapshot(self, kind: str) -> None:
+        raise TagAccessError("snapshots are kept by the scan: this host has none")
+
+    def comm_changed(self) -> None:
+        return None
 
     def request_cycles(self, count: int) -> None:
         for _ in range(count):
@@ -112,6 +149,13 @@ class _Slot:
 
 
 _UINT32 = 0xFFFFFFFF
+#: Clock communication-fault field -> attribute of ``CommSettings``
+_COMM = {
+    "CommFault": "mode",
+    "CommDelay": "delay",
+    "CommDuration": "duration",
+    "CommClientPort": "client_port",
+}
 
 AXIS_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "Number": lambda ax: ax.number,
@@ -476,6 +520,15 @@ class TagImage:
             "Period": lambda: ctl.period * 1000.0,
             "Scale": lambda: host.scale,
         }
+        getters |= {
+            "Snapshot": lambda: host.snapshot_number,
+            "SnapshotSave": lambda: host.snapshot_save,
+            "SnapshotRestore": lambda: host.snapshot_restore,
+            "CommFault": lambda: host.comm.mode,
+            "CommDelay": lambda: host.comm.delay,
+            "CommDuration": lambda: host.comm.duration,
+            "CommClientPort": lambda: host.comm.client_port,
+        }
         self._get[tag.name] = getters[tag.field]
         if not tag.writable:
             return
@@ -489,6 +542,35 @@ class TagImage:
                 self.step_cycles = int(value)
 
             self._set[tag.name] = set_cycles
+        elif tag.field == "Snapshot":
+
+            def set_number(value: Value) -> None:
+                host.snapshot_number = int(value)
+
+            self._set[tag.name] = set_number
+        elif tag.field in ("SnapshotSave", "SnapshotRestore"):
+            self._set[tag.name] = self._snapshot_setter(tag.field)
+        elif tag.field in _COMM:
+            attr = _COMM[tag.field]
+
+            def set_comm(value: Value) -> None:
+                setattr(host.comm, attr, int(value))
+                host.comm_changed()
+
+            self._set[tag.name] = set_comm
+
+    def _snapshot_setter(self, field: str) -> Setter:
+        host = self.host
+        kind = "save" if field == "SnapshotSave" else "restore"
+        attr = f"snapshot_{kind}"
+
+        def set_bit(value: Value) -> None:
+            rising = bool(value) and not getattr(host, attr)
+            if rising:
+                host.snapshot(kind)  # TagAccessError: refused, the bit stays low
+            setattr(host, attr, bool(value))
+
+        return set_bit
 
     def _set_step(self, value: Value) -> None:
         rising = bool(value) and not self.step
