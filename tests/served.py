@@ -1,5 +1,6 @@
-"""``motion-server run`` as a user starts it, for tests of the processes themselves:
-the supervisor, the scan and the front-ends (each a process of its own)."""
+"""``motion-server run`` as a user starts it (through the pytest plugin's
+:class:`~motion_server.testing.MotionServer`), for tests of the processes themselves:
+the supervisor's children by role, killing one, waiting for a restarted front-end."""
 
 from __future__ import annotations
 
@@ -7,39 +8,35 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 from types import TracebackType
+
+from motion_server.testing import MotionServer
 
 MODBUS = re.compile(r"Modbus TCP on [\d.]+:(\d+)")
 OPCUA = re.compile(r"OPC UA on (opc\.tcp://[^ ]+:(\d+)/)")
 
 
 class Served:
-    """``with Served(args, cwd) as srv:`` — the server runs until the block ends (SIGINT,
-    then a kill if it does not stop). ``srv.modbus_port``, ``srv.endpoint``,
-    ``srv.children()`` (role -> pid), ``srv.log()``."""
+    """``with Served(cwd, site="site.toml") as srv:`` — the server runs (realtime clock
+    unless ``clock`` says otherwise) until the block ends (SIGINT). ``srv.modbus_port``,
+    ``srv.opcua_port``, ``srv.children()`` (role -> pid), ``srv.kill(role)``."""
 
-    def __init__(self, args: list[str], cwd: Path, modbus: bool = True, opcua: bool = True):
-        self.args = args
+    def __init__(
+        self, cwd: Path, site: str | None = None, opcua: bool = True, clock: str = "realtime"
+    ) -> None:
         self.cwd = cwd
-        self.want_modbus = modbus
+        self.site = cwd / site if site else None
         self.want_opcua = opcua
-        self.log_file = cwd / "server.log"
-        self.proc: subprocess.Popen[bytes] | None = None
-        self.modbus_port = 0
-        self.endpoint = ""
+        self.want_modbus = True
+        self.clock = clock
+        self.server: MotionServer | None = None
 
     def __enter__(self) -> Served:
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "motion_server.cli", "run", *self.args],
-            cwd=self.cwd,
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=self.log_file.open("wb"),
+        self.server = MotionServer.start(
+            self.cwd, self.site, clock=self.clock, opcua=None if self.want_opcua else False
         )
-        self.wait_serving()
         return self
 
     def __exit__(
@@ -51,47 +48,56 @@ class Served:
         self.stop()
 
     @property
+    def proc(self) -> subprocess.Popen[bytes]:
+        assert self.server is not None
+        return self.server.proc
+
+    @property
+    def modbus_port(self) -> int:
+        assert self.server is not None
+        return self.server.modbus_port
+
+    @property
+    def endpoint(self) -> str:
+        assert self.server is not None
+        return self.server.opcua_endpoint
+
+    @property
     def opcua_port(self) -> int:
-        return int(self.endpoint.rsplit(":", 1)[1].strip("/")) if self.endpoint else 0
+        assert self.server is not None
+        return self.server.opcua_port
 
     def log(self) -> str:
-        return self.log_file.read_text(errors="replace")
+        assert self.server is not None
+        return self.server.log()
 
-    def wait_serving(self, timeout: float = 120.0, after: int = 0) -> None:
-        """Until the wanted front-ends logged where they listen (after log offset ``after``)."""
-        assert self.proc is not None
+    def wait_serving(self, after: int, timeout: float = 120.0) -> None:
+        """Until the front-ends wanted again (``want_modbus``, ``want_opcua``) logged
+        where they listen after log offset ``after`` (a restart)."""
         give_up = time.monotonic() + timeout
         while time.monotonic() < give_up:
             text = self.log()[after:]
-            m = MODBUS.findall(text)
-            u = OPCUA.findall(text)
-            # the supervisor says "serving" once it heard every front-end (at start)
-            started = after or "motion_server.supervisor: serving:" in text
-            if started and (m or not self.want_modbus) and (u or not self.want_opcua):
-                if m:
-                    self.modbus_port = int(m[-1])
-                if u:
-                    self.endpoint = u[-1][0]
+            if (MODBUS.search(text) or not self.want_modbus) and (
+                OPCUA.search(text) or not self.want_opcua
+            ):
                 return
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"the server ended:\n{self.log()[-3000:]}")
             time.sleep(0.1)
-        raise RuntimeError(f"the server did not serve:\n{self.log()[-3000:]}")
+        raise RuntimeError(f"no front-end came back:\n{self.log()[-3000:]}")
 
     def children(self) -> dict[str, int]:
         """role ("scan", "modbus", "opcua") -> pid of the supervisor's live children."""
-        assert self.proc is not None
-        path = Path(f"/proc/{self.proc.pid}/task/{self.proc.pid}/children")
+        assert self.server is not None
+        pid = self.server.pid
         out: dict[str, int] = {}
-        for pid in path.read_text().split():
+        for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split():
             try:
-                cmd = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+                cmd = Path(f"/proc/{child}/cmdline").read_bytes().split(b"\0")
             except OSError:
                 continue
             if b"motion_server.scan" in cmd:
-                out["scan"] = int(pid)
+                out["scan"] = int(child)
             elif b"motion_server.frontends" in cmd:
-                out[cmd[cmd.index(b"motion_server.frontends") + 1].decode()] = int(pid)
+                out[cmd[cmd.index(b"motion_server.frontends") + 1].decode()] = int(child)
         return out
 
     def kill(self, role: str) -> int:
@@ -101,12 +107,5 @@ class Served:
 
     def stop(self, sig: signal.Signals = signal.SIGINT, timeout: float = 30.0) -> int:
         """Signal the supervisor and wait for it; returns its exit code."""
-        assert self.proc is not None
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.returncode
+        assert self.server is not None
+        return self.server.stop(timeout, sig)

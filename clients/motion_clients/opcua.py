@@ -3,9 +3,11 @@
 Nodes are ``ns=<site namespace>;s=<tag.node_id>``. Secure by default, as the server is:
 Basic256Sha256 with SignAndEncrypt, a self-signed client certificate generated (once) in
 ``cert_dir``, and a user name and password. ``security="None"`` uses the None endpoint
-(only when the server allows it). Writes carry the node's exact DataType, so the server
-never answers BadTypeMismatch; a refused write (BadUserAccessDenied, BadOutOfRange...)
-raises :class:`~.backend.ClientError` with the status code's name.
+(only when the server allows it; it takes no user name: anonymous only). Writes carry
+the node's exact DataType, so the server never answers BadTypeMismatch; a refused write
+(BadUserAccessDenied, BadOutOfRange...) raises :class:`~.backend.ClientError` with the
+status code's name. Reads of many tags are split into requests of at most the server's
+``MaxNodesPerRead`` (read from its ServerCapabilities.OperationLimits once connected).
 """
 
 from __future__ import annotations
@@ -36,6 +38,9 @@ MODES = {
     "SignAndEncrypt": ua.MessageSecurityMode.SignAndEncrypt,
 }
 CLIENT_URI = "urn:motion-server:motion-client"
+MAX_NODES_PER_READ = ua.NodeId(
+    ua.ObjectIds.Server_ServerCapabilities_OperationLimits_MaxNodesPerRead
+)
 
 
 class OpcUaBackend(Backend):
@@ -60,6 +65,9 @@ class OpcUaBackend(Backend):
             raise ClientError(f"security {security!r}: expected Basic256Sha256 or None")
         if mode not in MODES:
             raise ClientError(f"mode {mode!r}: expected {' or '.join(MODES)}")
+        if security == "None" and user is not None:
+            # the server refuses user names on a channel without security
+            raise ClientError("a user name needs security Basic256Sha256, not None")
         self.endpoint = f"opc.tcp://{host}:{self.port}/"
         self.user, self.password = user, password
         self.security, self.mode = security, mode
@@ -69,6 +77,8 @@ class OpcUaBackend(Backend):
         self.client = Client(self.endpoint, timeout=timeout)
         self.client.application_uri = CLIENT_URI
         self.ns = 0
+        #: the most nodes one Read may carry (0: no limit), from the server
+        self.max_read = 0
 
     async def connect(self) -> None:
         if self.security != "None":
@@ -85,6 +95,8 @@ class OpcUaBackend(Backend):
         try:
             await self.client.connect()
             self.ns = await self.client.get_namespace_index(self.map.namespace_uri)
+            limit = await self.client.get_node(MAX_NODES_PER_READ).read_value()
+            self.max_read = int(limit or 0)
         except (OSError, TimeoutError, ua.UaError, ValueError) as exc:
             raise ClientError(f"cannot connect to OPC UA {self.endpoint}: {exc!r}") from None
 
@@ -97,8 +109,12 @@ class OpcUaBackend(Backend):
         return self.client.get_node(ua.NodeId(tag.node_id, self.ns))
 
     async def read(self, tags: Sequence[MapTag]) -> list[Value]:
+        step = self.max_read or max(len(tags), 1)
+        values: list[Any] = []
         try:
-            values = await self.client.read_values([self._node(t) for t in tags])
+            for start in range(0, len(tags), step):
+                part = tags[start : start + step]
+                values += await self.client.read_values([self._node(t) for t in part])
         except ua.UaStatusCodeError as exc:
             raise ClientError(f"read refused: {exc}") from None
         out: list[Value] = []

@@ -65,3 +65,31 @@ async def test_wrong_password_is_a_clear_connection_error(
     with pytest.raises(ClientError, match="cannot connect to OPC UA"):
         async with connect(bench, password="guess"):
             pass
+
+
+async def test_a_read_of_more_tags_than_the_servers_limit_is_split(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    """The server answers a Read of more than MaxNodesPerRead nodes BadTooManyOperations;
+    the client reads that limit from the server and splits its reads by it."""
+    tmp = tmp_path_factory.mktemp("opcua-limit")
+    opcua = {"data_dir": str(tmp / "data"), "max_nodes_per_read": 7}
+    site = manual_site(config.load(BENCH), opcua=opcua)
+    m = client_map(site)
+    names = [t.name for t in m][:30]
+    assert len(names) == 30 > 7
+    with BenchServer(site) as srv:
+        assert srv.runtime is not None and srv.runtime.opcua is not None
+        port = srv.runtime.opcua.port
+        creds = {"user": "bench", "password": "bench-only"}
+        async with MotionClient.connect(m, "opcua", port=port, cert_dir=tmp / "c", **creds) as mc:
+            together = await mc.read_many(names)
+            one_by_one = [await mc.read(n) for n in names]
+    assert list(together.values()) == one_by_one  # manual clock: nothing moved in between
+
+
+def test_a_user_name_without_security_is_refused_before_connecting(
+    bench: tuple[int, ClientMap, Path],
+) -> None:
+    with pytest.raises(ClientError, match="needs security Basic256Sha256"):
+        connect(bench, security="None")

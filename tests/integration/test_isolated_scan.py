@@ -90,7 +90,7 @@ def client_map() -> ClientMap:
 
 @pytest.fixture
 def served(site_dir: Path) -> Iterator[Served]:
-    with Served(["site.toml"], site_dir) as srv:
+    with Served(site_dir, "site.toml") as srv:
         yield srv
 
 
@@ -142,7 +142,7 @@ def test_the_twelve_byte_frame_gets_an_exception_and_the_demo_server_stays_up(
     demo = build_tagmap(config.load())
     wheel = demo.tag("Axis4.FeedbackInput")
     assert wheel.address == 0x04A0  # the frame below is the one that ended the server
-    with Served(["--modbus-port", "0", "--no-opcua"], tmp_path, opcua=False) as srv:
+    with Served(tmp_path, opcua=False) as srv:
         before = modbus_call(srv.modbus_port, bytes.fromhex("000200000006010304a00004"))
         answer = modbus_call(srv.modbus_port, bytes.fromhex("000100000006010604a07fe0"))
         assert answer == bytes.fromhex("000100000003018603")  # FC6 exception 03
@@ -231,7 +231,7 @@ async def test_a_killed_front_end_comes_back_while_motion_goes_on(
 
 
 async def test_sigterm_ends_in_the_programmed_stop(site_dir: Path, client_map: ClientMap) -> None:
-    with Served(["site.toml", "--no-opcua"], site_dir, opcua=False) as served:
+    with Served(site_dir, "site.toml", opcua=False) as served:
         await jog(client_map, served.modbus_port)
         assert served.stop(signal.SIGTERM) == 0
         log = served.log()
@@ -245,12 +245,11 @@ async def test_sigterm_ends_in_the_programmed_stop(site_dir: Path, client_map: C
 async def test_a_dead_scan_stops_everything_and_leaves_the_retain_file(
     site_dir: Path, client_map: ClientMap
 ) -> None:
-    args = ["site.toml", "--no-opcua"]
-    with Served(args, site_dir, opcua=False) as srv:  # a clean run writes the retain file
+    with Served(site_dir, "site.toml", opcua=False) as srv:  # a clean run writes the retain file
         await jog(client_map, srv.modbus_port)
     retain_file = site_dir / "retain.json"
     saved = retain_file.read_bytes()
-    with Served(args, site_dir, opcua=False) as srv:
+    with Served(site_dir, "site.toml", opcua=False) as srv:
         await jog(client_map, srv.modbus_port)  # Axis1 moves on from the retained position
         children = srv.children()
         srv.kill("scan")

@@ -136,6 +136,38 @@ async def test_opcua_writes_are_audited_with_the_user_and_never_the_password(
     assert writes[1]["connection"] == first["connection"] != writes[2]["connection"]
 
 
+async def test_writes_refused_outside_the_tag_map_are_audited_too(tmp_path: Path) -> None:
+    """A write to a namespace-0 node (the server's own) or to a property of ours is
+    refused by asyncua's rules, and audited like a refused tag write, naming the node."""
+    async with running(safety_site(tmp_path)) as rt:
+        op = await login(rt, tmp_path, "operator")
+        try:
+            assert rt.opcua is not None
+            ns = rt.opcua.namespace_index
+            product = ua.NodeId(ua.ObjectIds.Server_ServerStatus_BuildInfo_ProductName)
+            eu_range = ua.NodeId("Axes.Axis1.ActualPosition.EURange", ns)
+            params = ua.WriteParameters()
+            for node, value in ((product, ua.Variant("forged")), (eu_range, ua.Variant(1.0))):
+                params.NodesToWrite.append(
+                    ua.WriteValue(
+                        NodeId=node, AttributeId=ua.AttributeIds.Value, Value=ua.DataValue(value)
+                    )
+                )
+            codes = await op.uaclient.write(params)
+            assert [c.is_good() for c in codes] == [False, False]
+            names = [c.name for c in codes]
+            assert "BadNodeIdUnknown" not in names  # both nodes exist; neither is writable
+        finally:
+            await op.disconnect()
+    records = [json.loads(line) for line in (tmp_path / "audit.jsonl").read_text().splitlines()]
+    refused = [r for r in records if r["event"] == "write" and r["result"] == "refused"]
+    seen = [(r["user"], r["role"], r.get("node"), r["reason"]) for r in refused]
+    assert seen == [
+        ("operator", "operator", product.to_string(), names[0]),
+        ("operator", "operator", eu_range.to_string(), names[1]),
+    ]
+
+
 async def test_a_heartbeat_over_opcua_keeps_the_group_running_and_its_loss_trips_it(
     tmp_path: Path,
 ) -> None:

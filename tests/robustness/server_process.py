@@ -81,6 +81,23 @@ class ServerProcess:
         )
         return {"overruns": overruns, "dropped": dropped, "subscriptions": subscriptions}
 
+    def child(self, role: str) -> int:
+        """The pid of the child process serving ``role`` (``scan``, ``opcua``, ``modbus``)."""
+        assert self.proc is not None
+        wanted = ["motion_server.scan"] if role == "scan" else ["motion_server.frontends", role]
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+                argv = (entry / "cmdline").read_bytes().split(b"\0")
+            except (OSError, ValueError, IndexError):
+                continue  # gone meanwhile
+            words = [a.decode(errors="replace") for a in argv]
+            if ppid == self.proc.pid and all(w in words for w in wanted):
+                return int(entry.name)
+        raise RuntimeError(f"no {role} child of {self.proc.pid}")
+
     def log(self) -> str:
         return self.log_file.read_text(errors="replace")
 

@@ -10,6 +10,13 @@ a proper client (Basic256Sha256 SignAndEncrypt, user name) that stayed connected
 ``Diagnostics.DroppedCycles`` within 1 s and finds 0 (no cycle was late beyond the
 catch-up bound), and a fresh secure client can still connect and log in. Counts and
 checks are printed (``pytest -s`` shows them).
+
+Every connection refused for a fault of its channel (a chunk with a wrong sequence number,
+channel id or token, a message before any channel) gets an Error message, then its end.
+Then, against the same server: a chunk size lie streamed on four connections at once
+(64 MiB each) keeps the OPC UA process within 20 MB of its memory and drops no motion
+cycle; and every operation limit is answered with ``BadTooManyOperations`` one operation
+past it, while a request of exactly the limit is served.
 """
 
 from __future__ import annotations
@@ -29,6 +36,8 @@ from asyncua import Client, ua
 from asyncua.crypto.security_policies import SecurityPolicyNone
 
 from motion_server import config
+from tests.integration.test_opcua_limits import outcome, requests
+from tests.opcua_raw import RawChannel, header, patch
 from tests.opcua_support import SITE, USERS, secure_client_at, user_hashes
 from tests.robustness.server_process import ServerProcess
 
@@ -41,6 +50,24 @@ MAX_SESSIONS = 12
 CHUNK = 8192
 CHUNKS = 8
 MESSAGE = 32768
+#: operation limits and quotas of the campaign's site (requests past them fit in MESSAGE)
+LIMITS = {
+    "max_nodes_per_read": 50,
+    "max_nodes_per_write": 40,
+    "max_nodes_per_browse": 10,
+    "max_nodes_per_translate_browse_paths": 10,
+    "max_nodes_per_register_nodes": 50,
+    "max_nodes_per_method_call": 10,
+    "max_nodes_per_history_read": 10,
+    "max_nodes_per_node_management": 10,
+    "max_monitored_items_per_call": 50,
+    "max_subscriptions_per_session": 5,
+    "max_monitored_items_per_session": 100,
+}
+#: the lying-header stream: connections at once, bytes each, the memory the process may grow
+STREAMS = 4
+STREAM_BYTES = 64 << 20
+MEMORY_GROWTH = 20_000_000
 
 
 def campaign_site(data_dir: Path) -> str:
@@ -55,17 +82,13 @@ def campaign_site(data_dir: Path) -> str:
     limits = (
         f"max_sessions = {MAX_SESSIONS}\nmax_chunk_size = {CHUNK}\n"
         f"max_chunk_count = {CHUNKS}\nmax_message_size = {MESSAGE}\n"
-    )
+    ) + "".join(f"{name} = {value}\n" for name, value in LIMITS.items())
     text = text.replace("[opcua]\n", "[opcua]\n" + limits, 1)
     config.parse(text, "opcua-campaign.toml")  # a bad map fails here, not in the child
     return text
 
 
 # -- raw messages ------------------------------------------------------------------------------
-def header(kind: bytes, size: int) -> bytes:
-    return kind + struct.pack("<I", size)
-
-
 def hello(url: str, recv: int = 65535, max_msg: int = 0, chunks: int = 0) -> bytes:
     raw = url.encode()
     body = struct.pack("<IIIII", 0, recv, recv, max_msg, chunks) + struct.pack("<i", len(raw))
@@ -240,6 +263,48 @@ async def subscriptions_left_behind(
     return sent
 
 
+async def dead_channels(srv: ServerProcess, r: random.Random, n: int) -> int:
+    """Chunks with a wrong sequence number, channel id or token on an open channel, or a
+    message on a connection that never opened one: each answered with an Error message,
+    then the connection's end (asyncua left such connections open, unanswered)."""
+    codes = {
+        "sequence": ua.StatusCodes.BadSequenceNumberInvalid,
+        "channel": ua.StatusCodes.BadTcpSecureChannelUnknown,
+        "token": ua.StatusCodes.BadSecureChannelTokenUnknown,
+        "no channel": ua.StatusCodes.BadTcpSecureChannelUnknown,
+    }
+
+    async def one(fault: str, shift: int) -> None:
+        ch = await RawChannel.connect(srv.port, srv.endpoint)
+        try:
+            if fault == "no channel":
+                await ch.hello()
+                ch.send(ch.get_endpoints())
+            else:
+                await ch.open()
+                chunk = ch.get_endpoints()
+                token = ch.conn.security_token
+                seq = struct.unpack_from("<I", chunk, 16)[0]
+                ch.send(
+                    {
+                        "sequence": lambda: patch(chunk, seq=seq + shift),
+                        "channel": lambda: patch(chunk, channel=token.ChannelId + shift),
+                        "token": lambda: patch(chunk, token=token.TokenId + shift),
+                    }[fault]()
+                )
+            code, _ = await ch.error()
+            assert code == codes[fault], (fault, hex(code))
+        finally:
+            await ch.close()
+
+    sent = 0
+    while sent < n:
+        batch = [(r.choice(list(codes)), r.randrange(1, 1 << 16)) for _ in range(10)]
+        await asyncio.gather(*(one(fault, shift) for fault, shift in batch))
+        sent += len(batch)
+    return sent
+
+
 async def session_flood(srv: ServerProcess, n: int) -> int:
     """Connections past max_sessions: the extra ones are refused, the rest still served."""
     url = srv.endpoint
@@ -328,6 +393,7 @@ async def test_malformed_message_campaign(server: ServerProcess, tmp_path: Path)
             lambda: subscriptions_left_behind(srv, checker.client, tmp_path, 21 * SCALE),
         ),
         ("session flood", lambda: session_flood(srv, MAX_SESSIONS * 3 * SCALE)),
+        ("dead channels", lambda: dead_channels(srv, r, per_batch // 5)),
     ]
     print(f"\nOPC UA campaign, seed {SEED}, at least {MIN_MESSAGES} messages")
     total = batches = 0
@@ -348,3 +414,101 @@ async def test_malformed_message_campaign(server: ServerProcess, tmp_path: Path)
                 )
     print(f"total {total} malformed or abusive messages in {batches} batches")
     assert total >= MIN_MESSAGES
+
+
+# -- the chunk size lie, streamed ------------------------------------------------------------
+def rss(pid: int) -> int:
+    """Resident memory of process ``pid`` in bytes."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    raise RuntimeError(f"no VmRSS for {pid}")
+
+
+async def stream_lie(port: int, total: int, stop: asyncio.Event) -> tuple[int, int]:
+    """A MSG header announcing 0x7FFFFFFF bytes, no Hello, then random bytes, on one
+    connection after another until ``total`` bytes went out (or ``stop``); returns (bytes
+    the kernel took, connections)."""
+    block = os.urandom(1 << 16)
+    sent = connections = 0
+    while sent < total and not stop.is_set():
+        _, writer = await asyncio.open_connection("127.0.0.1", port)
+        connections += 1
+        try:
+            writer.write(header(b"MSGF", 0x7FFFFFFF))
+            while sent < total and not stop.is_set():
+                writer.write(block)
+                await asyncio.wait_for(writer.drain(), 5.0)
+                sent += len(block)
+        except (ConnectionError, OSError):
+            pass  # cut by the server: the next connection goes on
+        finally:
+            writer.close()
+            with contextlib.suppress(OSError, ConnectionError):
+                await writer.wait_closed()
+    return sent, connections
+
+
+async def test_a_chunk_size_lie_streamed_on_four_connections_costs_no_memory(
+    server: ServerProcess, tmp_path: Path
+) -> None:
+    srv = server
+    pid = srv.child("opcua")
+    checker = Checker(srv, tmp_path)
+    async with checker:
+        await checker.check("before the stream")
+        base = peak = rss(pid)
+        stop = asyncio.Event()
+
+        async def watch() -> None:
+            nonlocal peak
+            while not stop.is_set():
+                peak = max(peak, rss(pid))
+                if peak - base > MEMORY_GROWTH:
+                    stop.set()  # the lie is being buffered: no need to go on
+                await asyncio.sleep(0.01)
+
+        watcher = asyncio.create_task(watch())
+        t0 = time.perf_counter()
+        results = await asyncio.gather(
+            *(stream_lie(srv.port, STREAM_BYTES, stop) for _ in range(STREAMS))
+        )
+        stop.set()
+        await watcher
+        elapsed = time.perf_counter() - t0
+        peak = max(peak, rss(pid))
+        sent = sum(s for s, _ in results)
+        connections = sum(c for _, c in results)
+        print(
+            f"\nchunk size lie: {sent / 2**20:.0f} MiB on {connections} connections "
+            f"({STREAMS} at a time) in {elapsed:.1f} s; OPC UA process {base / 1e6:.1f} MB, "
+            f"peak +{(peak - base) / 1e6:.1f} MB"
+        )
+        assert peak - base < MEMORY_GROWTH, f"the OPC UA process grew by {peak - base} bytes"
+        assert sent >= STREAMS * STREAM_BYTES
+        elapsed, cycle = await checker.check("chunk size lie")  # no cycle dropped, still served
+        print(f"after it: a read in {elapsed * 1000:.1f} ms, cycle {cycle}")
+
+
+# -- operation limits --------------------------------------------------------------------------
+async def test_each_operation_limit_is_answered_with_bad_too_many_operations(
+    server: ServerProcess, tmp_path: Path
+) -> None:
+    srv = server
+    client = await secure_client_at(srv.endpoint, tmp_path, "admin")
+    await client.connect()
+    try:
+        ns = await client.get_namespace_index(srv.namespace_uri)
+        published = ua.ObjectIds.Server_ServerCapabilities_OperationLimits_MaxNodesPerRead
+        assert (
+            await client.get_node(ua.NodeId(published)).read_value() == LIMITS["max_nodes_per_read"]
+        )
+        sub = await client.create_subscription(100, None)
+        for label, request in requests(client, ns, sub.subscription_id).items():
+            limit = LIMITS[label.split(" ")[0]]
+            assert await outcome(request(limit + 1)) == ua.StatusCodes.BadTooManyOperations, label
+            assert await outcome(request(limit)) != ua.StatusCodes.BadTooManyOperations, label
+            print(f"{label}: {limit + 1} operations refused, {limit} served")
+        await sub.delete()
+    finally:
+        await client.disconnect()

@@ -482,6 +482,24 @@ class OpcUaSection(_Model):
     max_login_failures: Annotated[int, Field(ge=1, le=1000)] = 5
     login_window_s: Annotated[float, Field(gt=0.0)] = 60.0
     login_lockout_s: Annotated[float, Field(ge=0.0)] = 30.0
+    #: OperationLimits, published in Server.ServerCapabilities.OperationLimits: the most
+    #: operations one request may carry (more: BadTooManyOperations); 0: no limit
+    max_nodes_per_read: Annotated[int, Field(ge=0, le=1000000)] = 1000
+    max_nodes_per_write: Annotated[int, Field(ge=0, le=1000000)] = 1000
+    max_nodes_per_browse: Annotated[int, Field(ge=0, le=1000000)] = 100
+    max_nodes_per_translate_browse_paths: Annotated[int, Field(ge=0, le=1000000)] = 100
+    max_nodes_per_register_nodes: Annotated[int, Field(ge=0, le=1000000)] = 1000
+    max_nodes_per_method_call: Annotated[int, Field(ge=0, le=1000000)] = 100
+    #: HistoryRead, of data and of events alike
+    max_nodes_per_history_read: Annotated[int, Field(ge=0, le=1000000)] = 100
+    #: AddNodes, AddReferences, DeleteNodes, DeleteReferences
+    max_nodes_per_node_management: Annotated[int, Field(ge=0, le=1000000)] = 100
+    #: CreateMonitoredItems, ModifyMonitoredItems, SetMonitoringMode, DeleteMonitoredItems
+    max_monitored_items_per_call: Annotated[int, Field(ge=0, le=1000000)] = 1000
+    #: per session: subscriptions (more: BadTooManySubscriptions) and monitored items in
+    #: all of them (each item past it: BadTooManyMonitoredItems); 0: no limit
+    max_subscriptions_per_session: Annotated[int, Field(ge=0, le=10000)] = 10
+    max_monitored_items_per_session: Annotated[int, Field(ge=0, le=1000000)] = 10000
 
     @model_validator(mode="after")
     def _consistent_limits(self) -> OpcUaSection:

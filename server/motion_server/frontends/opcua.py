@@ -56,15 +56,25 @@ of its monitored items), without looking the node up again or re-checking the va
 type the publisher built. Monitored items created with
 queue size 0 get a queue of one (latest value), as the specification asks.
 
+The wire (:mod:`.opcua_wire`): chunks are framed and judged before they are buffered
+(one chunk per connection at most, nothing but a Hello before the Hello), every fatal
+fault of a connection or its secure channel is answered with an Error message and the
+connection closed (audited ``disconnect``, ``refused``, with the status code's name), a
+user name is refused on a channel without security, and a session ends with its
+connection, subscriptions included. Operation limits and per-session quotas
+(:mod:`.opcua_limits`) are enforced and published in ``Server.ServerCapabilities``.
+Writes refused to nodes outside the tag map (namespace 0, properties) are audited with
+``node=`` and the status code's name, as refused tag writes are with ``tag=``.
+
 Silent clients: a session that receives no request for its session timeout (revised by
 the server, at most ``max_session_timeout_s``) is closed by asyncua, and with it its
 subscriptions. asyncua does not close the TCP connection then, though, and closes one
 that never activates a session only after 30 s. So every ``idle_timeout`` / 4 (at most
 1 s) the front-end closes the connections that received no byte for ``idle_timeout``
-seconds, or, while they hold an activated session, for that session's timeout if it is
-longer: a raw socket that never says Hello, a client silent after its Hello, a
-connection whose session has timed out. Closes are logged and audited (``disconnect``,
-``idle timeout``).
+seconds (each connection notes when its last byte came), or, while they hold an
+activated session, for that session's timeout if it is longer: a raw socket that never
+says Hello, a client silent after its Hello, a connection whose session has timed out.
+Closes are logged and audited (``disconnect``, ``idle timeout``).
 
 A client's write of an instruction's BOOL input (``Execute``, ``Enable``) in realtime or
 scaled time also publishes that instance's tags as soon as the scan acknowledges the
@@ -81,7 +91,6 @@ import ipaddress
 import logging
 import socket
 import time
-import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -104,8 +113,10 @@ from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagTy
 from ..tagmap.nodeset import enum_text
 from .certificates import self_signed
 from .opcua_identity import identify
+from .opcua_limits import OperationLimits, OperationScreen, QuotaSession, publish_capabilities
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
+from .opcua_wire import ChannelFault, GuardedProtocol, Wire, WireServer
 from .view import ImageView, ScanUnavailable, Ticket
 
 log = logging.getLogger("motion_server.opcua")
@@ -183,6 +194,10 @@ class OpcUaFrontend:
         )
         self.server: Server | None = None  # set once listening
         self._server: Server | None = None
+        #: the guarded wire (opcua_wire) and the operation limits (opcua_limits)
+        self.limits = OperationLimits.of(cfg)
+        self.screen = OperationScreen(self.limits)
+        self.wire = Wire(cfg.max_chunk_size, self.screen, self._fault)
         self.namespace_index = 0
         self.port = 0
         self._published: list[_Published] = []
@@ -195,8 +210,6 @@ class OpcUaFrontend:
         self._following: dict[str, asyncio.Task[None]] = {}
         self._task: asyncio.Task[None] | None = None
         self._idle_task: asyncio.Task[None] | None = None
-        #: when each open connection last received a byte (loop time)
-        self._received: weakref.WeakKeyDictionary[Any, _LastByte] = weakref.WeakKeyDictionary()
         self._lock = asyncio.Lock()
         #: counters (diagnostics, benches)
         self.writes = 0
@@ -213,7 +226,7 @@ class OpcUaFrontend:
 
     async def start(self) -> None:
         cfg = self.config
-        server = Server(user_manager=self.directory)
+        server = WireServer(self.wire, user_manager=self.directory)
         self._server = server
         # far below asyncua's 100 MB: a hostile peer cannot make us buffer much
         server.limits = TransportLimits(
@@ -223,6 +236,7 @@ class OpcUaFrontend:
             max_message_size=cfg.max_message_size,
         )
         await server.init()
+        await publish_capabilities(server, cfg)
         iserver = server.iserver
         iserver.max_connections = cfg.max_sessions
         iserver.max_subscriptions = cfg.max_subscriptions
@@ -308,15 +322,12 @@ class OpcUaFrontend:
     def _sweep(self, now: float, timeout: float) -> None:
         bserver = self.server.bserver if self.server is not None else None
         for proto in list(bserver.clients if bserver is not None else ()):
-            last = self._received.get(proto)
-            if last is None:  # new since the last pass: watch it from now on
-                self._received[proto] = _LastByte.watch(proto, now)
-                continue
+            last = proto.received_at if isinstance(proto, GuardedProtocol) else now
             limit = timeout
             session = proto.processor.session if proto.processor is not None else None
             if session is not None and session.state == SessionState.Activated:
                 limit = max(timeout, session.session_timeout or 0.0)
-            if now - last.time <= limit or proto.transport is None:
+            if now - last <= limit or proto.transport is None:
                 continue
             self.idle_closed += 1
             client = (
@@ -324,7 +335,7 @@ class OpcUaFrontend:
                 if isinstance(session, PeerSession)
                 else ClientInfo("opcua", *_peer(proto.peer_name))
             )
-            log.info("OPC UA connection %s silent for %.1f s: closed", client.key, now - last.time)
+            log.info("OPC UA connection %s silent for %.1f s: closed", client.key, now - last)
             if self.audit is not None:
                 self.audit.connection(client, "disconnect", "idle timeout")
             proto.transport.close()
@@ -335,14 +346,21 @@ class OpcUaFrontend:
         assert self._server is not None
         iserver = self._server.iserver
         user = user if user is not None else User(role=UserRole.Anonymous)
-        return PeerSession(
+        return QuotaSession(
             iserver,
             iserver.aspace,
             iserver.subscription_service,
             name,
             user=user,
             external=external,
+            limits=self.limits,
         )
+
+    def _fault(self, peer: Any, fault: ChannelFault) -> None:
+        """A connection closed for a protocol fault (the Error message is on its way)."""
+        if self.audit is not None:
+            client = ClientInfo("opcua", *_peer(peer))
+            self.audit.connection(client, "disconnect", "refused", fault.name)
 
     def _live_diagnostics(self, server: Server) -> None:
         """The standard server diagnostics a SCADA reads (Server.ServerDiagnostics): the
@@ -419,16 +437,24 @@ class OpcUaFrontend:
             )
             if pub is None:  # another namespace, or a property: asyncua's own rules
                 single = ua.WriteParameters(NodesToWrite=[wv])
-                results += await self._standard_write(single, user=user)
+                codes = await self._standard_write(single, user=user)
+                for code in codes:
+                    if not code.is_good():
+                        self._refused(code, node=nid.to_string())
+                results += codes
                 continue
             code = await self._write_tag(pub, wv, user)
             if not code.is_good():
-                self.refused += 1
-                if self.audit is not None:
-                    reason = status_codes.get_name_and_doc(code.value)[0]
-                    self.audit.refused(reason, tag=pub.tag.name)
+                self._refused(code, tag=pub.tag.name)
             results.append(code)
         return results
+
+    def _refused(self, code: ua.StatusCode, **what: str) -> None:
+        """Count and audit one refused write item (``tag=`` or, outside the tag map,
+        ``node=``)."""
+        self.refused += 1
+        if self.audit is not None:
+            self.audit.refused(status_codes.get_name_and_doc(code.value)[0], **what)
 
     async def _write_tag(self, pub: _Published, wv: ua.WriteValue, user: User) -> ua.StatusCode:
         tag = pub.tag
@@ -686,33 +712,6 @@ def _in_batches(create: Any) -> Any:
         return results
 
     return create_monitored_items
-
-
-class _LastByte:
-    """When a connection last received a byte. asyncua builds its protocol objects
-    inside ``Server.start`` without a hook, so the front-end wraps the ``data_received``
-    of each one it finds (a weak reference back: no cycle keeps a closed one alive)."""
-
-    __slots__ = ("time",)
-
-    def __init__(self, time: float) -> None:
-        self.time = time
-
-    @classmethod
-    def watch(cls, proto: Any, now: float) -> _LastByte:
-        last = cls(now)
-        loop = asyncio.get_running_loop()
-        received = type(proto).data_received
-        ref = weakref.ref(proto)
-
-        def data_received(data: bytes) -> None:
-            last.time = loop.time()
-            target = ref()
-            if target is not None:
-                received(target, data)
-
-        proto.data_received = data_received
-        return last
 
 
 class _SharedValues(MonitoredItemValues):

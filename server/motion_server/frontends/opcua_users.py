@@ -4,8 +4,9 @@ Password hashes are strings of the form (``motion-server hash-password`` prints 
 
     scrypt$<n>$<r>$<p>$<salt, base64>$<key, base64>
 
-scrypt from :mod:`hashlib` with a random 16-byte salt and a 32-byte key; the default cost
-is n = 2**14, r = 8, p = 1. Verification compares in constant time.
+scrypt from :mod:`hashlib` (:mod:`motion_server.safety.passwords`) with a random 16-byte
+salt and a 32-byte key; the default cost is n = 2**14, r = 8, p = 1. Verification
+compares in constant time.
 
 Roles (a :class:`~motion_server.safety.roles.Role` per user, from the site map's
 ``[[opcua.users]]`` or the users secret file; the same roles as Modbus/TCP Security's):
@@ -25,10 +26,7 @@ password). Failures are logged with the user name and address, never the passwor
 
 from __future__ import annotations
 
-import base64
 import dataclasses
-import hashlib
-import hmac
 import itertools
 import logging
 import secrets
@@ -43,61 +41,21 @@ from asyncua.server.internal_session import InternalSession
 from asyncua.server.user_managers import UserManager
 
 from ..safety.client import ClientInfo, writing_as
+from ..safety.passwords import hash_password, parse_hash, verify_password
 from ..safety.roles import Role
 
 log = logging.getLogger("motion_server.opcua")
 
-SCRYPT_N = 2**14
-SCRYPT_R = 8
-SCRYPT_P = 1
-SALT_BYTES = 16
-KEY_BYTES = 32
-#: scrypt cost bounds accepted when verifying (a hash outside them is refused, not run)
-MAX_SCRYPT_N = 2**20
-
-
-def hash_password(password: str, n: int = SCRYPT_N, r: int = SCRYPT_R, p: int = SCRYPT_P) -> str:
-    """A salted scrypt hash of ``password`` in the documented string format."""
-    salt = secrets.token_bytes(SALT_BYTES)
-    key = _scrypt(password, salt, n, r, p)
-    return "$".join(["scrypt", str(n), str(r), str(p), _b64(salt), _b64(key)])
-
-
-def parse_hash(text: str) -> tuple[int, int, int, bytes, bytes]:
-    """(n, r, p, salt, key) of a hash string; ValueError naming what is wrong."""
-    parts = text.split("$")
-    if len(parts) != 6 or parts[0] != "scrypt":
-        raise ValueError("expected scrypt$<n>$<r>$<p>$<salt>$<key> (motion-server hash-password)")
-    try:
-        n, r, p = (int(x) for x in parts[1:4])
-        salt = base64.b64decode(parts[4], validate=True)
-        key = base64.b64decode(parts[5], validate=True)
-    except ValueError:
-        raise ValueError("the cost fields must be integers and salt/key base64") from None
-    if n < 2 or n > MAX_SCRYPT_N or n & (n - 1) or not 1 <= r <= 32 or not 1 <= p <= 16:
-        raise ValueError(f"scrypt cost n={n} r={r} p={p} out of range")
-    if len(salt) < 8 or len(key) < 16:
-        raise ValueError("salt or key too short")
-    return n, r, p, salt, key
-
-
-def verify_password(password: str, hashed: str) -> bool:
-    """True when ``password`` matches ``hashed`` (False for a malformed hash)."""
-    try:
-        n, r, p, salt, key = parse_hash(hashed)
-    except ValueError:
-        return False
-    return hmac.compare_digest(_scrypt(password, salt, n, r, p, len(key)), key)
-
-
-def _scrypt(password: str, salt: bytes, n: int, r: int, p: int, size: int = KEY_BYTES) -> bytes:
-    return hashlib.scrypt(
-        password.encode("utf-8"), salt=salt, n=n, r=r, p=p, maxmem=256 * n * r + 2**20, dklen=size
-    )
-
-
-def _b64(data: bytes) -> str:
-    return base64.b64encode(data).decode("ascii")
+# the hash format and its cost bounds live in one place (the config's checks use them too)
+__all__ = [
+    "Account",
+    "Directory",
+    "LoginLimiter",
+    "PeerSession",
+    "hash_password",
+    "parse_hash",
+    "verify_password",
+]
 
 
 @dataclass(frozen=True)

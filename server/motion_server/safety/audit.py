@@ -7,9 +7,10 @@ One line per event, for example::
      "connection": 3, "user": "", "role": "", "tag": "MAJ_1.Speed", "old": 10.0,
      "new": 25.0}
 
-``result`` is ``accepted`` or ``refused`` (then ``reason`` says why and ``registers`` or
-``tag`` says what); ``event`` is ``write``, ``connect`` or ``disconnect`` (connections
-refused by the allowlist or the limit, idle timeouts, Modbus/TCP Security handshakes).
+``result`` is ``accepted`` or ``refused`` (then ``reason`` says why and ``registers``,
+``tag`` or, for an OPC UA node outside the tag map, ``node`` says what); ``event`` is
+``write``, ``connect`` or ``disconnect`` (connections refused by the allowlist or the
+limit, idle timeouts, Modbus/TCP Security handshakes, OPC UA protocol faults).
 ``user`` is the OPC UA user name or the common name of a Modbus/TCP Security client
 certificate (plain Modbus has none); ``role`` is the client's role (``viewer``,
 ``operator``, ``admin``; empty for plain Modbus). No credential is ever written: values
@@ -117,7 +118,8 @@ class AuditLog:
         self.emit(current_client(), "write", "accepted", tag=tag.name, old=old, new=new)
 
     def refused(self, reason: str, **what: Any) -> None:
-        """A refused write (``registers="5000+2"`` or ``tag=...``) by the current client."""
+        """A refused write (``registers="5000+2"``, ``tag=...`` or ``node="i=2261"``) by
+        the current client."""
         self.emit(current_client(), "write", "refused", reason=reason, **what)
 
     def connection(self, client: ClientInfo, event: str, result: str, reason: str = "") -> None:
