@@ -3,14 +3,19 @@
 The Clock tags say what (``Clock.CommFault``: 1 delay, 2 drop), how long each answer is
 late (``Clock.CommDelay``, ms) and to whom (``Clock.CommClientPort``: the client's TCP
 port, 0 every client); the scan ends the fault after ``Clock.CommDuration`` ms by setting
-``CommFault`` back to 0. The Modbus TCP front-end (plain and Modbus/TCP Security) reads
-them from the image when a request arrives and applies them to that request's answer (the
-OPC UA front-end does not apply them yet):
+``CommFault`` back to 0. Both front-ends read them from the image when a request arrives
+and apply them to that request's answer (Modbus TCP, plain and Security: every request;
+OPC UA: every service request on a secure channel, ``opcua_wire.GuardedProcessor``):
 
 - delay: the answer goes out ``CommDelay`` ms late; the requests behind it on the same
   connection wait their turn, as on a slow link;
 - drop: the request is served (a write is applied) but its answer is never sent, as when
   the answers are lost on the way; the connection stays open.
+
+On OPC UA a delayed request is served once its delay is over (the client sees the same
+latency); the channel's Hello, OpenSecureChannel and CloseSecureChannel are not affected.
+An answer sent later than its request (a Publish answered when a notification is due) is
+judged when it is sent: dropped, or sent ``CommDelay`` ms later.
 
 The decision is taken when the request arrives, so the write that sets a fault is still
 answered, and a request that arrived during the fault keeps its fate after it ended.
@@ -67,12 +72,16 @@ class CommFaults:
 
     def applies(self, client: ClientInfo) -> Fault | None:
         """The fault for a request of ``client`` arriving now (None: answer normally)."""
+        return self.for_port(client.port)
+
+    def for_port(self, client_port: int) -> Fault | None:
+        """The fault for an answer to the client connected from TCP port ``client_port``."""
         values = self.image.values()
         mode = int(values[self._mode])
         if not mode:
             return None
         port = int(values[self._port])
-        if port and port != client.port:
+        if port and port != client_port:
             return None
         fault = CommFault(mode)
         if fault == CommFault.DELAY:
