@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import logging
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -48,6 +49,9 @@ def _on_server(args: argparse.Namespace, work: Callable[[Any], Awaitable[str]]) 
     async def run() -> str:
         async with MotionClient.connect(tagmap, "modbus", host, port, timeout=args.timeout) as mc:
             return await work(mc)
+
+    # pymodbus logs a failed request over several lines; the failure is said in one below
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
     try:
         print(asyncio.run(run()))
