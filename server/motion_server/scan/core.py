@@ -508,8 +508,10 @@ class Scan:
         self.last_cycle_time = spent
         if spent > self.max_cycle_time:
             self.max_cycle_time = spent
-        self.filler.fill()
-        self._refill = False
+        # the image is filled once, before it is published: the cycles run back to back
+        # in a slice of the fast clock or a Clock.Step are not seen one by one, and the
+        # filler's change sets (outputs, fault causes) accumulate until then
+        self._refill = True
         self._dirty = True
         self._load_busy += time.perf_counter() - t0
 
@@ -536,7 +538,7 @@ class Scan:
 
     def _publish(self) -> None:
         t0 = time.perf_counter()
-        if self._refill:  # writes applied since the last cycle: what they changed
+        if self._refill:  # cycles run, or writes applied, since the last publish
             self.filler.fill()
             self._refill = False
         meta = self.meta
