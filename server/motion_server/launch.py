@@ -85,3 +85,13 @@ def setup_logging(level: str) -> None:
         logging.getLogger("asyncua").setLevel(logging.WARNING)
         # it also logs a bind failure with a traceback; the front-end reports it in one line
         logging.getLogger("asyncua.server.server").setLevel(logging.CRITICAL)
+    # asyncua's UaProcessor logs every ServiceFault it answers at ERROR ("sending service
+    # fault response: ..."), though each is a client's request refused with a status
+    # code (BadTooManyOperations, BadSessionIdInvalid, ...), not a server error
+    logging.getLogger("asyncua.server.uaprocessor").addFilter(_service_fault_as_warning)
+
+
+def _service_fault_as_warning(record: logging.LogRecord) -> bool:
+    if record.levelno == logging.ERROR and str(record.msg).startswith("sending service fault"):
+        record.levelno, record.levelname = logging.WARNING, "WARNING"
+    return True

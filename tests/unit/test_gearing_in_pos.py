@@ -319,6 +319,50 @@ def test_immediate_mode_beyond_the_sync_position_locks_at_once_with_a_warning() 
     assert slave(s) == pytest.approx(2.0 * (master(s) - 0.0))
 
 
+def test_immediate_mode_with_the_slave_beyond_its_sync_position_locks_on_at_once() -> None:
+    """The seed, SyncMode 1: "If either the master or slave axis are beyond their
+    respective sync start positions, the slave axis will immediately synchronize [...] If
+    the slave axis is ahead of the master axis at the time of synchronization, the slave
+    axis will move backwards." The master is 100 mm before its start point; the slave,
+    at 0, is 30 mm beyond its sync position -30: the lock-on begins in the first cycle,
+    over the master's whole way to its sync position, and the slave backs up to arrive at
+    -30 with the geared velocity when the master reaches 0."""
+    s = system()
+    move_to(s, 1, -120.0)
+    jog(s, 50.0)
+    s.cycle(5)
+    g = gear_in_pos(
+        s,
+        RatioNumerator=1,
+        RatioDenominator=1,
+        MasterSyncPosition=0.0,
+        SlaveSyncPosition=-30.0,
+        SyncMode=1,
+        MasterStartDistance=10.0,
+    )
+    assert (g.outputs["StartSync"], g.outputs["InSync"], g.outputs["SyncState"]) == (True, False, 1)
+    assert master(s) < -100.0  # far before the start point, -10
+    r = Run(s, g)
+    k = r.until_in_sync()
+    start, sync = assert_sequence([(True, False, 1), *r.status])
+    assert start == 0 and sync == k + 1
+    assert min(r.slave_v[:k]) < 0.0 and min(r.slave[:k]) < -30.0  # backwards, then on
+    r.check_arrival(k, 0.0, -30.0, 1.0)
+    # SyncMode 0 refuses the same inputs (the slave must be before its sync position)
+    s2 = system()
+    move_to(s2, 1, -120.0)
+    g2 = gear_in_pos(
+        s2,
+        RatioNumerator=1,
+        RatioDenominator=1,
+        MasterSyncPosition=0.0,
+        SlaveSyncPosition=-30.0,
+        SyncMode=0,
+        MasterStartDistance=10.0,
+    )
+    assert g2.outputs["Error"] and g2.outputs["ErrorID"] == 13
+
+
 def test_immediate_mode_with_zero_start_distance_syncs_when_the_master_crosses() -> None:
     s = system()
     move_to(s, 1, -20.0)

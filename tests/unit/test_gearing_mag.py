@@ -433,7 +433,9 @@ def test_cross_coupling_is_refused_with_err_10() -> None:
         ({"Clutch": 2}, 9),
         ({"Clutch": 0, "AccelRate": 0.0}, 10),
         ({"Clutch": 0, "AccelRate": -5.0, "AccelUnits": 1}, 10),
-        ({"AccelUnits": 3}, 11),
+        # AccelUnits counts with the clutch only (issue 16: operands a mode does not use
+        # are not judged); without it the same value is accepted (test below)
+        ({"Clutch": 0, "AccelUnits": 3}, 11),
     ],
 )
 def test_operands_out_of_range_give_err_13_with_exerr(
@@ -445,6 +447,17 @@ def test_operands_out_of_range_give_err_13_with_exerr(
     assert g.outputs["ER"] and g.outputs["ERR"] == 13 and g.outputs["EXERR"] == exerr
     assert not g.outputs["DN"] and not g.outputs["IP"]
     assert_no_motion(s, 2)
+
+
+def test_clutch_operands_are_not_judged_without_the_clutch() -> None:
+    """Issue 16: an operand the mode does not use is not judged. Without the clutch the
+    gear locks at once and neither AccelRate nor AccelUnits is looked at."""
+    s = system()
+    jog(s, 1, 100.0)
+    g = mag(s, Clutch=1, AccelRate=-5.0, AccelUnits=3)
+    assert g.outputs["DN"] and g.outputs["IP"] and not g.outputs["ER"]
+    s.cycle()
+    assert s.ctl.axis(2).command_velocity == pytest.approx(100.0, abs=1e-9)
 
 
 def test_an_error_leaves_the_running_gear_alone() -> None:

@@ -10,7 +10,15 @@ from hypothesis import strategies as st
 
 from motion_server.instructions import MotionSystem, instruction_type
 from motion_server.instructions.schema import Kind, Operand, TagType
-from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
+from motion_server.kernel import (
+    AxisConfig,
+    AxisState,
+    AxisType,
+    Controller,
+    GroupConfig,
+    GroupState,
+    MotionGroup,
+)
 
 ARRAYS = ("cmd_pos", "cmd_vel", "cmd_acc", "act_x", "act_pos", "act_vel", "drive_on")
 
@@ -39,7 +47,28 @@ def pair() -> tuple[MotionSystem, MotionSystem]:
     return out[0], out[1]
 
 
+def group_state_from_axes(g: MotionGroup) -> GroupState:
+    """A group's state from its definition, read axis by axis (``MotionGroup.state``
+    reads the status arrays instead)."""
+    if any(a.state == AxisState.AXIS_FAULTED for a in g.axes):
+        return GroupState.FAULTED
+    motion_axes = [a for a in g.axes if a.type != AxisType.FEEDBACK_ONLY]
+    if motion_axes and all(a.state == AxisState.AXIS_SHUTDOWN for a in motion_axes):
+        return GroupState.SHUTDOWN
+    if any(not s.complete for s in g.stops) or any(a.stopping for a in g.axes):
+        return GroupState.STOPPING
+    return GroupState.NORMAL
+
+
 def assert_same(fast: MotionSystem, ref: MotionSystem, where: str) -> None:
+    # the group state from the status arrays, before and after they are brought up to
+    # date (the scan does that after every cycle)
+    for s in (fast, ref):
+        for g in s.ctl.groups:
+            assert g.state == group_state_from_axes(g), f"{where}: {g.name}"
+        s.ctl.status_arrays()
+        for g in s.ctl.groups:
+            assert g.state == group_state_from_axes(g), f"{where}: {g.name}, up to date"
     for name in ARRAYS:
         a, b = getattr(fast.ctl, name), getattr(ref.ctl, name)
         assert np.array_equal(a, b), f"{where}: {name} {a} != {b}"

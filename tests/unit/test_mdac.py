@@ -228,10 +228,65 @@ def test_a_time_driven_instruction_also_switches_a_pending_master() -> None:
     mam = logix(system.add("MAM", "MAM_t", {"Axis": 3, "MoveType": 1, "Position": 1.0}))
     trigger(system, mam)
     assert mam.bit("IP")
-    assert not m1.bit("IP") and m2.bit("IP")
-    # the master-driven jog keeps the master it started with (A); m1 no longer in process
-    trace = positions(system, 5)
-    assert np.all(np.diff(trace[:, 2]) > 0.5 * np.diff(trace[:, 0]) - 1e-9)
+    assert not m1.bit("IP") and m2.bit("IP") and m2.bit("AC")
+    # the master-driven jog follows B from this scan on (logix-MDAC: the axis is
+    # reassigned when the new instruction goes IP): it keeps its 50 mm/s, i.e. 0.625 mm
+    # per B mm, and ramps back to its 0.5 mm per mm over (0.625 - 0.5) / 0.05 = 2.5 mm of
+    # B's travel; A stopping changes nothing any more
+    stop_a = logix(system.add("MAS", "MAS_A", {"Axis": 1}))
+    trigger(system, stop_a)
+    system.cycle(200)  # A at rest, the 1 mm move long done (0.2 s at 100 mm/s^2)
+    assert system.ctl.axis(1).command_velocity == 0.0 and mam.bit("PC")
+    trace = positions(system, 10)
+    np.testing.assert_allclose(np.diff(trace[:, 2]), 0.5 * np.diff(trace[:, 1]), atol=1e-9)
+
+
+def test_all_master_driven_motion_follows_the_new_master() -> None:
+    """A master-driven jog (0.5 mm per mm) and move (0.25 mm per mm) superimposed: 75 mm/s
+    on A. The change to B by a new jog moves the running move to B too. Each keeps its
+    velocity and ramps (0.05 mm per mm²) to its programmed speed in B's travel: the jog
+    from 50 / 80 = 0.625, the move from 25 / 80 = 0.3125; then (0.5 + 0.25) · 80 = 60 mm/s
+    (it would be 0.5 · 80 + 0.25 · 100 = 65 on the old master)."""
+    system = setup()
+    m1, _ = following_a(system)
+    mam = logix(
+        system.add(
+            "MAM", "MAM_md", {"Axis": 3, "MoveType": 1, "Position": 1e6, **md_dynamics(0.25)}
+        )
+    )
+    trigger(system, mam)
+    system.cycle(60)
+    slave = system.ctl.axis(3)
+    assert slave.command_velocity == pytest.approx(75.0, abs=1e-9)
+    m2 = mdac(system, "MDAC_2", master=2)
+    j2 = md_jog(system, "MAJ_2", 0.5)
+    assert j2.bit("IP") and mam.bit("IP") and m2.bit("AC") and not m1.bit("IP")
+    # in that scan: 0.625 and 0.3125 mm per B mm, each plus one cycle's ramp of
+    # 0.05 · 0.16 mm the other way (both slow down toward their speed)
+    assert slave.command_velocity == pytest.approx(
+        (0.625 - 0.05 * 0.16 + 0.3125 - 0.05 * 0.16) * VB, abs=1e-9
+    )
+    stop_a = logix(system.add("MAS", "MAS_A", {"Axis": 1}))
+    trigger(system, stop_a)
+    system.cycle(100)
+    assert system.ctl.axis(1).command_velocity == 0.0
+    trace = positions(system, 10)
+    np.testing.assert_allclose(np.diff(trace[:, 2]), 0.75 * np.diff(trace[:, 1]), atol=1e-9)
+    assert slave.command_velocity == pytest.approx(0.75 * VB, abs=1e-9)
+
+
+def test_a_time_driven_switch_to_an_idle_master_is_refused_while_the_slave_moves() -> None:
+    """The master-driven jog that would follow B is moving and B is idle: ERR 97 for the
+    instruction making the request (logix-MDAC), nothing changes."""
+    system = setup(b_speed=0.0)
+    m1, j1 = following_a(system)
+    m2 = mdac(system, "MDAC_2", master=2)
+    mam = logix(system.add("MAM", "MAM_t", {"Axis": 3, "MoveType": 1, "Position": 1.0}))
+    trigger(system, mam)
+    assert mam.bit("ER") and mam.outputs["ERR"] == ErrorCode.MDSC_IDLE_MASTER_AND_SLAVE_MOVING
+    assert j1.bit("IP") and m1.bit("AC") and m2.bit("IP") and not m2.bit("AC")
+    system.cycle(5)
+    assert system.ctl.axis(3).command_velocity == pytest.approx(50.0, abs=1e-9)
 
 
 @pytest.mark.parametrize(

@@ -43,6 +43,14 @@ class Outputs(dict[str, Any]):
 
 _UNSET = object()
 
+#: (selector operand, the selector values that make an operand count)
+Gate = tuple[str, frozenset[int]]
+
+
+def gate(selector: str, *values: int) -> Gate:
+    """An operand counts when ``selector`` holds one of ``values`` (see ``Instruction.GATES``)."""
+    return selector, frozenset(int(v) for v in values)
+
 
 class Instruction:
     TYPE: ClassVar[str] = ""
@@ -53,6 +61,11 @@ class Instruction:
     OUTPUTS: ClassVar[tuple[StatusField, ...]] = ()
     TRIGGER: ClassVar[str] = "Execute"
     COMMON_STATUS: ClassVar[tuple[StatusField, ...]] = ()
+    #: the one rule for operands a mode does not use: an operand named here (a value, or
+    #: the units of a value) counts, i.e. is judged at execution and used, only when one
+    #: of its gates is open (its selector holds one of the gate's values); operands not
+    #: named always count
+    GATES: ClassVar[dict[str, tuple[Gate, ...]]] = {}
 
     def __init__(self, name: str, ctl: Controller, defaults: dict[str, Any] | None = None) -> None:
         self.name = name
@@ -112,8 +125,34 @@ class Instruction:
                 raise OperandError(ErrorCode.PARAMETER_OUT_OF_RANGE, i, op)
 
     def operand_used(self, op: Operand) -> bool:
-        """False for an operand the latched selectors make irrelevant (not judged)."""
-        return True
+        """False for an operand the latched selectors make irrelevant (not judged): see
+        :attr:`GATES`."""
+        gates = self.GATES.get(op.name)
+        if not gates:
+            return True
+        for selector, values in gates:
+            try:
+                if int(self.op[selector]) in values:
+                    return True
+            except (TypeError, ValueError, OverflowError):
+                continue  # a selector that is no integer opens nothing (it is judged itself)
+        return False
+
+    @classmethod
+    def gate_note(cls, name: str) -> str:
+        """When operand ``name`` counts, in words ("" when always): for the tag map."""
+        gates = cls.GATES.get(name)
+        if not gates:
+            return ""
+        parts = []
+        for selector, values in gates:
+            op = cls.operand(selector)
+            shown = []
+            for v in sorted(values):
+                label = op.enum(v).name if op.enum is not None else ""
+                shown.append(f"{v} ({label})" if label else str(v))
+            parts.append(f"{selector} = {' or '.join(shown)}")
+        return "used and judged only when " + " or ".join(parts)
 
     def axis(self, name: str = "Axis") -> Axis:
         return self.ctl.axis(int(self.op[name]))

@@ -8,6 +8,13 @@ Master-driven speed control (MDSC): selector value 4 gives a rate per master uni
 in units per MasterUnit, acceleration and deceleration per MasterUnit², jerk per
 MasterUnit³). All dynamics of one instruction are then in master units, or all in time
 units; a mix is a runtime error (ERR 105). Jerk in % of time fits both modes.
+
+Commands beyond the axis's limits (Logix): a time-driven speed above the axis Maximum
+Speed (in units/s or in % of it) is limited to it: the instruction is accepted and runs at
+the Maximum Speed, so no single instruction drives the axis beyond it and a stop from its
+motion takes at most Maximum Speed / Maximum Deceleration. Rates are taken as programmed
+(a steeper ramp reaches the same limited speed sooner; a steeper deceleration only ends a
+motion sooner). A speed per master unit is not limited here (it scales with the master).
 """
 
 from __future__ import annotations
@@ -96,8 +103,11 @@ def logix_drive_mode(inst: Instruction) -> DriveMode:
 
 def speed(inst: Instruction, ax: Axis, value: str = "Speed", units: str = "SpeedUnits") -> float:
     v = float(inst.op[value])
-    if int(inst.op[units]) == SpeedUnits.PERCENT_OF_MAXIMUM:
+    sel = int(inst.op[units])
+    if sel == SpeedUnits.PERCENT_OF_MAXIMUM:
         v = v / 100.0 * ax.config.max_velocity
+    if sel != SpeedUnits.UNITS_PER_MASTER_UNIT:
+        v = min(v, ax.config.max_velocity)  # limited to the axis Maximum Speed
     return v
 
 

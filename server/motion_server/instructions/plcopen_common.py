@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 from typing import ClassVar
 
@@ -63,13 +64,27 @@ class MotionBlock(PLCopenBlock):
 
     def limits(self, velocity: float | None = None) -> Limits:
         """Velocity (or ``velocity``), Acceleration, Deceleration and Jerk as validated
-        profile limits."""
-        return Limits(
+        profile limits, within the axis's maxima: a command beyond one is refused (Error,
+        ErrorID of the operand out of range), as the PLCopen vendors' blocks check their
+        inputs before the job reaches the motion controller."""
+        limits = Limits(
             float(self.op["Velocity"]) if velocity is None else velocity,
             float(self.op["Acceleration"]),
             float(self.op["Deceleration"]),
             float(self.op["Jerk"]),
         ).validated()
+        cfg = self.axis().config
+        for name, value, maximum, what in (
+            ("Velocity", limits.velocity, cfg.max_velocity, "max_velocity"),
+            ("Acceleration", limits.acceleration, cfg.max_acceleration, "max_acceleration"),
+            ("Deceleration", limits.deceleration, cfg.max_deceleration, "max_deceleration"),
+            ("Jerk", limits.jerk, cfg.max_jerk or math.inf, "max_jerk"),
+        ):
+            if value > maximum:
+                raise self.out_of_range(
+                    name, f"{name} {value:g} is beyond the axis {what} {maximum:g}"
+                )
+        return limits
 
     def begin(self, ax: Axis, make: ProcessFactory) -> None:
         mode = int(self.op.get("BufferMode", BufferMode.ABORTING))

@@ -78,6 +78,6 @@ class MotionSystem:
         for ax in inst.commanded_axes():
             if ax.drive_enabled and any(p.active for p in ax.processes):
                 try:
-                    ctl.stop(ax, None, ax.config.max_deceleration)
+                    ctl.stop(ax, None, ax.config.max_deceleration, bounded=True)
                 except MotionError:
                     continue

@@ -44,6 +44,7 @@ from .enums import (
 from .errors import ErrorCode, MotionError
 from .faults import APPLIES, CAUSE_BIT, DISABLE_DRIVE, OVERTRAVEL, FaultCause, FaultInjection
 from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode, after_stops_due
+from .limits import group_stop_deceleration
 from .mdac_links import MasterDrivenControl
 from .motion import InternalError, Motion
 from .power import Power, PowerEvent, require
@@ -500,12 +501,18 @@ class Controller:
         deceleration: float,
         jerk: float = 0.0,
         owner: object = None,
+        bounded: bool = False,
     ) -> StopRamp:
-        """Replace the matching processes by one ramp from their velocity to rest."""
+        """Replace the matching processes by one ramp from their velocity to rest.
+        ``bounded``: from beyond the Maximum Speed the ramp is steeper, so that it ends
+        within the time a stop from the Maximum Speed at ``deceleration`` needs (a group
+        stop, see :func:`.limits.group_stop_deceleration`)."""
         dt = ax.period
+        vmax = ax.config.max_velocity
 
         def make(v: float, a: float) -> Process:
-            return StopRamp(dt, deceleration, jerk, v, a, owner=owner)
+            d = group_stop_deceleration(v, deceleration, vmax) if bounded else deceleration
+            return StopRamp(dt, d, jerk, v, a, owner=owner)
 
         if deceleration <= 0.0 or not math.isfinite(deceleration):
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "deceleration must be > 0")
@@ -548,7 +555,7 @@ class Controller:
             elif mode == ProgrammedStopMode.HARD_DISABLE:
                 self.servo_off(ax)
             elif ax.state == AxisState.SERVO_CONTROL:
-                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner)
+                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = AFTER_FAST_STOP[mode]
                 g.after_stops = True
             elif mode == ProgrammedStopMode.FAST_SHUTDOWN:

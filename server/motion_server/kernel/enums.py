@@ -49,6 +49,9 @@ class MotionStatusBit(IntEnum):
     TIME_CAM_PENDING = 11
     GEARING_LOCK = 12
     POSITION_CAM_LOCK = 13
+    #: MDS direct control (not simulated: always clear); MGS clears them (the seed's table)
+    DIRECT_VELOCITY_CONTROL = 19
+    DIRECT_TORQUE_CONTROL = 20
 
 
 class ProgrammedStopMode(IntEnum):

@@ -6,7 +6,10 @@ master's **actual** position (the seed: SlaveCommandPosition = MasterActualPosit
 RatioNumerator / RatioDenominator).
 
 Phases (``sync_state``): WAITING until the master reaches MasterStartDistance before
-MasterSyncPosition (the slave keeps the velocity it had, usually rest); SYNCHRONIZING:
+MasterSyncPosition (the slave keeps the velocity it had, usually rest), or not at all
+with SyncMode immediate when the master or the slave is already beyond its start (the
+seed: "the slave axis will immediately synchronize"; a slave ahead moves backwards);
+SYNCHRONIZING:
 the lock-on, planned in the master-position domain as a quintic slave(m) from the last
 waiting sample to the sync point, with slope (ds/dm) = slave velocity / master velocity at
 the start and = ratio at the end, curvature 0 at both ends; IN_SYNC: slave = slave sync
@@ -79,6 +82,9 @@ class SyncPlan:
     denominator: int
     #: the seed's warning rule: MasterStartDistance x |ratio| < the slave sync distance
     excessive: bool
+    #: SyncMode immediate with the slave already at or beyond its sync position: the
+    #: lock-on begins at once, wherever the master is (the slave moves back if ahead)
+    slave_beyond: bool = False
 
     @property
     def ratio(self) -> float:
@@ -138,6 +144,7 @@ def plan_sync(
         if mode == SyncMode.NORMAL and ds * (s_sync - s0) <= 0.0:
             raise _inconsistent("the slave must be before SlaveSyncPosition")
     excessive = abs(s_sync - s0) > start_distance * abs(numerator / denominator)
+    beyond = mode == SyncMode.IMMEDIATE and ds * (s_sync - s0) <= 0.0
     return SyncPlan(
         m_sync,
         s_sync,
@@ -147,6 +154,7 @@ def plan_sync(
         int(numerator),
         int(denominator),
         excessive,
+        beyond,
     )
 
 
@@ -286,7 +294,7 @@ class GearInPosProcess(Process):
         vm = float(self._vel[self._mi])
         am = (vm - self._v_prev) / dt
         if self.sync_state == SyncState.WAITING:
-            if plan.direction * (m - plan.start) < 0.0:
+            if plan.direction * (m - plan.start) < 0.0 and not plan.slave_beyond:
                 self._hold_cycles += 1
                 self.position = self._hold * (self._hold_cycles * dt)
                 self.velocity = self._hold

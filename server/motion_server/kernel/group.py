@@ -15,7 +15,7 @@ import numpy as np
 
 from .axis import Axis
 from .config import GroupConfig
-from .enums import AfterStop, AxisState, AxisType, ProgrammedStopMode
+from .enums import AfterStop, AxisState, AxisType, MotionStatusBit, ProgrammedStopMode
 from .state import AxisArrays
 
 #: what follows the ramp of a fast programmed stop mode (the hard modes have no ramp)
@@ -24,6 +24,9 @@ AFTER_FAST_STOP: dict[ProgrammedStopMode, AfterStop] = {
     ProgrammedStopMode.FAST_DISABLE: AfterStop.DISABLE,
     ProgrammedStopMode.FAST_SHUTDOWN: AfterStop.SHUTDOWN,
 }
+
+
+_STOPPING_BIT = 1 << MotionStatusBit.STOPPING
 
 
 class OperatingMode(IntEnum):
@@ -72,15 +75,37 @@ class MotionGroup:
         )
         self.feedback_axes = [a for a in axes if a.type == AxisType.FEEDBACK_ONLY]
         self.order: list[Axis] = list(axes)
+        #: the shared status arrays of the group's axes (None for a group without axes)
+        self._s: AxisArrays | None = axes[0]._s if axes else None
 
     @property
     def state(self) -> GroupState:
-        if any(a.state == AxisState.AXIS_FAULTED for a in self.axes):
+        """Read from the status arrays (the scan publishes it every cycle): Python work
+        only for the axes whose status changed since the arrays were last brought up to
+        date (``AxisArrays.dirty``) and for those whose Stopping bit is set."""
+        s = self._s
+        if s is None:
+            return (
+                GroupState.STOPPING
+                if any(not x.complete for x in self.stops)
+                else (GroupState.NORMAL)
+            )
+        if (s.axis_state[self.idx] == AxisState.AXIS_FAULTED).any():
             return GroupState.FAULTED
-        motion_axes = [a for a in self.axes if a.type != AxisType.FEEDBACK_ONLY]
-        if motion_axes and all(a.state == AxisState.AXIS_SHUTDOWN for a in motion_axes):
+        motion = self.motion_idx
+        if motion.size and (s.axis_state[motion] == AxisState.AXIS_SHUTDOWN).all():
             return GroupState.SHUTDOWN
-        if any(not s.complete for s in self.stops) or any(a.stopping for a in self.axes):
+        if any(not x.complete for x in self.stops):
+            return GroupState.STOPPING
+        # Axis.stopping is the MotionStatus Stopping bit (Axis.process_bits), current in
+        # ``motion_bits`` for every axis not in ``dirty``
+        dirty = s.dirty
+        for i in dirty:
+            ax = self.by_index.get(i)
+            if ax is not None and ax.stopping:
+                return GroupState.STOPPING
+        flagged = self.idx[(s.motion_bits[self.idx] & _STOPPING_BIT) != 0]
+        if any(int(i) not in dirty for i in flagged):
             return GroupState.STOPPING
         return GroupState.NORMAL
 

@@ -40,3 +40,14 @@ class Limits:
     @property
     def ruckig_jerk(self) -> float:
         return INF if self.jerk == 0.0 or math.isinf(self.jerk) else self.jerk
+
+
+def group_stop_deceleration(velocity: float, deceleration: float, max_velocity: float) -> float:
+    """The deceleration of a group stop from ``velocity``: the axis's maximum
+    ``deceleration``, or, from beyond its ``max_velocity`` (gearing, master-driven or
+    superimposed motion can command more), the rate that still ends the stop within
+    ``max_velocity / deceleration``, the time a stop from the Maximum Speed needs."""
+    v = abs(velocity)
+    if v <= max_velocity:
+        return deceleration
+    return deceleration * (v / max_velocity)

@@ -14,18 +14,23 @@ Decisions (where the Logix manuals leave it open):
 - A virtual master is read at its command position, a feedback-only master at its actual
   position, whatever the MasterReference says (the manuals' rule).
 - Changing the master: an MDAC All to another master while an MDAC All is in place makes
-  the reassignment *pending*; the next MAJ/MAM on the slave that goes IP switches it. A
-  master-driven instruction that changes the slave's master while the slave moves is
-  refused when the new master is idle (ERR 97) or when the new effective speed, programmed
-  speed × new master speed, is under 5 % of the slave's speed (ERR 103); the pending
-  reassignment then stays pending. Processes already running keep the master they started
-  with; only new instructions use the new one.
+  the reassignment *pending*; the next MAJ/MAM on the slave that goes IP switches it, and
+  from that scan on all master-driven motion of the slave follows the new master (the
+  seed: the axis is reassigned when the new instruction goes IP). A process the new
+  instruction replaces hands it its velocity, as always; one that keeps running goes on
+  from its velocity, re-planned in the new master's travel toward its programmed speed
+  (:meth:`MasterDrivenProcess.follow`). The change is refused while the slave moves when
+  the new master is idle (ERR 97) or when the new effective speed, the programmed speeds
+  × the new master's speed, is less than 5 % of the programmed speed of the motion it
+  changes (ERR 103): judged from programmed values, never from the measured velocity, so
+  exactly 5 % (to the resolution of REAL operands) is always allowed. A refused change
+  stays pending.
 - A link of a type other than All is reassigned only after a stop breaks it (ERR 105).
 - A link breaks on MAS All, MGS, MASD, MGSD, a fault or a mode change on the slave, and on
   MGS, MASD, MGSD, a fault or a mode change on the master. The master-driven processes
   still running under a broken link switch to time-driven and stop (the slave ramps to
   rest at its maximum deceleration), as MGS does to master-driven axes; a change of
-  master (superseded link) leaves them running on their old master.
+  master (superseded link) moves them to the new master.
 """
 
 from __future__ import annotations
@@ -47,6 +52,9 @@ from .state import StepContext
 MOVING_EPSILON = 1e-9
 #: the new effective slave speed must be at least this share of the speed before a change
 MIN_SPEED_SHARE = 0.05
+#: relative resolution of that comparison: products of REAL (float32) operands that are
+#: exactly 5 % in decimal differ from it by less than this
+SHARE_TOLERANCE = 1e-6
 
 
 class MotionType(IntEnum):
@@ -106,8 +114,13 @@ class MasterProfile:
             inp.target_velocity = [float(velocity)]
             direction = velocity if velocity != 0.0 else ratio
         inp.target_acceleration = [0.0]
-        top = abs(velocity) if velocity is not None and position is None else 0.0
-        inp.max_velocity = [max(limits.velocity, abs(ratio), top)]
+        if position is not None:
+            # a move runs at its programmed speed: from a faster inherited ratio (or one a
+            # change of master left it) it brakes down to it first, as ruckig plans it
+            inp.max_velocity = [limits.velocity]
+        else:
+            top = abs(velocity) if velocity is not None else 0.0
+            inp.max_velocity = [max(limits.velocity, abs(ratio), top)]
         if direction >= 0.0:
             inp.max_acceleration = [limits.acceleration]
             inp.min_acceleration = [-limits.deceleration]
@@ -204,6 +217,29 @@ class MasterDrivenProcess(Process):
     def change_limits(self, limits: Limits) -> None:
         """Motion Change Dynamics: re-plan from here with new limits (master units)."""
         self.limits = limits.validated()
+        self._replan()
+
+    # -- the master -------------------------------------------------------------------------
+    @property
+    def master_axis(self) -> Axis:
+        return self._master
+
+    def master_speed(self, ctx: StepContext) -> float:
+        """The forward speed of this process's master, as its link reads it."""
+        return master_speed(ctx, self._master, self.reference)
+
+    def follow(self, ctx: StepContext, master: Axis, reference: MasterReference) -> None:
+        """A change of master (MDAC): from now on the profile advances with ``master``'s
+        forward travel. The slave keeps its velocity: the profile is planned again from
+        the ratio that velocity is of the new master's speed (0 for an idle master), toward
+        the programmed speed at the programmed rates, both per master unit."""
+        speed = master_speed(ctx, master, reference)
+        self.master = master.number
+        self.masters = (master.number,)
+        self._master = master
+        self.reference = reference
+        self._last_master = master_position(ctx, master, reference)
+        self.ratio = self.velocity / speed if speed > MOVING_EPSILON else 0.0
         self._replan()
 
 

@@ -9,7 +9,7 @@ break a link (master-driven speed control, see :mod:`.master_driven` for the rul
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Sequence
 from enum import IntEnum
 
 import numpy as np
@@ -20,13 +20,15 @@ from .errors import ErrorCode, MotionError
 from .master_driven import (
     MIN_SPEED_SHARE,
     MOVING_EPSILON,
+    SHARE_TOLERANCE,
     MasterDrivenProcess,
     MotionType,
     master_speed,
 )
 from .motion import Motion
 from .power import PowerEvent, require
-from .processes import Process
+from .processes import JogProcess, MoveProcess, Process
+from .state import StepContext
 
 
 class LinkState(IntEnum):
@@ -50,6 +52,20 @@ def covers(link_type: MotionType, motion: MotionType) -> bool:
 
 def overlap(a: MotionType, b: MotionType) -> bool:
     return a == MotionType.ALL or b == MotionType.ALL or a == b
+
+
+def programmed_speed(ctx: StepContext, p: Process) -> float:
+    """The speed (units/s) process ``p`` was programmed to run at, what the 5 % rule of a
+    change of master compares: a master-driven process's programmed speed per master unit
+    times its master's speed, a jog's speed, a move's speed limit; for other motion
+    (gearing) its velocity."""
+    if isinstance(p, MasterDrivenProcess):
+        return abs(p.target_ratio) * p.master_speed(ctx)
+    if isinstance(p, JogProcess):
+        return abs(p.target_velocity)
+    if isinstance(p, MoveProcess):
+        return p.limits.velocity
+    return abs(p.velocity)
 
 
 class MasterLink:
@@ -224,12 +240,23 @@ class MasterDrivenControl:
         make: Callable[[float, float], Process],
         replace: Collection[ProcessKind] | None,
     ) -> Process:
-        """Start a time-driven process; a pending reassignment covering it switches now."""
-        motion = KIND_TYPE[kind]
+        """Start a time-driven process; a pending reassignment covering it switches now
+        (the master-driven motion that keeps running follows the new master: judged as a
+        change of master, see :meth:`_judge_change`)."""
+        mo = self._motion
         pend = self._pending.get(slave.number)
-        p = self._motion.start(slave, make, replace=replace)
-        if pend is not None and covers(pend.motion_type, motion):
-            self._switch(pend)
+        if pend is None or not covers(pend.motion_type, KIND_TYPE[kind]):
+            return mo.start(slave, make, replace=replace)
+        mo.settle(slave)
+        master = mo.axis(pend.master)
+        v_m = master_speed(mo.s, master, pend.reference)
+        replaced = self._replaced(slave, replace)
+        moved = [p for p in self._moved_by(slave, pend) if p not in replaced]
+        if moved:
+            after = sum(abs(p.target_ratio) for p in moved) * v_m
+            self._judge_change(slave, master, v_m, moved, after)
+        p = mo.start(slave, make, replace=replace)
+        self._switch(pend)
         return p
 
     def start_master_driven(
@@ -265,27 +292,20 @@ class MasterDrivenControl:
             )
         v_m = master_speed(mo.s, master, link.reference)
         mo.settle(slave)
-        replaced = [
-            p for p in slave.processes if p.active and (replace is None or p.kind in replace)
-        ]
+        replaced = self._replaced(slave, replace)
         same_master = [
             p for p in replaced if isinstance(p, MasterDrivenProcess) and p.master == link.master
         ]
         others = [p for p in replaced if p not in same_master]
-        v_slave = abs(slave.command_velocity)
-        change = pend is not None or any(p.velocity != 0.0 for p in others)
-        if change and v_slave > MOVING_EPSILON:
-            if v_m <= MOVING_EPSILON:
-                raise MotionError(
-                    ErrorCode.MDSC_IDLE_MASTER_AND_SLAVE_MOVING,
-                    f"master {master.name} is idle while {slave.name} moves",
-                )
-            if abs(speed) * v_m < MIN_SPEED_SHARE * v_slave:
-                raise MotionError(
-                    ErrorCode.MDSC_INVALID_SLAVE_SPEED_REDUCTION,
-                    f"{slave.name} would slow to {abs(speed) * v_m:g} from {v_slave:g} units/s "
-                    f"(under {MIN_SPEED_SHARE:.0%})",
-                )
+        # a pending change moves the master-driven motion that keeps running too
+        moved: list[MasterDrivenProcess] = []
+        if pend is not None:
+            moved = [p for p in self._moved_by(slave, pend) if p not in replaced]
+        if pend is not None or any(p.velocity != 0.0 for p in others):
+            concerned: list[Process] = [*others, *moved]
+            after = abs(speed) * v_m if v_m > MOVING_EPSILON else 0.0
+            after += sum(abs(p.target_ratio) for p in moved) * v_m
+            self._judge_change(slave, master, v_m, concerned, after)
         # the inherited state in the master domain: ratios of same-master processes add,
         # other velocities are divided by the master speed
         ratio = sum(p.ratio for p in same_master if isinstance(p, MasterDrivenProcess))
@@ -301,10 +321,64 @@ class MasterDrivenControl:
         link.processes.append(p)
         return p
 
+    def _replaced(self, slave: Axis, replace: Collection[ProcessKind] | None) -> list[Process]:
+        return [p for p in slave.processes if p.active and (replace is None or p.kind in replace)]
+
+    def _moved_by(self, slave: Axis, link: MasterLink) -> list[MasterDrivenProcess]:
+        """The master-driven processes of ``slave`` that ``link`` takes to its master."""
+        return [
+            p
+            for p in slave.processes
+            if p.active
+            and isinstance(p, MasterDrivenProcess)
+            and p.master != link.master
+            and covers(link.motion_type, KIND_TYPE[p.kind])
+        ]
+
+    def _judge_change(
+        self,
+        slave: Axis,
+        master: Axis,
+        v_m: float,
+        concerned: Sequence[Process],
+        after: float,
+    ) -> None:
+        """The seed's rule for a change of master while the slave moves: refused when the
+        new master is idle (ERR 97), or when ``after``, the new effective speed of the
+        motion that changes (programmed speed x the new master's speed), is less than 5 %
+        of the programmed speed of ``concerned``, the motion it changes (ERR 103). Judged
+        from programmed values, so the same request gets the same answer whatever the
+        axes did before; a slave at rest is never refused."""
+        if abs(slave.command_velocity) <= MOVING_EPSILON:
+            return  # "If the slave is not moving when the master axis is changed, no problem"
+        if v_m <= MOVING_EPSILON:
+            raise MotionError(
+                ErrorCode.MDSC_IDLE_MASTER_AND_SLAVE_MOVING,
+                f"master {master.name} is idle while {slave.name} moves",
+            )
+        before = sum(programmed_speed(self._motion.s, p) for p in concerned)
+        if after < MIN_SPEED_SHARE * before * (1.0 - SHARE_TOLERANCE):
+            raise MotionError(
+                ErrorCode.MDSC_INVALID_SLAVE_SPEED_REDUCTION,
+                f"{slave.name} would run at {after:g} units/s instead of {before:g} "
+                f"(less than {MIN_SPEED_SHARE:.0%})",
+            )
+
     def _switch(self, link: MasterLink) -> None:
-        """The pending reassignment takes over: the links it covers are released (their
-        running processes keep the master they started with)."""
+        """The pending reassignment takes over: the links it covers are released, and the
+        master-driven processes still running on the slave follow the new master from
+        this scan on (:meth:`MasterDrivenProcess.follow`)."""
+        mo = self._motion
         self._pending.pop(link.slave, None)
+        slave = mo.axis(link.slave)
+        master = mo.axis(link.master)
+        moved = self._moved_by(slave, link)
+        for p in moved:
+            p.follow(mo.s, master, link.reference)
+        link.processes.extend(moved)
+        if moved:
+            slave.motion_changed()
+            mo.coupling_changed()
         links = self._links.get(link.slave, [])
         replaced = [lk for lk in links if overlap(lk.motion_type, link.motion_type)]
         for lk in replaced:

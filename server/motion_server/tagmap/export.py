@@ -54,6 +54,8 @@ def tag_record(tag: Tag) -> dict[str, Any]:
         rec["units"] = tag.units
     if tag.minimum is not None:
         rec["minimum"] = tag.minimum
+        if tag.exclusive_minimum:
+            rec["exclusive_minimum"] = True
     if tag.maximum is not None:
         rec["maximum"] = tag.maximum
     if tag.description:

@@ -99,6 +99,7 @@ class _Item:
     minimum: float | None = None
     maximum: float | None = None
     eu_range: tuple[float, float] | None = None
+    exclusive_minimum: bool = False
 
 
 class _Allocator:
@@ -219,6 +220,7 @@ def _tags(
             maximum=item.maximum,
             instruction=instruction,
             eu_range=item.eu_range,
+            exclusive_minimum=item.exclusive_minimum,
         )
         for item, offset, bit, words in placed
     ]
@@ -305,6 +307,9 @@ def instruction_items(
         desc = op.description
         if op.kind == Kind.AXIS:
             desc = desc or "axis number"
+        note = cls.gate_note(op.name)
+        if note:
+            desc = f"{desc}; {note}" if desc else note
         items.append(
             _Item(
                 op.name,
@@ -317,6 +322,7 @@ def instruction_items(
                 op.minimum,
                 op.maximum,
                 span(op),
+                exclusive_minimum=op.exclusive_min and op.minimum is not None,
             )
         )
     return items

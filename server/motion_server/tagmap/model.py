@@ -75,7 +75,8 @@ class Tag:
     significant) of the register at ``address``. ``node_id`` is the OPC UA string NodeId
     (``Instructions.MAJ_1.Speed``), ``units`` the engineering units of analog values,
     ``enum`` the enumeration the value follows (if any), ``minimum``/``maximum`` the range
-    an operand is judged against at execution, ``eu_range`` the span an analog value takes
+    an operand is judged against at execution (``exclusive_minimum``: it must be greater
+    than ``minimum``), ``eu_range`` the span an analog value takes
     in normal operation (OPC UA EURange, from the axis limits: :mod:`.units`).
     """
 
@@ -98,6 +99,8 @@ class Tag:
     #: instruction type of the owner (instruction tags only)
     instruction: str = ""
     eu_range: tuple[float, float] | None = None
+    #: the value must be greater than ``minimum`` (not equal to it)
+    exclusive_minimum: bool = False
 
     @property
     def writable(self) -> bool:

@@ -28,6 +28,7 @@ Decisions the seed leaves open (DESIGN.md):
 from __future__ import annotations
 
 from enum import IntEnum
+from typing import ClassVar
 
 from ...kernel import ProcessKind
 from ...kernel.gearing import (
@@ -40,6 +41,7 @@ from ...kernel.gearing import (
 )
 from ...kernel.processes import Process
 from .. import dynamics
+from ..base import Gate, gate
 from ..dynamics import AccelUnits
 from ..logix_common import ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
@@ -87,6 +89,15 @@ class MAG(ProcessInstruction):
     SETS_PC = False
     #: MAG(SlaveAxis, MasterAxis, MotionControl, Direction, ...): EXERR counts it
     MOTION_CONTROL_INDEX = 2
+    #: the ratio operands of the other format and the clutch rate without the clutch
+    #: are not used, so not judged
+    GATES: ClassVar[dict[str, tuple[Gate, ...]]] = {
+        "Ratio": (gate("RatioFormat", RatioFormat.REAL),),
+        "SlaveCounts": (gate("RatioFormat", RatioFormat.FRACTION),),
+        "MasterCounts": (gate("RatioFormat", RatioFormat.FRACTION),),
+        "AccelRate": (gate("Clutch", Clutch.ENABLED),),
+        "AccelUnits": (gate("Clutch", Clutch.ENABLED),),
+    }
     OPERANDS = (
         SLAVE_AXIS,
         MASTER_AXIS,

@@ -2,14 +2,18 @@
 
 DN when the stop is initiated, IP until the axis has come to rest, then PC. The
 deceleration is the axis maximum unless ChangeDecel selects DecelRate; the ramp is
-trapezoidal unless ChangeDecelJerk selects DecelJerk.
+trapezoidal unless ChangeDecelJerk selects DecelJerk. DecelRate and DecelUnits are judged
+only when ChangeDecel is Yes, DecelJerk and JerkUnits only when ChangeDecelJerk is Yes
+(the rule of every instruction: an operand its mode does not use is not judged).
 """
 
 from __future__ import annotations
 
 from enum import IntEnum
+from typing import ClassVar
 
 from ...kernel import AxisType, ErrorCode, MotionError, ProcessKind
+from ..base import Gate, gate
 from ..dynamics import AccelUnits, JerkUnits, rate
 from ..dynamics import jerk as jerk_of
 from ..logix_common import ProcessInstruction
@@ -49,6 +53,13 @@ STOP_KINDS: dict[StopType, tuple[ProcessKind, ...] | None] = {
 class MAS(ProcessInstruction):
     TYPE = "MAS"
     DESCRIPTION = "Motion Axis Stop"
+    #: DecelRate counts only with ChangeDecel = Yes, DecelJerk with ChangeDecelJerk = Yes
+    GATES: ClassVar[dict[str, tuple[Gate, ...]]] = {
+        "DecelRate": (gate("ChangeDecel", YesNo.YES),),
+        "DecelUnits": (gate("ChangeDecel", YesNo.YES),),
+        "DecelJerk": (gate("ChangeDecelJerk", YesNo.YES),),
+        "JerkUnits": (gate("ChangeDecelJerk", YesNo.YES),),
+    }
     OPERANDS = (
         AXIS,
         Operand("StopType", TagType.DINT, 0, enum=StopType),

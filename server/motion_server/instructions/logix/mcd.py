@@ -20,7 +20,7 @@ from enum import IntEnum
 from ...kernel import Axis, AxisType, ErrorCode, JogProcess, Limits, MotionError, MoveProcess
 from ...kernel.enums import ProcessKind
 from .. import dynamics
-from ..base import LogixInstruction
+from ..base import Gate, LogixInstruction, gate
 from ..dynamics import AccelUnits, JerkUnits, SpeedUnits
 from ..operands import AXIS
 from ..registry import register
@@ -44,17 +44,21 @@ def _rate(name: str, quantity: Quantity) -> Operand:
     return Operand(name, TagType.REAL, 100.0, minimum=0.0, exclusive_min=True, quantity=quantity)
 
 
-#: value operand -> the selectors that make it count
-GATES: dict[str, tuple[str, ...]] = {
-    "Speed": ("ChangeSpeed",),
-    "SpeedUnits": ("ChangeSpeed",),
-    "AccelRate": ("ChangeAccel",),
-    "AccelUnits": ("ChangeAccel",),
-    "DecelRate": ("ChangeDecel",),
-    "DecelUnits": ("ChangeDecel",),
-    "AccelJerk": ("ChangeAccelJerk",),
-    "DecelJerk": ("ChangeDecelJerk",),
-    "JerkUnits": ("ChangeAccelJerk", "ChangeDecelJerk"),
+def _when_yes(*selectors: str) -> tuple[Gate, ...]:
+    return tuple(gate(s, YesNo.YES) for s in selectors)
+
+
+#: value operand -> the Change selectors that make it count (``Instruction.GATES``)
+GATES: dict[str, tuple[Gate, ...]] = {
+    "Speed": _when_yes("ChangeSpeed"),
+    "SpeedUnits": _when_yes("ChangeSpeed"),
+    "AccelRate": _when_yes("ChangeAccel"),
+    "AccelUnits": _when_yes("ChangeAccel"),
+    "DecelRate": _when_yes("ChangeDecel"),
+    "DecelUnits": _when_yes("ChangeDecel"),
+    "AccelJerk": _when_yes("ChangeAccelJerk"),
+    "DecelJerk": _when_yes("ChangeDecelJerk"),
+    "JerkUnits": _when_yes("ChangeAccelJerk", "ChangeDecelJerk"),
 }
 
 
@@ -81,12 +85,10 @@ class MCD(LogixInstruction):
         Operand("JerkUnits", TagType.DINT, 2, enum=JerkUnits),
     )
 
+    GATES = GATES
+
     def changes(self, selector: str) -> bool:
         return int(self.op[selector]) == YesNo.YES
-
-    def operand_used(self, op: Operand) -> bool:
-        gates = GATES.get(op.name)
-        return gates is None or any(self.changes(g) for g in gates)
 
     def execute(self) -> None:
         ax = self.axis()

@@ -18,16 +18,26 @@ from ...kernel.master_driven import MasterDrivenProcess
 from ...kernel.mdac_links import MasterFactory
 from ...kernel.processes import Process
 from .. import dynamics
-from ..dynamics import DriveMode, MergeMode, MergeSpeed
+from ..base import Gate, gate
+from ..dynamics import DriveMode, MergeMode, MergeSpeed, ProfileType
 from ..logix_common import ProcessInstruction
 from ..operands import TRACKING_MASTER
 from ..schema import StatusField
 
 
 class SpeedControlledMotion(ProcessInstruction):
-    """A Logix single-axis motion (MAJ, MAM) that can run time- or master-driven."""
+    """A Logix single-axis motion (MAJ, MAM) that can run time- or master-driven.
+
+    The jerk operands count only for an S-curve profile, MergeSpeed only with Merge
+    enabled (``GATES``: not judged otherwise)."""
 
     OUTPUTS: ClassVar[tuple[StatusField, ...]] = (TRACKING_MASTER,)
+    GATES: ClassVar[dict[str, tuple[Gate, ...]]] = {
+        "AccelJerk": (gate("Profile", ProfileType.S_CURVE),),
+        "DecelJerk": (gate("Profile", ProfileType.S_CURVE),),
+        "JerkUnits": (gate("Profile", ProfileType.S_CURVE),),
+        "MergeSpeed": (gate("Merge", MergeMode.ENABLED),),
+    }
 
     def check_axis(self, ax: Axis) -> None:
         """Motion preconditions; new motion waits until a group stop has finished."""
