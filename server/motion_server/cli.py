@@ -18,6 +18,7 @@ from typing import Any, NoReturn
 from pydantic import ValidationError
 
 from . import __version__, config
+from .cli_bench import add_commands
 from .config.assembly import RETAIN_HINT, assemble, describe
 from .launch import setup_logging
 from .safety.first_user import FirstUserError, ensure_user
@@ -294,6 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _run_options(chk)
     chk.set_defaults(func=cmd_check)
+    add_commands(sub)
     return p
 
 

@@ -37,6 +37,7 @@ from .frontends.view import ImageView
 from .image import wire
 from .image.buffer import ImageReader
 from .instructions import MotionSystem
+from .kernel import Controller
 from .safety.access import AccessPolicy
 from .safety.audit import AuditLog
 from .safety.client import ClientInfo
@@ -111,12 +112,10 @@ class Runtime:
     ) -> None:
         self.site = site
         self.scan = Scan(site, system, fresh=fresh)
-        self.system = self.scan.system
-        self.ctl = self.system.ctl
         self.tagmap = self.scan.tagmap
         self.layout = self.scan.layout
         self._buffer = self.scan.writer._buf
-        self.judge = Judge.for_system(self.tagmap, self.system)
+        self.judge = Judge.for_system(self.tagmap, self.scan.system)
         #: the audit log of client writes (``[audit]``), None when off
         self.audit = AuditLog.from_config(site.audit, site.data_dir, lambda: self.ctl.tick)
         self._local = _LocalLink(self)
@@ -140,6 +139,15 @@ class Runtime:
         return view
 
     # -- the scan ---------------------------------------------------------------------------
+    @property
+    def system(self) -> MotionSystem:
+        """The controller and its instances (a restored snapshot replaces them)."""
+        return self.scan.system
+
+    @property
+    def ctl(self) -> Controller:
+        return self.scan.system.ctl
+
     @property
     def period(self) -> float:
         return self.ctl.period

@@ -7,7 +7,8 @@ where ``motion-server`` is installed has these fixtures (docs/testing-with-pytes
   of its own, ``--ready-file``), ephemeral ports, the manual clock, its working
   directory a temporary one; stopped (SIGTERM: the programmed stop) after the test, and a
   server that did not end cleanly fails the test. A :class:`MotionServer`: its ports, its
-  log, its tag map, and synchronous helpers to step the clock, read, write and trigger.
+  log, its tag map, and synchronous helpers to step the clock, read, write and trigger,
+  inject an axis fault, save and restore a snapshot and set a communication fault.
 - ``motion_client``: a :class:`motion_clients.MotionClient` connected over Modbus TCP to
   that server (an async fixture: needs pytest-asyncio).
 - ``motion_site_map``: the site map the server runs; by default the ini option
@@ -272,6 +273,50 @@ class MotionServer:
         """The HMI handshake of :meth:`MotionClient.trigger`: operands, trigger, wait for
         success or failure, lower the trigger."""
         return self._sync(lambda mc: mc.trigger(instance, **operands))
+
+    # -- the test bench: faults, snapshots, communication faults ---------------------------
+    def inject(self, axis: str, fault: str, held: bool = True) -> None:
+        """Hold (or with ``held=False`` remove) an injected fault cause on ``axis``:
+        ``fault`` is the tag's suffix, e.g. ``"DriveFault"`` for ``<axis>.InjectDriveFault``
+        (``FeedbackLoss``, ``FollowingError``, ``PosHardOvertravel``, ...)."""
+        self.write(f"{axis}.Inject{fault}", held)
+
+    def snapshot_save(self, number: int) -> None:
+        """Save the controller state as snapshot ``number`` (answered once saved)."""
+        self._snapshot(number, "SnapshotSave")
+
+    def snapshot_restore(self, number: int) -> None:
+        """Restore snapshot ``number`` (answered once restored; a refusal raises)."""
+        self._snapshot(number, "SnapshotRestore")
+
+    def _snapshot(self, number: int, field: str) -> None:
+        async def work(mc: MotionClient) -> None:
+            await mc.write("Clock.Snapshot", number)
+            await mc.write(f"Clock.{field}", True)
+
+        self._sync(work)
+
+    def comm_fault(
+        self, kind: str, delay_ms: int = 0, duration_s: float = 0.0, client_port: int = 0
+    ) -> None:
+        """Delay (``kind`` "delay", ``delay_ms`` per answer) or drop ("drop") the answers to
+        the client at TCP port ``client_port`` (0: every client) for ``duration_s`` (0:
+        until ``comm_fault("off")``)."""
+        mode = {"off": 0, "delay": 1, "drop": 2}[kind]
+
+        async def work(mc: MotionClient) -> None:
+            await mc.write("Clock.CommFault", 0)
+            if mode:
+                await mc.write_many(
+                    {
+                        "Clock.CommDelay": delay_ms,
+                        "Clock.CommDuration": round(duration_s * 1000),
+                        "Clock.CommClientPort": client_port,
+                    }
+                )
+                await mc.write("Clock.CommFault", mode)
+
+        self._sync(work)
 
 
 class ServerFactory:

@@ -1,9 +1,10 @@
 """Roles on every writable node kind, and the failed-login lockout, over a real socket.
 
 The rule (frontends/opcua.py ``required_role``): viewers write nothing; operators write
-instruction operands and Execute, hand-wheel inputs and the Safety tags (heartbeat,
-reset); only admins write the Clock tags. Lockout: ``max_login_failures`` wrong passwords
-from one address lock it out, even with the right password, for ``login_lockout_s``.
+instruction operands and Execute, hand-wheel inputs, fault injection and the Safety
+tags (heartbeat, reset); only admins write the Clock tags. Lockout:
+``max_login_failures`` wrong passwords from one address lock it out, even with the right
+password, for ``login_lockout_s``.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ NODE_KINDS: dict[str, Any] = {
     "MAJ_1.Speed": 12.5,  # instruction operand
     "MAJ_1.Execute": False,  # trigger (False: no motion, the role check is the same)
     "Wheel.FeedbackInput": 3.25,  # hand-wheel input
+    "Axis1.InjectPosSoftOvertravel": False,  # fault injection (False: no fault)
     "HMI1.Heartbeat": 7,  # Safety: heartbeat
     "HMI1.Reset": False,  # Safety: reset
     "Clock.StepCycles": 3,  # Clock

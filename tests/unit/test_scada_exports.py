@@ -150,6 +150,23 @@ def test_every_packed_word_lists_its_bits(demo: TagMap) -> None:
         str(AxisFault.PROFILE.bit_length() - 1): "Profile",
         str(WATCHDOG_FAULT.bit_length() - 1): "CommunicationWatchdog",
         str(AxisFault.NUMERIC.bit_length() - 1): "Numeric",
+        str(AxisFault.DRIVE.bit_length() - 1): "DriveFault",
+        str(AxisFault.FEEDBACK.bit_length() - 1): "FeedbackFault",
+        str(AxisFault.POS_HARD_OVERTRAVEL.bit_length() - 1): "PosHardOvertravel",
+        str(AxisFault.NEG_HARD_OVERTRAVEL.bit_length() - 1): "NegHardOvertravel",
+        str(AxisFault.POS_SOFT_OVERTRAVEL.bit_length() - 1): "PosSoftOvertravel",
+        str(AxisFault.NEG_SOFT_OVERTRAVEL.bit_length() - 1): "NegSoftOvertravel",
+    }
+    servo = words[(demo.tag("Axis2.ServoFault").address, "ServoFault")]
+    # the Logix ServoFaultBits attribute (Rockwell MOTION-RM002)
+    assert servo["bits"] == {
+        "0": "PosSoftOvertravelFault",
+        "1": "NegSoftOvertravelFault",
+        "2": "PosHardOvertravelFault",
+        "3": "NegHardOvertravelFault",
+        "4": "FeedbackFault",
+        "8": "PositionErrorFault",
+        "9": "DriveFault",
     }
     motion = words[(demo.tag("Axis2.MotionStatus").address, "MotionStatus")]
     assert motion["bits"]["12"] == "GearingLock" and motion["bits"]["4"] == "Gearing"

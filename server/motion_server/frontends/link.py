@@ -30,6 +30,11 @@ class ScanUnavailable(TagAccessError):
     """The scan does not take writes (it is stopping, or gone)."""
 
 
+class WriteRefused(TagAccessError):
+    """The scan refused a write the answer waited for, or the command it carried failed
+    (a snapshot): the reason is in the server's log."""
+
+
 class Ticket:
     """One batch on its way to the scan."""
 

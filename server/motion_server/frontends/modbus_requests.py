@@ -34,7 +34,8 @@ from ..safety.audit import AuditLog
 from ..safety.client import ClientInfo, writing_as
 from ..safety.roles import Role, RoleRegisters
 from ..tagmap import AddressError, BadValueError, ReadOnlyError
-from .link import Ticket
+from .comm_faults import CommFaults
+from .link import Ticket, WriteRefused
 from .modbus_pdu import (
     WRITE_FUNCTION_CODES,
     ExceptionCode,
@@ -48,7 +49,7 @@ from .modbus_pdu import (
     write_answer,
 )
 from .modbus_protocol import Answer
-from .view import ImageView, ScanUnavailable
+from .view import ImageView, ScanUnavailable, outcome
 
 log = logging.getLogger("motion_server.modbus")
 
@@ -71,9 +72,19 @@ class RequestServer:
         self.requests = 0
         self.exceptions = 0
         self._roles = RoleRegisters(image.map)
+        #: the communication fault the Clock tags ask for
+        self.faults = CommFaults(image)
 
     def answer(self, client: ClientInfo, tid: int, unit: int, pdu: bytes) -> Answer:
-        """The answer ADU to one request of ``client`` (or a coroutine producing it)."""
+        """The answer ADU to one request of ``client`` (or a coroutine producing it),
+        delayed or dropped while a communication fault is set for this client
+        (:class:`~.comm_faults.CommFaults`: decided when the request arrives, so the write
+        that sets the fault is answered)."""
+        fault = self.faults.applies(client)
+        answer = self._answer(client, tid, unit, pdu)
+        return answer if fault is None else fault.apply(answer)
+
+    def _answer(self, client: ClientInfo, tid: int, unit: int, pdu: bytes) -> Answer:
         self.requests += 1
         fc = pdu[0]
         if self.unit_id and unit != self.unit_id:
@@ -115,7 +126,7 @@ class RequestServer:
         ran; with the manual clock every write)."""
         with writing_as(client):
             try:
-                await ticket.done()
+                await outcome(ticket)
                 return adu(tid, unit, self._written(request, pdu))
             except Exception as exc:
                 code, why = self._failure(request, exc)
@@ -170,6 +181,9 @@ class RequestServer:
             return ExceptionCode.ILLEGAL_DATA_VALUE, str(exc)
         if isinstance(exc, ScanUnavailable):
             log.warning("%s: %s", what, exc)
+            return ExceptionCode.SERVER_DEVICE_FAILURE, str(exc)
+        if isinstance(exc, WriteRefused):
+            log.info("%s: %s", what, exc)
             return ExceptionCode.SERVER_DEVICE_FAILURE, str(exc)
         # never let one request take the server down
         log.error("%s failed", what, exc_info=exc)

@@ -112,12 +112,13 @@ from ..safety.roles import Role, required_role
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagType
 from ..tagmap.nodeset import enum_text
 from .certificates import self_signed
+from .comm_faults import CommFaults
 from .opcua_identity import identify
 from .opcua_limits import OperationLimits, OperationScreen, QuotaSession, publish_capabilities
 from .opcua_space import VARIANT_TYPES, build_space, variant
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
 from .opcua_wire import ChannelFault, GuardedProtocol, Wire, WireServer
-from .view import ImageView, ScanUnavailable, Ticket
+from .view import ImageView, ScanUnavailable, Ticket, WriteRefused, outcome
 
 log = logging.getLogger("motion_server.opcua")
 
@@ -198,6 +199,11 @@ class OpcUaFrontend:
         self.limits = OperationLimits.of(cfg)
         self.screen = OperationScreen(self.limits)
         self.wire = Wire(cfg.max_chunk_size, self.screen, self._fault)
+        #: the communication fault of the Clock tags (delayed or dropped answers); read
+        #: from the scan's image (a bare tag image, as unit tests give, has none)
+        self.comm_faults = CommFaults(image) if isinstance(image, ImageView) else None
+        if self.comm_faults is not None:
+            self.wire.answers = self.comm_faults.for_port
         self.namespace_index = 0
         self.port = 0
         self._published: list[_Published] = []
@@ -491,9 +497,13 @@ class OpcUaFrontend:
         await self._set(pub, self.image.read(tag), _now())
         if ticket.waits:
             try:
-                await ticket.done()  # a Clock.Step: answer once its cycles ran
+                # a Clock.Step: answer once its cycles ran; a snapshot once it is done
+                await outcome(ticket)
             except ScanUnavailable:
                 return ua.StatusCode(ua.StatusCodes.BadResourceUnavailable)
+            except WriteRefused as exc:  # the reason is in the log (the scan's)
+                log.info("OPC UA: write of %s: %s", tag.name, exc)
+                return ua.StatusCode(ua.StatusCodes.BadInvalidState)
             await self.publish()
         elif tag.folder == Folder.INSTRUCTIONS and tag.type == TagType.BOOL:
             self._follow(tag.owner, ticket)

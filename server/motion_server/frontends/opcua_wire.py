@@ -32,6 +32,8 @@ This module replaces those parts without forking asyncua (subclasses only):
   (the operation limits, :mod:`.opcua_limits`) once its session is activated.
 - :class:`WireServer` is asyncua's ``Server`` with these parts, and with no user name
   token offered on an endpoint without security.
+- :class:`GuardedProcessor` also applies the communication fault the Clock tags ask for
+  (``Wire.answers``, :mod:`.comm_faults`): a service request's answer delayed or dropped.
 """
 
 from __future__ import annotations
@@ -54,6 +56,9 @@ from asyncua.server.internal_session import InternalSession
 from asyncua.server.uaprocessor import UaProcessor
 from asyncua.ua.ua_binary import header_from_binary, struct_from_binary, uatcp_to_binary
 from asyncua.ua.uaerrors import BadRequestTooLarge, UaStatusCodeError
+
+from ..tagmap import CommFault
+from .comm_faults import Fault
 
 log = logging.getLogger("motion_server.opcua")
 
@@ -80,6 +85,8 @@ _SCRATCH = bytearray(1 << 14)  # where dropped bytes are read (shared, never loo
 #: judges one request of an activated session before asyncua serves it (raises a
 #: ServiceError to answer a ServiceFault): type id, body after the request header, session
 Screen = Callable[[ua.NodeId, Buffer, InternalSession], None]
+#: the communication fault for an answer to the client at a TCP port (None: none)
+Answers = Callable[[int], Fault | None]
 
 
 class ChannelFault(Exception):
@@ -112,6 +119,8 @@ class Wire:
     on_fault: Callable[[Any, ChannelFault], None] | None = None
     #: connections closed for a fault (diagnostics, tests)
     faults: int = 0
+    #: the communication fault the answers of a client get (None: never any)
+    answers: Answers | None = None
 
 
 def judge_header(head: bytes, hello_seen: bool, max_chunk: int) -> ChannelFault | None:
@@ -222,6 +231,52 @@ class GuardedProcessor(UaProcessor):
         super().__init__(iserver, transport, limits)
         self.wire = wire
         self._connection = GuardedConnection(SecurityPolicyNone(), self._limits)
+        peer = self.name
+        self._port = int(peer[1]) if isinstance(peer, tuple) and len(peer) >= 2 else 0
+        #: the answer of the request being served is dropped (a communication fault)
+        self._dropping = False
+        #: the request being served was judged on arrival (its answer is not judged again)
+        self._serving = False
+
+    async def process_message(self, seqhdr: Any, body: Buffer) -> Any:
+        """A service request: answered, or its answer delayed or dropped when a
+        communication fault is set for this client (decided now, as it arrives)."""
+        answers = self.wire.answers
+        fault = answers(self._port) if answers is not None else None
+        if fault is not None and fault.mode == CommFault.DELAY:
+            await asyncio.sleep(fault.delay)
+        self._dropping = fault is not None and fault.mode == CommFault.DROP
+        self._serving = True
+        try:
+            return await super().process_message(seqhdr, body)
+        finally:
+            self._serving = self._dropping = False
+
+    def send_response(
+        self,
+        requesthandle: Any,
+        seqhdr: Any,
+        response: Any,
+        msgtype: ua.MessageType = ua.MessageType.SecureMessage,
+    ) -> None:
+        if self._serving:
+            if self._dropping:
+                return
+        elif msgtype == ua.MessageType.SecureMessage and self.wire.answers is not None:
+            # sent later than its request (a Publish): judged now
+            fault = self.wire.answers(self._port)
+            if fault is not None:
+                if fault.mode == CommFault.DROP:
+                    return
+                asyncio.get_running_loop().call_later(
+                    fault.delay, self._send_late, requesthandle, seqhdr, response, msgtype
+                )
+                return
+        super().send_response(requesthandle, seqhdr, response, msgtype)
+
+    def _send_late(self, requesthandle: Any, seqhdr: Any, response: Any, msgtype: Any) -> None:
+        if not self._transport.is_closing():
+            UaProcessor.send_response(self, requesthandle, seqhdr, response, msgtype)
 
     async def process(self, header: ua.Header, body: Buffer) -> bool:
         if header.MessageType == ua.MessageType.Hello:

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..image import wire
 from ..image.buffer import ImageReader, Meta, ScanState, Snapshot
 from ..image.layout import ImageLayout
 from ..instructions.schema import TagType
@@ -32,11 +33,23 @@ from ..tagmap.codec import Value
 from ..tagmap.image import check_registers
 from ..tagmap.judge import Judge
 from ..tagmap.registers import RegisterEncoder, RegisterWrites
-from .link import Link, ScanUnavailable, Ticket
+from .link import Link, ScanUnavailable, Ticket, WriteRefused
 
-__all__ = ["ImageView", "ScanUnavailable", "Ticket"]
+__all__ = ["ImageView", "ScanUnavailable", "Ticket", "WriteRefused", "outcome"]
 
 _HALF = 1 << 31
+#: Clock commands whose write is answered once the scan carried them out
+_ANSWERED_WHEN_DONE = frozenset({"Step", "SnapshotSave", "SnapshotRestore"})
+
+
+async def outcome(ticket: Ticket) -> None:
+    """Wait for the scan's acknowledgement of ``ticket``; :class:`WriteRefused` when the
+    scan refused the write or the command it carried failed."""
+    ack = await ticket.done()
+    if ack.result == wire.Result.REFUSED:
+        raise WriteRefused("the scan refused the write (see the server log)")
+    if ack.result == wire.Result.FAILED:
+        raise WriteRefused("the command failed (see the server log)")
 
 
 def _applied(seq: int, applied: int) -> bool:
@@ -159,11 +172,12 @@ class ImageView:
         current = self.values()
         items = [(self._slot[t.name], float(v)) for t, v in staged]
         ticket = self.link.send(items, current_client())
-        # a Clock.Step is answered once its cycles ran; with the manual clock every write
-        # is answered once applied (time stands still: a client that then steps the clock
-        # through another front-end finds its write in that cycle)
+        # a Clock.Step is answered once its cycles ran, a snapshot once it is saved or
+        # restored; with the manual clock every write is answered once applied (time
+        # stands still: a client that then steps the clock through another front-end
+        # finds its write in that cycle)
         ticket.waits = self.mode == ClockMode.MANUAL or any(
-            t.owner == "Clock" and t.field == "Step" for t, _ in staged
+            t.owner == "Clock" and t.field in _ANSWERED_WHEN_DONE for t, _ in staged
         )
         for (tag, value), (slot, raw) in zip(staged, items, strict=True):
             old = _typed(tag.type, float(current[slot]))

@@ -3,7 +3,8 @@
 Every value a tag can hold fits a float64 exactly (BOOL 0/1, integers up to 32 bits,
 REAL and LREAL). The axis fields the kernel keeps as arrays (positions, velocities,
 following error, and the status words it gives as arrays:
-:data:`~motion_server.tagmap.image.AXIS_ARRAYS`, :data:`~.AXIS_STATUS`) come first, one
+:data:`~motion_server.tagmap.image.AXIS_ARRAYS`, :data:`~.AXIS_STATUS`,
+:data:`~.AXIS_FAULT_WORDS`) come first, one
 run per field in axis order, so the scan copies each kernel array into the image in one
 slice; every other tag follows in tag-map order. Both sides compute the layout from the
 same site map; the fingerprint (a hash of the names and types in slot order) is checked
@@ -16,7 +17,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass, field
 
-from ..tagmap.image import AXIS_ARRAYS, AXIS_STATUS
+from ..tagmap.image import AXIS_ARRAYS, AXIS_FAULT_WORDS, AXIS_STATUS
 from ..tagmap.model import Folder, Tag, TagMap
 
 
@@ -30,7 +31,7 @@ class ImageLayout:
 
     def __post_init__(self) -> None:
         axes = {owner: k for k, owner in enumerate(self.tagmap.owners(Folder.AXES))}
-        fields = {name: k for k, name in enumerate([*AXIS_ARRAYS, *AXIS_STATUS])}
+        fields = {name: k for k, name in enumerate([*AXIS_ARRAYS, *AXIS_STATUS, *AXIS_FAULT_WORDS])}
 
         def arrays(t: Tag) -> bool:
             return t.folder == Folder.AXES and t.field in fields

@@ -55,6 +55,7 @@ class Result(IntEnum):
     APPLIED = 0
     REFUSED = 1  # the scan refused it (logged there); nothing was written
     NOT_RUN = 2  # applied, but its cycles did not run (the clock left manual mode, stop)
+    FAILED = 3  # applied, but the command it carried failed (a snapshot; logged there)
 
 
 class WireError(ValueError):

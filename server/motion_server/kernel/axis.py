@@ -86,6 +86,7 @@ class Axis:
     @fault.setter
     def fault(self, bits: int) -> None:
         self._s.fault[self.index] = int(bits)
+        self._s.dirty.add(self.index)  # PLCopenState: ErrorStop in Servo Control
 
     @property
     def homed(self) -> bool:
@@ -246,6 +247,9 @@ class Axis:
             return PLCopenState.ERRORSTOP
         if self._state != AxisState.SERVO_CONTROL:
             return PLCopenState.DISABLED
+        if self.fault:
+            # a fault whose action keeps the drive on (an overtravel: Stop Planner)
+            return PLCopenState.ERRORSTOP
         if self.stopping:
             return PLCopenState.STOPPING
         kinds = {p.kind for p in self.processes if p.active}

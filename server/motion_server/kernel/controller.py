@@ -43,6 +43,7 @@ from .enums import (
     ProgrammedStopMode,
 )
 from .errors import ErrorCode, MotionError
+from .faults import APPLIES, CAUSE_BIT, DISABLE_DRIVE, OVERTRAVEL, FaultCause, FaultInjection
 from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode, after_stops_due
 from .homing import HomeHandle, HomeProcess, HomeRequest, Homing, PassiveHoming, judge
 from .limits import group_stop_deceleration
@@ -114,6 +115,8 @@ class Controller:
         self.mdsc = MasterDrivenControl(self.motion)
         #: homing sensors (home switch, marker) and the homings waiting for their events
         self.homing = Homing(self.motion, self.axes, self.groups)
+        #: fault causes a test bench holds on axes (:mod:`.faults`)
+        self.faults = FaultInjection()
         self.tick = 0
         self.mode = OperatingMode.RUN
         #: per group: compose one axis in Python now (and offer it to the lanes)
@@ -255,6 +258,8 @@ class Controller:
             self.fault(self.axes[i], AxisFault.POSITION_ERROR)
         if g.number in self.homing.groups:
             self.homing.update(g.number)
+        if self.faults.limits:
+            self._overtravel(g)
         if g.after_stops:
             due, g.after_stops = after_stops_due(s, g, dt)
             for ax in due:
@@ -322,9 +327,11 @@ class Controller:
         self.power.fire(ax, PowerEvent.FAULT)
 
     def fault_reset(self, ax: Axis) -> None:
-        """MAFR / MC_Reset: clear faults; a faulted axis returns to Axis Ready."""
+        """MAFR / MC_Reset: clear faults; a faulted axis returns to Axis Ready. An injected
+        Disable Drive cause still held faults it again at once (:mod:`.faults`)."""
         ax.fault = 0
         self.power.fire(ax, PowerEvent.FAULT_RESET)
+        self._reassert(ax)
 
     def shutdown(self, ax: Axis) -> None:
         """MASD: Axis Shutdown at once; the drive is off and the axis coasts.
@@ -341,6 +348,7 @@ class Controller:
         """MASR: from Axis Shutdown (or faulted) to Axis Ready, faults cleared."""
         ax.fault = 0
         self.power.fire(ax, PowerEvent.SHUTDOWN_RESET)
+        self._reassert(ax)
 
     def group_shutdown(self, ref: int | str) -> MotionGroup:
         """MGSD: every axis of the group (feedback-only ones too) to Axis Shutdown."""
@@ -366,6 +374,83 @@ class Controller:
         (see :meth:`Motion.release <.motion.Motion.release>`)."""
         self.motion.release(ax, processes, reason)
 
+    # -- injected faults --------------------------------------------------------------------
+    def inject(self, ax: Axis, cause: FaultCause, held: bool) -> None:
+        """Hold (``held``) or remove a fault cause on ``ax``, as a test bench makes a drive,
+        an encoder or a limit switch fail (:mod:`.faults`). Holding it faults the axis at
+        once; removing it lets MAFR / MC_Reset clear the fault. MotionError
+        ``WRONG_AXIS_TYPE`` for a cause the axis type does not have."""
+        cause = FaultCause(cause)
+        if cause not in APPLIES[ax.type]:
+            raise MotionError(
+                ErrorCode.WRONG_AXIS_TYPE,
+                f"{ax.name} is a {ax.type.name.lower()} axis: no {cause.name.lower()} fault",
+            )
+        faults = self.faults
+        if not held:
+            if faults.holds(ax.index, cause):
+                faults.release(ax.index, cause)
+            return
+        if faults.holds(ax.index, cause):
+            return
+        limit = float(self.act_pos[ax.index]) if cause in OVERTRAVEL else None
+        faults.hold(ax.index, cause, limit)
+        bit = CAUSE_BIT[cause]
+        if cause in DISABLE_DRIVE or ax.state != AxisState.SERVO_CONTROL:
+            self.fault(ax, bit)
+        else:
+            self.fault_stop(ax, bit)
+
+    def fault_stop(self, ax: Axis, bits: int) -> None:
+        """A fault whose action is Stop Planner (an overtravel): the fault bits are set,
+        every process is replaced by a ramp to rest at the maximum deceleration, and the
+        axis stays in Servo Control with its drive on (PLCopen ErrorStop)."""
+        ax.fault |= int(bits)
+        if ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        if not any(p.active for p in ax.processes):
+            return
+        self.mdsc.break_slave(ax, AbortReason.FAULTED)
+        dt = ax.period
+        decel = ax.config.max_deceleration
+
+        def make(v: float, a: float) -> Process:
+            return StopRamp(dt, decel, 0.0, v, a)
+
+        self.motion.start(ax, make, replace=None, reason=AbortReason.FAULTED)
+
+    def _reassert(self, ax: Axis) -> None:
+        """After a reset: the Disable Drive causes still held fault the axis again."""
+        if self.faults.held:
+            bits = self.faults.disable_drive_bits(ax.index)
+            if bits:
+                self.fault(ax, bits)
+
+    def _overtravel(self, g: MotionGroup) -> None:
+        """Axes of ``g`` beyond an injected limit: back inside ends the cause; motion
+        further beyond ends the processes that drive it (ERR ``OVERTRAVEL``), ramps the
+        axis to rest and sets the fault again."""
+        s = self.arrays
+        faults = self.faults
+        for (i, cause), limit in list(faults.limits.items()):
+            ax = self.axes[i]
+            if ax.group != g.number:
+                continue
+            d = OVERTRAVEL[cause]
+            if (s.act_pos.item(i) - limit) * d < 0.0:
+                faults.release(i, cause)
+            elif s.cmd_vel.item(i) * d > 0.0 and ax.drive_enabled:
+                self.motion.settle(ax)
+                further = [
+                    p
+                    for p in ax.processes
+                    if p.active and p.kind != ProcessKind.STOP and p.velocity * d > 0.0
+                ]
+                if further:
+                    self.motion.fail(ax, further, ErrorCode.OVERTRAVEL)
+                    ax.fault |= int(CAUSE_BIT[cause])
+
     # -- operating mode ---------------------------------------------------------------------
     def set_mode(self, mode: OperatingMode) -> list[GroupStop]:
         """Change the operating mode. Leaving RUN breaks every MDAC link and runs the
@@ -386,6 +471,8 @@ class Controller:
     def require_motion(self, ax: Axis) -> None:
         """Preconditions of every motion command, as a controller checks them."""
         require(ax, PowerEvent.MOTION)
+        if ax.fault:  # in Servo Control: a Stop Planner fault (an overtravel) not reset
+            raise MotionError(ErrorCode.AXIS_FAULTED, f"{ax.name} is faulted")
 
     def settle(self, ax: Axis) -> None:
         """Bring ``ax``'s processes up to date and take it out of the fast lanes."""

@@ -112,6 +112,16 @@ class AxisFault(IntEnum):
     #: a value of this axis became infinite or NaN, or overflowed, in its commanded
     #: motion, its drive model or its feedback sample: the axis is faulted instead
     NUMERIC = 1 << 3
+    #: the drive reported a fault (injected: :mod:`.faults`)
+    DRIVE = 1 << 4
+    #: the feedback (encoder) was lost
+    FEEDBACK = 1 << 5
+    #: the positive / negative hardware limit switch was reached
+    POS_HARD_OVERTRAVEL = 1 << 6
+    NEG_HARD_OVERTRAVEL = 1 << 7
+    #: the axis travelled beyond its positive / negative soft travel limit
+    POS_SOFT_OVERTRAVEL = 1 << 8
+    NEG_SOFT_OVERTRAVEL = 1 << 9
 
 
 class MasterReference(IntEnum):

@@ -33,6 +33,7 @@ class ErrorCode(IntEnum):
     NOT_GEARED = 1003
     BUFFER_FULL = 1004
     INTERNAL_ERROR = 1005
+    OVERTRAVEL = 1010
 
 
 ERROR_TEXT: dict[ErrorCode, str] = {
@@ -58,6 +59,8 @@ ERROR_TEXT: dict[ErrorCode, str] = {
     ErrorCode.BUFFER_FULL: "a buffered command is already waiting on this axis",
     ErrorCode.INTERNAL_ERROR: "internal error in the server (logged with its traceback); "
     "its axes ramp to rest",
+    ErrorCode.OVERTRAVEL: "overtravel: the axis is beyond its travel limit in this direction "
+    "(move it back, or reset and move it back)",
 }
 
 

@@ -221,6 +221,25 @@ class Motion:
         ax.motion_changed()
         self.offer(ax)
 
+    def fail(self, ax: Axis, processes: Collection[Process], code: int) -> None:
+        """End ``processes`` of ``ax`` with the error ``code`` (their owners report it);
+        the axis ramps their velocity to rest at its maximum deceleration, as when a
+        process fails in its step."""
+        hit = [p for p in processes if p.active and p in ax.processes]
+        if not hit:
+            return
+        self.settle(ax)
+        v = sum(p.velocity for p in hit)
+        for p in hit:
+            p.fail(code)
+            ax.base += p.position
+        ax.processes = [p for p in ax.processes if p.active]
+        self.coupling_changed()
+        if self.s.drive_on[ax.index] and v != 0.0:
+            ax.processes.append(StopRamp(ax.period, ax.config.max_deceleration, 0.0, v))
+        ax.motion_changed()
+        self.offer(ax)
+
     def release_followers(self, master: Axis, reason: AbortReason) -> None:
         """Release every process on another axis that reads ``master`` (its ``masters``):
         a shut-down master no longer drives anything (see :meth:`release`)."""

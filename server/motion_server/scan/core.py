@@ -33,10 +33,13 @@ then the retained state is saved and :attr:`Scan.finished` becomes true.
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import logging
 import time
 from collections import deque
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -52,9 +55,10 @@ from ..kernel.group import OperatingMode
 from ..safety import retain
 from ..safety.client import writing_as
 from ..safety.watchdog import Watchdog
-from ..tagmap import ClockMode, TagAccessError, TagImage, build_tagmap
-from ..tagmap.image import Getter, Setter
+from ..tagmap import ClockMode, CommFault, TagAccessError, TagImage, build_tagmap
+from ..tagmap.image import CommSettings, Getter, Setter
 from ..tagmap.judge import Judge
+from . import snapshots
 from .channel import CONTROL, Channel
 from .filler import ImageFiller
 
@@ -97,12 +101,16 @@ class Scan:
         self.ctl = self.system.ctl
         self.retain_file = retain.retain_path(site) if site.retain.enabled else None
         self._retain_sink = retain_sink
+        base: dict[str, Any] | None = None
         if self.retain_file is not None and not fresh:
             payload = retain.load(self.retain_file, site.site.name)
             if payload is not None:
+                base = copy.deepcopy(dict(payload))
                 for note in retain.restore(self.system, payload):
                     log.warning("retain: %s", note)
                 log.info("retained state restored from %s", self.retain_file)
+        #: what made the controller state (snapshots replay it)
+        self.inputs = snapshots.InputLog(base)
         ctl_cfg = site.controller
         self.mode = ClockMode[ctl_cfg.clock.upper()]
         self.scale = ctl_cfg.scale
@@ -120,17 +128,20 @@ class Scan:
         self.restarts = 0
         self.writes_applied = 0
         self.kernel_failures = 0
+        # the Clock's own settings (not controller state: a restore keeps them)
+        self.snapshot_number = 0
+        self.snapshot_save = False
+        self.snapshot_restore = False
+        self.comm = CommSettings()
+        #: monotonic time the communication fault ends (None: none, or until cleared)
+        self.comm_until: float | None = None
+        self._comm_written = False
+        #: a snapshot command to carry out once its batch is applied: (kind, name, loaded)
+        self._snapshot_op: tuple[str, str, snapshots.Snapshot | None] | None = None
         # the image
         self.tagmap = build_tagmap(site)
         self.layout = ImageLayout(self.tagmap)
-        self.watchdogs = {w.name: Watchdog(w, self.ctl) for w in site.watchdogs}
-        bindings: dict[str, tuple[Getter, Setter | None]] = {}
-        for wd in self.watchdogs.values():
-            bindings |= wd.bindings()
-        self.image = TagImage(
-            self.tagmap, self.system, self, bindings, Judge.for_system(self.tagmap, self.system)
-        )
-        self.filler = ImageFiller(self.image, self.layout)
+        self._install(self.system)
         size = self.layout.size
         buf = buffer if buffer is not None else bytearray(image_bytes(size))
         self.writer = ImageWriter(buf, size, self.layout.fingerprint)
@@ -157,6 +168,32 @@ class Scan:
         self._load_busy = 0.0
         self._dirty = False
         self._refill = False
+        self._refill_clock = False
+        #: the Clock tags the scan changes itself (command bits cleared, a fault over)
+        self._clock_commands = [
+            t
+            for t in self.tagmap.owned_by("Clock")
+            if t.field in ("SnapshotSave", "SnapshotRestore", "CommFault")
+        ]
+
+    def _install(self, system: MotionSystem) -> None:
+        """Serve ``system``: its watchdogs, its tag image and the image filler (at start,
+        and when a restore replaced it)."""
+        old = getattr(self, "image", None)
+        self.system = system
+        self.ctl = system.ctl
+        self.watchdogs = {w.name: Watchdog(w, self.ctl) for w in self.site.watchdogs}
+        bindings: dict[str, tuple[Getter, Setter | None]] = {}
+        for wd in self.watchdogs.values():
+            bindings |= wd.bindings()
+        self.image = TagImage(
+            self.tagmap, system, self, bindings, Judge.for_system(self.tagmap, system)
+        )
+        if old is not None:  # the Clock's command state is the host's, not the controller's
+            self.image.step = old.step
+            self.image.step_cycles = old.step_cycles
+            self.image.observers = old.observers
+        self.filler = ImageFiller(self.image, self.layout)
 
     # -- set-up ---------------------------------------------------------------------------
     def attach(self, channel: Channel) -> None:
@@ -226,6 +263,128 @@ class Scan:
 
     async def settle(self) -> None:
         """(The tag image's host protocol; the scan acknowledges writes instead.)"""
+
+    def snapshot(self, kind: str) -> None:
+        """(Host protocol) a rising edge of ``Clock.SnapshotSave`` / ``SnapshotRestore``:
+        checked now (a refusal refuses the write), done once the batch is applied."""
+        name = str(self.snapshot_number)
+        loaded = None
+        try:
+            if kind == "restore":
+                loaded = snapshots.load(self.site, self.layout, name)
+            else:
+                snapshots.path_of(self.site, name)
+        except snapshots.SnapshotError as exc:
+            raise TagAccessError(str(exc)) from None
+        self._snapshot_op = (kind, name, loaded)
+
+    def comm_changed(self) -> None:
+        """(Host protocol) a ``Clock.Comm...`` tag was written."""
+        self._comm_written = True
+
+    # -- snapshots ------------------------------------------------------------------------
+    def save_snapshot(self, name: str) -> Path:
+        """Save the controller state as snapshot ``name`` (SnapshotError); its file."""
+        path = snapshots.save(self.site, self.layout, name, self.ctl.tick, self.inputs)
+        log.info("snapshot %s saved at cycle %d (%s)", name, self.ctl.tick, path)
+        return path
+
+    def restore_snapshot(self, name: str) -> None:
+        """Restore snapshot ``name`` (SnapshotError in one line: nothing changed)."""
+        self._restore(snapshots.load(self.site, self.layout, name))
+
+    def _restore(self, snap: snapshots.Snapshot) -> None:
+        t0 = time.perf_counter()
+        system = self.site.build()
+        if snap.log.base is not None:
+            try:
+                retain.restore(system, copy.deepcopy(snap.log.base), snap.path)
+            except retain.RetainError as exc:
+                raise snapshots.SnapshotError(f"{snap.path}: its retained state: {exc}") from None
+        previous = self.system
+        self._install(system)
+        try:
+            tags = self.layout.tags
+            by_name = {t.name: t for t in tags}
+            for record in snap.log.records:
+                self._replay_until(record.tick)
+                # the log holds applied batches only: refused now means refused then
+                with writing_as(record.client), contextlib.suppress(TagAccessError):
+                    self.image.write_many((by_name[n], v) for n, v in record.items)
+            self._replay_until(snap.tick)
+        except Exception:
+            self._install(previous)
+            raise
+        self.inputs = snapshots.InputLog(snap.log.base, list(snap.log.records))
+        self.heartbeat = snap.tick & 0xFFFFFFFF
+        self.filler.fill_all()
+        self._refill = False
+        self._dirty = True
+        log.info(
+            "snapshot %s restored: cycle %d (%d writes replayed in %.2f s)",
+            snap.name,
+            snap.tick,
+            len(snap.log.records),
+            time.perf_counter() - t0,
+        )
+
+    def _replay_until(self, tick: int) -> None:
+        """Run cycles until ``tick`` as the scan ran them (watchdogs, then the system)."""
+        system, watchdogs = self.system, list(self.watchdogs.values())
+        ctl = self.ctl
+        while ctl.tick < tick:
+            for wd in watchdogs:
+                wd.check()
+            try:
+                system.cycle()
+            except Exception:  # as the scan contains it (logged the first time round)
+                self.kernel_failures += 1
+            system.internal_errors.clear()
+            ctl.take_internal_errors()
+
+    def _carry_out_snapshot(self, ch: Channel, seq: int) -> bool:
+        """The snapshot command of the batch just applied; False when it failed."""
+        op, self._snapshot_op = self._snapshot_op, None
+        assert op is not None
+        kind, name, loaded = op
+        try:
+            if kind == "save":
+                self.save_snapshot(name)
+            else:
+                assert loaded is not None
+                self._restore(loaded)
+            ok = True
+        except snapshots.SnapshotError as exc:
+            log.warning("%s channel: snapshot %s not %s: %s", ch.name, name, kind + "d", exc)
+            ok = False
+        self.snapshot_save = self.snapshot_restore = False  # the command bits read 0 again
+        self._refill_clock = True
+        return ok
+
+    def _comm_update(self, now: float) -> None:
+        """A Comm tag was written: the fault (re)starts now, for its duration."""
+        self._comm_written = False
+        c = self.comm
+        if c.mode and c.duration:
+            self.comm_until = now + c.duration / 1000.0
+        else:
+            self.comm_until = None
+        if c.mode:
+            who = f"client port {c.client_port}" if c.client_port else "every client"
+            what = f"delayed {c.delay} ms" if c.mode == CommFault.DELAY else "dropped"
+            span = f"for {c.duration} ms" if c.duration else "until cleared"
+            log.warning("communication fault: answers to %s %s, %s", who, what, span)
+        else:
+            log.info("communication fault cleared")
+
+    def _comm_expired(self, now: float) -> None:
+        if self.comm_until is not None and now >= self.comm_until:
+            self.comm_until = None
+            self.comm.mode = int(CommFault.NONE)
+            self._refill_clock = True
+            self._refill = True
+            self._dirty = True
+            log.info("communication fault over")
 
     def request_stop(self) -> None:
         if not self._stop_requested:
@@ -349,8 +508,10 @@ class Scan:
         self.last_cycle_time = spent
         if spent > self.max_cycle_time:
             self.max_cycle_time = spent
-        self.filler.fill()
-        self._refill = False
+        # the image is filled once, before it is published: the cycles run back to back
+        # in a slice of the fast clock or a Clock.Step are not seen one by one, and the
+        # filler's change sets (outputs, fault causes) accumulate until then
+        self._refill = True
         self._dirty = True
         self._load_busy += time.perf_counter() - t0
 
@@ -377,7 +538,7 @@ class Scan:
 
     def _publish(self) -> None:
         t0 = time.perf_counter()
-        if self._refill:  # writes applied since the last cycle: what they changed
+        if self._refill:  # cycles run, or writes applied, since the last publish
             self.filler.fill()
             self._refill = False
         meta = self.meta
@@ -458,19 +619,36 @@ class Scan:
                 return
             updates.append((tags[slot], value))
         before = self._pending_cycles
+        tick = self.ctl.tick
         try:
             with writing_as(batch.client):
                 self.image.write_many(updates)
         except TagAccessError as exc:
+            self._snapshot_op = None
             log.warning("%s channel: a write refused by the scan: %s", ch.name, exc)
+            # done with: the front-end drops the values it laid over the image for it
+            self.meta[Meta.APPLIED + ch.number] = batch.seq
             self._ack(ch, batch.seq, wire.Result.REFUSED)
             return
+        self.inputs.add(
+            tick, batch.client, [(t.name, v) for t, v in updates if snapshots.logged(t.folder)]
+        )
+        result = wire.Result.APPLIED
+        if self._snapshot_op is not None and not self._carry_out_snapshot(ch, batch.seq):
+            result = wire.Result.FAILED
+        if self._comm_written:
+            self._comm_update(time.monotonic())
+        if self._refill_clock:
+            self._refill_clock = False
+            self.filler.refresh(self._clock_commands)
         self.filler.refresh(t for t, _ in updates)
         self._refill = True
         self.meta[Meta.APPLIED + ch.number] = batch.seq
         self.writes_applied += 1
         self._dirty = True
-        if self._pending_cycles > before and self.state == ScanState.STOPPING:
+        if result != wire.Result.APPLIED:
+            self._ack(ch, batch.seq, result)
+        elif self._pending_cycles > before and self.state == ScanState.STOPPING:
             # a Clock.Step while the programmed stop runs: no cycles for clients any more
             self._pending_cycles = 0
             self._ack(ch, batch.seq, wire.Result.NOT_RUN)
@@ -551,6 +729,13 @@ class Scan:
     # -- housekeeping -----------------------------------------------------------------------
     def _periodic(self, now: float) -> float | None:
         timers: list[float] = []
+        if self.comm_until is not None:
+            self._comm_expired(now)
+            if self.comm_until is not None:
+                timers.append(self.comm_until)
+            elif self._refill_clock:
+                self._refill_clock = False
+                self.filler.refresh(self._clock_commands)
         if now - self._load_start >= LOAD_WINDOW:
             self.load = 100.0 * self._load_busy / (now - self._load_start)
             self._load_busy = 0.0

@@ -12,7 +12,8 @@ What changes how often decides how a slot is filled:
 - instruction outputs: only of the instances whose outputs changed in the cycle (their
   output dictionaries note it: :class:`~motion_server.instructions.base.Outputs`);
 - writable tags (operands, triggers, hand-wheel inputs, clock commands): when written
-  (:meth:`ImageFiller.refresh`), and in :meth:`ImageFiller.fill_all`.
+  (:meth:`ImageFiller.refresh`), and in :meth:`ImageFiller.fill_all`; the fault injection
+  bits also when the kernel ends a cause itself (an overtravel left behind).
 """
 
 from __future__ import annotations
@@ -22,10 +23,20 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..image.layout import ImageLayout
-from ..tagmap.image import AXIS_ARRAYS, AXIS_STATUS, Getter, TagImage, is_static
+from ..tagmap.axis_faults import INJECT_CAUSES
+from ..tagmap.image import (
+    AXIS_ARRAYS,
+    AXIS_FAULT_WORDS,
+    AXIS_STATUS,
+    Getter,
+    TagImage,
+    is_static,
+)
 from ..tagmap.model import Folder, Tag
 
 _POSITIONS = frozenset({"ActualPosition", "CommandPosition"})
+#: axis fields filled for every axis at once
+_VECTORS = frozenset({*AXIS_ARRAYS, *AXIS_STATUS, *AXIS_FAULT_WORDS})
 
 
 class ImageFiller:
@@ -42,12 +53,18 @@ class ImageFiller:
         self._each_cycle: list[tuple[int, Getter]] = []
         by_field: dict[str, tuple[list[int], list[int]]] = {}
         self._outputs: dict[str, list[tuple[str, int]]] = {}
+        #: axis index -> the slots of its fault injection bits (and their getters)
+        self._injects: dict[int, list[tuple[int, Getter]]] = {}
         for slot, tag in enumerate(layout.tags):
             get = image.getter(tag.name)
             self._all.append((slot, get))
             if is_static(tag) or (tag.writable and tag.folder == Folder.INSTRUCTIONS):
                 continue
-            if tag.folder == Folder.AXES and (tag.field in AXIS_ARRAYS or tag.field in AXIS_STATUS):
+            if tag.field in INJECT_CAUSES and tag.folder == Folder.AXES:
+                index = ctl.axis(tag.owner).index
+                self._injects.setdefault(index, []).append((slot, get))
+                continue
+            if tag.folder == Folder.AXES and tag.field in _VECTORS:
                 slots, axes = by_field.setdefault(tag.field, ([], []))
                 slots.append(slot)
                 axes.append(ctl.axis(tag.owner).index)
@@ -68,7 +85,11 @@ class ImageFiller:
                 self._arrays.append(
                     (field, np.array(slots, dtype=np.intp), np.array(axes, dtype=np.intp))
                 )
-        self._status = any(field in AXIS_STATUS for field, _, _ in self._arrays)
+        self._status = any(
+            field in AXIS_STATUS or field in AXIS_FAULT_WORDS for field, _, _ in self._arrays
+        )
+        #: the AxisFault bits the fault words were last computed from
+        self._fault_seen: np.ndarray | None = None
         #: rotary axes: positions are published wrapped (as ``Axis.wrap`` reads them)
         self._rot = ctl.rotary_idx
         self._rollover = ctl.rollover[self._rot]
@@ -76,6 +97,7 @@ class ImageFiller:
         self._each_get = [g for _, g in self._each_cycle]
         self._instances = system.instances
         self._changed = system.changed_outputs
+        self._faults = ctl.faults
 
     def fill_all(self) -> None:
         """Every slot from its getter (at start, after a restore)."""
@@ -83,13 +105,27 @@ class ImageFiller:
         for slot, get in self._all:
             values[slot] = get()
         self._changed.clear()
+        self._faults.changed.clear()
+        self._fault_seen = None
 
     def fill(self) -> None:
         """After a cycle: what may have changed."""
         values = self.values
         ctl = self.image.system.ctl
         status = ctl.status_arrays() if self._status else None
+        fault_words = status is not None and not (
+            self._fault_seen is not None and np.array_equal(self._fault_seen, status.fault)
+        )
+        if fault_words:
+            assert status is not None
+            self._fault_seen = status.fault.copy()
         for field, slots, axes in self._arrays:
+            if field in AXIS_FAULT_WORDS:
+                if fault_words:
+                    assert status is not None
+                    array = AXIS_FAULT_WORDS[field](status.fault)
+                    values[slots] = array if axes is None else array[axes]
+                continue
             if status is not None and field in AXIS_STATUS:
                 array = getattr(status, AXIS_STATUS[field])
                 values[slots] = array if axes is None else array[axes]
@@ -106,6 +142,12 @@ class ImageFiller:
             values[slots] = array if axes is None else array[axes]
         if self._each_get:
             values[self._each_slots] = [get() for get in self._each_get]
+        faults = self._faults.changed
+        if faults:
+            for index in faults:
+                for slot, get in self._injects.get(index, ()):
+                    values[slot] = get()
+            faults.clear()
         changed = self._changed
         if changed:
             instances = self._instances

@@ -43,7 +43,7 @@ from ..instructions.schema import TagType
 from .codec import decode, encode
 from .errors import AddressError, BadValueError, ReadOnlyError, TagAccessError
 from .export import FORMATS, export, json_schema, to_dict
-from .fields import ClockMode
+from .fields import ClockMode, CommFault
 from .image import Host, StandaloneHost, TagImage
 from .layout import build_tagmap, layout_problems
 from .model import (
@@ -67,6 +67,7 @@ __all__ = [
     "BadValueError",
     "Block",
     "ClockMode",
+    "CommFault",
     "Folder",
     "Host",
     "ReadOnlyError",

@@ -20,12 +20,30 @@ from ..instructions.status import LogixBit
 from ..kernel import MotionStatusBit
 from .model import Access, Tag, TagMap
 
-#: AxisFault bits (kernel ``AxisFault``; bit 2 is set by the communication watchdog)
+#: AxisFault bits (kernel ``AxisFault``; bit 2 is set by the communication watchdog, bits
+#: 4-9 by injected faults: ``kernel/faults.py``)
 AXIS_FAULT_BITS: dict[int, str] = {
     0: "PositionError",
     1: "Profile",
     2: "CommunicationWatchdog",
     3: "Numeric",
+    4: "DriveFault",
+    5: "FeedbackFault",
+    6: "PosHardOvertravel",
+    7: "NegHardOvertravel",
+    8: "PosSoftOvertravel",
+    9: "NegSoftOvertravel",
+}
+
+#: the Logix ServoFaultBits attribute (Rockwell MOTION-RM002)
+SERVO_FAULT_BITS: dict[int, str] = {
+    0: "PosSoftOvertravelFault",
+    1: "NegSoftOvertravelFault",
+    2: "PosHardOvertravelFault",
+    3: "NegHardOvertravelFault",
+    4: "FeedbackFault",
+    8: "PositionErrorFault",
+    9: "DriveFault",
 }
 
 
@@ -38,6 +56,7 @@ WORD_BITS: dict[str, dict[int, str]] = {
     "FLAGS": {int(b): b.name for b in sorted(LogixBit, key=int)},
     "MotionStatus": {int(b): _camel(b.name) for b in sorted(MotionStatusBit, key=int)},
     "AxisFault": AXIS_FAULT_BITS,
+    "ServoFault": SERVO_FAULT_BITS,
 }
 
 

@@ -25,6 +25,17 @@ class ClockMode(IntEnum):
     FAST = 3
 
 
+class CommFault(IntEnum):
+    """``Clock.CommFault``: what happens to the answers a client gets (for testing an
+    HMI's timeouts; the Modbus front-end applies it, ``Clock.CommClientPort`` says to whom)."""
+
+    NONE = 0
+    #: every answer is sent ``Clock.CommDelay`` ms late
+    DELAY = 1
+    #: requests are served, their answers never sent
+    DROP = 2
+
+
 @dataclass(frozen=True)
 class FieldSpec:
     """One field of a non-instruction owner. ``units`` fixes the units; otherwise they
@@ -161,6 +172,40 @@ def clock_fields(remote_clock: bool) -> tuple[FieldSpec, ...]:
         FieldSpec("SimTime", TagType.LREAL, units="s", description="simulated time"),
         FieldSpec("Period", TagType.REAL, units="ms", description="base period of a cycle"),
         FieldSpec("Scale", TagType.REAL, description="simulated s per real s (scaled mode)"),
+        # added after the fields above: their registers did not move
+        FieldSpec(
+            "SnapshotSave",
+            TagType.BOOL,
+            writable=w,
+            description="rising edge: save the controller state as snapshot <Snapshot> "
+            "(answered once saved; reads 0 again after)",
+        ),
+        FieldSpec(
+            "SnapshotRestore",
+            TagType.BOOL,
+            writable=w,
+            description="rising edge: restore snapshot <Snapshot> (answered once restored; "
+            "reads 0 again after)",
+        ),
+        FieldSpec("Snapshot", TagType.UDINT, writable=w, description="snapshot number (its name)"),
+        FieldSpec(
+            "CommFault",
+            TagType.INT,
+            writable=w,
+            enum=CommFault,
+            description="answers to CommClientPort (0: every client): 1 delayed by CommDelay, "
+            "2 dropped; for CommDuration ms, then 0 again",
+        ),
+        FieldSpec("CommDelay", TagType.UDINT, writable=w, units="ms"),
+        FieldSpec(
+            "CommDuration", TagType.UDINT, writable=w, units="ms", description="0: until cleared"
+        ),
+        FieldSpec(
+            "CommClientPort",
+            TagType.UDINT,
+            writable=w,
+            description="TCP port of the one client affected; 0: every client",
+        ),
     )
 
 

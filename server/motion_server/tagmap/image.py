@@ -22,11 +22,13 @@ import numpy as np
 from ..instructions import MotionSystem
 from ..instructions.schema import TagType
 from ..kernel import Axis, Controller, MotionError
+from ..kernel.faults import axis_error_id_array, servo_fault_array
 from ..kernel.group import MotionGroup
 from ..kernel.homing import Homing
 from .axis_config import CONFIG_GETTERS, MIRRORS
+from .axis_faults import FAULT_GETTERS, INJECT_CAUSES
 from .codec import Value, encoder
-from .errors import AddressError, ReadOnlyError
+from .errors import AddressError, ReadOnlyError, TagAccessError
 from .fields import ClockMode
 from .judge import Judge
 from .model import Folder, Tag, TagMap, UnknownTagError
@@ -54,16 +56,46 @@ class Host(Protocol):
     def ready(self) -> bool:
         """True while the controller runs (cycles are being run, or run on request)."""
 
+    #: ``Clock.Snapshot``, and the snapshot command bits (cleared once done)
+    snapshot_number: int
+    snapshot_save: bool
+    snapshot_restore: bool
+    #: ``Clock.CommFault``, ``CommDelay`` (ms), ``CommDuration`` (ms), ``CommClientPort``
+    comm: CommSettings
+
     def set_mode(self, mode: ClockMode) -> None: ...
 
     def request_cycles(self, count: int) -> None: ...
+
+    def snapshot(self, kind: str) -> None:
+        """A rising edge of ``Clock.SnapshotSave`` (``kind`` "save") or
+        ``SnapshotRestore`` ("restore"), of snapshot ``snapshot_number``;
+        :class:`TagAccessError` when it cannot be done."""
+
+    def comm_changed(self) -> None:
+        """A ``Clock.Comm...`` tag was written."""
 
     async def settle(self) -> None:
         """Return once the cycles requested so far have run."""
 
 
+@dataclass
+class CommSettings:
+    """The communication fault the Clock tags ask for (front-ends apply it)."""
+
+    mode: int = 0
+    delay: int = 0
+    duration: int = 0
+    client_port: int = 0
+
+
 class StandaloneHost:
-    """A host without a clock loop: manual time, requested cycles run at once."""
+    """A host without a clock loop: manual time, requested cycles run at once; no
+    snapshots (the scan keeps them)."""
+
+    snapshot_number = 0
+    snapshot_save = False
+    snapshot_restore = False
 
     def __init__(self, system: MotionSystem, version: str = "0.0.0") -> None:
         self.system = system
@@ -79,9 +111,16 @@ class StandaloneHost:
         self.queued_writes = 0
         self.restarts = 0
         self.ready = True
+        self.comm = CommSettings()
 
     def set_mode(self, mode: ClockMode) -> None:
         self.mode = mode
+
+    def snapshot(self, kind: str) -> None:
+        raise TagAccessError("snapshots are kept by the scan: this host has none")
+
+    def comm_changed(self) -> None:
+        return None
 
     def request_cycles(self, count: int) -> None:
         for _ in range(count):
@@ -111,6 +150,13 @@ class _Slot:
 
 
 _UINT32 = 0xFFFFFFFF
+#: Clock communication-fault field -> attribute of ``CommSettings``
+_COMM = {
+    "CommFault": "mode",
+    "CommDelay": "delay",
+    "CommDuration": "duration",
+    "CommClientPort": "client_port",
+}
 
 AXIS_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "Number": lambda ax: ax.number,
@@ -127,6 +173,7 @@ AXIS_GETTERS: dict[str, Callable[[Axis], Value]] = {
     "PositionError": lambda ax: ax.position_error,
     "FeedbackInput": lambda ax: ax.feedback_input,
     **CONFIG_GETTERS,
+    **FAULT_GETTERS,
 }
 AXIS_GETTERS.update({mirror: AXIS_GETTERS[source] for mirror, source in MIRRORS.items()})
 
@@ -178,6 +225,13 @@ AXIS_STATUS: dict[str, str] = {
     "PLCopenState": "plcopen_state",
     "MotionStatus": "motion_status",
     "AxisFault": "fault",
+}
+
+#: the axis fault words, computed for every axis at once from the AxisFault bits (the
+#: ``fault`` array of ``Controller.status_arrays()``); equal to ``AXIS_GETTERS``
+AXIS_FAULT_WORDS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "ServoFault": servo_fault_array,
+    "AxisErrorID": axis_error_id_array,
 }
 
 #: fields whose value never changes while the server runs (configuration)
@@ -419,14 +473,20 @@ class TagImage:
             raise KeyError(f"{tag.name} is read-only")
 
     def _bind_axis(self, tag: Tag) -> None:
-        ax = self.system.ctl.axis(tag.owner)
+        ctl = self.system.ctl
+        ax = ctl.axis(tag.owner)
         if tag.field in SENSOR_FIELDS:
-            self._get[tag.name] = SENSOR_FIELDS[tag.field](self.system.ctl.homing, ax)
+            self._get[tag.name] = SENSOR_FIELDS[tag.field](ctl.homing, ax)
+            return
+        cause = INJECT_CAUSES.get(tag.field)
+        if cause is not None:
+            faults = ctl.faults
+            self._get[tag.name] = lambda: faults.holds(ax.index, cause)
+            self._set[tag.name] = lambda value: ctl.inject(ax, cause, bool(value))
             return
         get = AXIS_GETTERS[tag.field]
         self._get[tag.name] = lambda: get(ax)
         if tag.field == "FeedbackInput":
-            ctl = self.system.ctl
             self._set[tag.name] = lambda value: ctl.set_feedback_input(ax, float(value))
 
     def _bind_group(self, tag: Tag) -> None:
@@ -480,6 +540,15 @@ class TagImage:
             "Period": lambda: ctl.period * 1000.0,
             "Scale": lambda: host.scale,
         }
+        getters |= {
+            "Snapshot": lambda: host.snapshot_number,
+            "SnapshotSave": lambda: host.snapshot_save,
+            "SnapshotRestore": lambda: host.snapshot_restore,
+            "CommFault": lambda: host.comm.mode,
+            "CommDelay": lambda: host.comm.delay,
+            "CommDuration": lambda: host.comm.duration,
+            "CommClientPort": lambda: host.comm.client_port,
+        }
         self._get[tag.name] = getters[tag.field]
         if not tag.writable:
             return
@@ -493,6 +562,35 @@ class TagImage:
                 self.step_cycles = int(value)
 
             self._set[tag.name] = set_cycles
+        elif tag.field == "Snapshot":
+
+            def set_number(value: Value) -> None:
+                host.snapshot_number = int(value)
+
+            self._set[tag.name] = set_number
+        elif tag.field in ("SnapshotSave", "SnapshotRestore"):
+            self._set[tag.name] = self._snapshot_setter(tag.field)
+        elif tag.field in _COMM:
+            attr = _COMM[tag.field]
+
+            def set_comm(value: Value) -> None:
+                setattr(host.comm, attr, int(value))
+                host.comm_changed()
+
+            self._set[tag.name] = set_comm
+
+    def _snapshot_setter(self, field: str) -> Setter:
+        host = self.host
+        kind = "save" if field == "SnapshotSave" else "restore"
+        attr = f"snapshot_{kind}"
+
+        def set_bit(value: Value) -> None:
+            rising = bool(value) and not getattr(host, attr)
+            if rising:
+                host.snapshot(kind)  # TagAccessError: refused, the bit stays low
+            setattr(host, attr, bool(value))
+
+        return set_bit
 
     def _set_step(self, value: Value) -> None:
         rising = bool(value) and not self.step

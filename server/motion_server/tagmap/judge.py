@@ -20,7 +20,7 @@ from typing import Any
 
 from ..instructions.schema import Quantity, TagType
 from .errors import BadValueError
-from .fields import ClockMode
+from .fields import ClockMode, CommFault
 from .model import Folder, Tag, TagMap
 
 #: the largest magnitude, in encoder counts (or plain units), a client may write
@@ -89,4 +89,10 @@ class Judge:
             except ValueError:
                 modes = ", ".join(f"{int(m)} {m.name.lower()}" for m in ClockMode)
                 raise BadValueError(f"Clock.Mode {v}: expected {modes}") from None
+        if tag.owner == "Clock" and tag.field == "CommFault":
+            try:
+                return CommFault(int(v))
+            except ValueError:
+                kinds = ", ".join(f"{int(m)} {m.name.lower()}" for m in CommFault)
+                raise BadValueError(f"Clock.CommFault {v}: expected {kinds}") from None
         return v

@@ -11,7 +11,8 @@ groups         ``[modbus] group_base``    100 + 20·k (k-th group of the site ma
 watchdogs      ``[modbus] safety_base``   900 + 20·k (k-th ``[[watchdogs]]`` entry)
 axes           ``[modbus] axis_base``     1000 + 50·k (k-th axis of the site map)
 axis config    ``[modbus] axis_config_    3000 + 50·k: the k-th axis's configuration
-               base``                     (read-only), then its REAL mirrors
+               base``                     (read-only), its REAL mirrors, its fault
+                                          words and fault injection bits
 instructions   ``[modbus] instruction_    5000 + 100·k (k-th declared instance)
                base``
 every_type     ``[modbus] every_type_     20000 + 100·(code − 1): ``<TYPE>_1`` at a block
@@ -47,6 +48,7 @@ from ..instructions import Instruction, Kind, Operand, Quantity, StatusField, Ta
 from ..instructions.registry import type_code
 from ..kernel.config import DEFAULT_PERIOD, AxisConfig
 from .axis_config import CONFIG_FIELDS, HOMING_FIELDS, mirror_fields
+from .axis_faults import fault_fields
 from .fields import (
     AXIS_FIELDS,
     DIAGNOSTICS_FIELDS,
@@ -452,6 +454,7 @@ def plan_tagmap(site: SiteMap) -> tuple[TagMap, Problems]:
             if mb.real_mirrors:
                 items += _spec_items(mirror_fields(AXIS_FIELDS), cfg, period)
             items += _spec_items(HOMING_FIELDS, cfg, period, static=True)
+            items += _spec_items(fault_fields(cfg.type), cfg, period)
             block = _place(a.name, Folder.AXES, base, AXIS_STRIDE, items, part="configuration")
             base = add(block, ("modbus", "axis_config_base") if ai == 0 else ("axes", ai))
 

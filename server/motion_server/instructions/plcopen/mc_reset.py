@@ -2,12 +2,14 @@
 
 The kernel clears the faults at once; Done follows in the same cycle, once the axis is no
 longer faulted. The drive stays off after a fault: MC_Power with Enable high switches it
-on again. On an axis without faults MC_Reset is done with no effect.
+on again. On an axis without faults MC_Reset is done with no effect. A fault whose cause
+is still present (an injected drive fault held: ``kernel/faults.py``) comes back at once:
+Error, ErrorID 20 (axis faulted).
 """
 
 from __future__ import annotations
 
-from ...kernel import AxisState
+from ...kernel import AxisState, ErrorCode, MotionError
 from ..base import BlockEvent, PLCopenBlock
 from ..operands import AXIS
 from ..registry import register
@@ -27,7 +29,10 @@ class MC_Reset(PLCopenBlock):
     )
 
     def execute(self) -> None:
-        self.ctl.fault_reset(self.axis())
+        ax = self.axis()
+        self.ctl.fault_reset(ax)
+        if ax.fault:
+            raise MotionError(ErrorCode.AXIS_FAULTED, f"{ax.name}: the fault's cause remains")
         self.fire(BlockEvent.START)
 
     def poll(self) -> None:
