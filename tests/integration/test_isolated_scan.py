@@ -248,6 +248,7 @@ async def test_a_dead_scan_stops_everything_and_leaves_the_retain_file(
     with Served(site_dir, "site.toml", opcua=False) as srv:  # a clean run writes the retain file
         await jog(client_map, srv.modbus_port)
     retain_file = site_dir / "retain.json"
+    assert retain_file.exists(), f"exit {srv.proc.returncode}\n{srv.log()[-3000:]}"
     saved = retain_file.read_bytes()
     with Served(site_dir, "site.toml", opcua=False) as srv:
         await jog(client_map, srv.modbus_port)  # Axis1 moves on from the retained position
