@@ -324,6 +324,9 @@ class Supervisor:
                     del self._due[role]
                     self._start_frontend(role)
         code = scan.proc.wait()
+        # the scan's last packets (the retained state, STOPPED) may still be unread: it
+        # can exit between the poll above and the check of its status
+        self._on_control()
         if self._scan_stopped or (self._stopping and code == 0):
             self._stop_frontends()
             log.info("stopped")
@@ -414,7 +417,8 @@ class Supervisor:
             except OSError:
                 data = b""
             if not data:
-                self._selector.unregister(self.control)
+                with contextlib.suppress(KeyError, ValueError):  # read to the end before
+                    self._selector.unregister(self.control)
                 return kinds
             try:
                 kind, flags, _ = wire.header(data)

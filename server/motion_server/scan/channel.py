@@ -93,6 +93,26 @@ class Channel:
                 return
             self.outbox.popleft()
 
+    def drain(self, timeout: float) -> bool:
+        """Send what the outbox still holds, waiting up to ``timeout`` seconds for the
+        peer (the scan's last words before it exits: the retained state and STOPPED
+        on the control channel, kept when the socket's buffer was full). True when
+        nothing is left."""
+        if self.closed or not self.outbox:
+            return not self.outbox
+        try:
+            self.sock.settimeout(timeout)
+            while self.outbox:
+                self.sock.send(self.outbox[0])
+                self.outbox.popleft()
+        except OSError as exc:  # TimeoutError included
+            log.warning("%s channel: %d packets not taken: %s", self.name, len(self.outbox), exc)
+            return False
+        finally:
+            with contextlib.suppress(OSError):
+                self.sock.setblocking(False)
+        return True
+
     def reset(self) -> None:
         """Forget the peer: nothing more is accepted until its next HELLO (a front-end
         that was restarted, or one that sent something it should not have)."""

@@ -37,6 +37,8 @@ log = logging.getLogger("motion_server.scan")
 
 #: the scan's scheduling priority (nice value) when the system allows raising it
 SCAN_NICE = -10
+#: seconds the scan waits, when it ends, for the supervisor to take what it still has to send
+DRAIN_TIMEOUT = 5.0
 #: the scan's real-time priority (SCHED_FIFO, 1-99) while the clock runs in real time
 SCAN_RT_PRIORITY = 10
 
@@ -141,5 +143,8 @@ def main() -> int:
                     pass
             except BlockingIOError:
                 pass
+    # what the supervisor has not taken yet (the retained state, STOPPED): before exiting
+    if control is not None:
+        control.drain(DRAIN_TIMEOUT)
     log.info("scan stopped")
     return 0
