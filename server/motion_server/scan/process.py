@@ -30,7 +30,7 @@ from ..launch import LaunchSpec, setup_logging
 from ..safety.retain import RetainError
 from ..tagmap.fields import ClockMode
 from .channel import CONTROL, Channel
-from .core import Scan
+from .core import LOAD_WINDOW, Scan
 
 log = logging.getLogger("motion_server.scan")
 
@@ -39,6 +39,8 @@ log = logging.getLogger("motion_server.scan")
 SCAN_NICE = -10
 #: seconds the scan waits, when it ends, for the supervisor to take what it still has to send
 DRAIN_TIMEOUT = 5.0
+#: the scan's load (% of each second busy) beyond which it leaves the real-time policy
+OVERLOAD = 90.0
 #: the scan's real-time priority (SCHED_FIFO, 1-99) while the clock runs in real time
 SCAN_RT_PRIORITY = 10
 
@@ -58,6 +60,8 @@ class _Priority:
 
     def __init__(self) -> None:
         self.realtime: bool | None = None
+        self.demoted = False
+        self._since = 0.0
         try:
             os.setpriority(os.PRIO_PROCESS, 0, SCAN_NICE)
         except OSError as exc:
@@ -65,11 +69,25 @@ class _Priority:
         else:
             log.debug("scan priority raised (nice %d)", SCAN_NICE)
 
-    def follow(self, mode: ClockMode) -> None:
-        realtime = mode in (ClockMode.REALTIME, ClockMode.SCALED)
+    def follow(self, mode: ClockMode, load: float) -> None:
+        """Apply the policy for ``mode``. ``load``: the share of the last second the scan
+        was busy (%). A scan busy beyond :data:`OVERLOAD` % cannot keep its period; as a
+        real-time task it would leave the front-ends (on a machine of one core) almost
+        no time to answer, so it goes back to the ordinary policy for good, said once."""
+        settled = self.realtime and time.monotonic() - self._since > 2 * LOAD_WINDOW
+        if load > OVERLOAD and settled and not self.demoted:
+            self.demoted = True
+            log.warning(
+                "scan busy %.0f %% of the time (the cycle takes about as long as its "
+                "period): it leaves the real-time scheduling policy so that clients are "
+                "still served",
+                load,
+            )
+        realtime = mode in (ClockMode.REALTIME, ClockMode.SCALED) and not self.demoted
         if realtime == self.realtime:
             return
         self.realtime = realtime
+        self._since = time.monotonic()  # the load of the mode before is not this one's
         policy, priority = (os.SCHED_FIFO, SCAN_RT_PRIORITY) if realtime else (os.SCHED_OTHER, 0)
         try:
             os.sched_setscheduler(0, policy, os.sched_param(priority))
@@ -117,7 +135,7 @@ def main() -> int:
     for ch in channels.values():
         scan.attach(ch)
     priority = _Priority()
-    priority.follow(scan.mode)
+    priority.follow(scan.mode, scan.load)
     # the start-up heap (the whole system) is never scanned by the collector again
     gc.collect()
     gc.freeze()
@@ -126,7 +144,7 @@ def main() -> int:
         if stop[0]:
             scan.request_stop()
         wake = scan.service(time.monotonic())
-        priority.follow(scan.mode)
+        priority.follow(scan.mode, scan.load)
         if scan.finished:
             break
         fds: list[int] = [wake_r, *(ch.fileno() for ch in scan.channels.values())]
