@@ -55,8 +55,8 @@ def run(name: str, tmp_path: Path, opcua: bool = False) -> Trace:
     return Trace.read_csv(tmp_path / f"{name}.csv")
 
 
-def test_examples_01_to_13_are_all_here() -> None:
-    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 14)]
+def test_examples_01_to_14_are_all_here() -> None:
+    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 15)]
 
 
 def test_01_power_and_jog(tmp_path: Path) -> None:
@@ -287,3 +287,23 @@ def test_13_read_blocks_and_the_lag_limit(tmp_path: Path) -> None:
     first = stop.index(1.0)
     assert limit[first] == 0.5 and err[first] == 1.0
     assert err[-1] == 0.0 and not stop[-1]
+
+
+def test_14_superimposed_on_a_gear_halt_then_additive(tmp_path: Path) -> None:
+    t = run("14_mc_movesuperimposed_and_additive", tmp_path)
+    state = t.column("PSlave.PLCopenState")
+    v = t.column("PSlave.CommandVelocity")
+    master = t.column("PMaster.CommandVelocity")
+    covered = t.column("Super_PSlave.CoveredDistance")
+    geared = [k for k, s in enumerate(state) if s == 8]  # SynchronizedMotion
+    # the superimposed move adds at most its VelocityDiff (50 mm/s) to the gear, both ways
+    extra = [v[k] - master[k] for k in geared]
+    assert max(extra) == pytest.approx(50.0, abs=1e-9)
+    assert min(extra) == pytest.approx(-50.0, abs=1e-9)
+    assert max(covered) == pytest.approx(10.0, abs=1e-9)
+    # MC_Halt brought the slave to rest while the master ran on
+    rest = state.index(2.0, geared[-1])
+    assert v[rest] == 0.0 and master[rest] == pytest.approx(100.0, abs=1e-9)
+    # MC_MoveAdditive: the MC_MoveAbsolute target (100 mm) + 25 mm, exactly
+    assert t.column("PSlave.CommandPosition")[-1] == 125.0
+    assert state[-1] == 2.0 and v[-1] == 0.0

@@ -1,7 +1,8 @@
 """Every motion state in the fast lanes gives the reference's motion bit for bit: random
-mixes of starts, stops, reversals, catch-ups and gears (trapezoidal profiles, stop ramps
-of every kind, clutch and PLCopen catch-up ramps, real and fraction gears on command and
-actual positions), compared with ``Controller(lanes=False)`` after every cycle."""
+mixes of starts, stops, reversals, catch-ups, gears, additive and superimposed moves
+(trapezoidal profiles, stop ramps of every kind, clutch and PLCopen catch-up ramps, real
+and fraction gears on command and actual positions), compared with
+``Controller(lanes=False)`` after every cycle."""
 
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ OVERRIDES: dict[str, st.SearchStrategy[object]] = {
     "Profile": st.sampled_from([0, 0, 0, 1]),
     "Position": st.floats(-150.0, 150.0),
     "Distance": st.floats(-150.0, 150.0),
+    "VelocityDiff": st.sampled_from([10.0, 50.0, 100.0]) | st.floats(1.0, 150.0),
     "Ratio": st.sampled_from([0.5, 1.0, -2.0, 0.3, 1.7]),
     "RatioNumerator": st.sampled_from([1.0, -1.0, 2.0, 0.5]),
     "RatioDenominator": st.sampled_from([1.0, 2.0, 3.0]),
@@ -52,6 +54,7 @@ OVERRIDES: dict[str, st.SearchStrategy[object]] = {
 TYPES = (
     "MAJ", "MAJ", "MAJ", "MAM", "MAM", "MAS", "MGS", "MAG", "MAG", "MCD", "MSO",
     "MC_GearIn", "MC_Halt", "MC_Stop", "MC_MoveVelocity", "MC_MoveAbsolute", "MC_MoveRelative",
+    "MC_MoveAdditive", "MC_MoveSuperimposed",
 )  # fmt: skip
 
 

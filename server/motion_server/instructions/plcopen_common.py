@@ -62,11 +62,12 @@ class MotionBlock(PLCopenBlock):
                 f"{ax.name} is stopping: motion commands are refused",
             )
 
-    def limits(self, velocity: float | None = None) -> Limits:
+    def limits(self, velocity: float | None = None, velocity_name: str = "Velocity") -> Limits:
         """Velocity (or ``velocity``), Acceleration, Deceleration and Jerk as validated
         profile limits, within the axis's maxima: a command beyond one is refused (Error,
         ErrorID of the operand out of range), as the PLCopen vendors' blocks check their
-        inputs before the job reaches the motion controller."""
+        inputs before the job reaches the motion controller. ``velocity_name`` names the
+        operand a velocity beyond the maximum is reported on."""
         limits = Limits(
             float(self.op["Velocity"]) if velocity is None else velocity,
             float(self.op["Acceleration"]),
@@ -75,7 +76,7 @@ class MotionBlock(PLCopenBlock):
         ).validated()
         cfg = self.axis().config
         for name, value, maximum, what in (
-            ("Velocity", limits.velocity, cfg.max_velocity, "max_velocity"),
+            (velocity_name, limits.velocity, cfg.max_velocity, "max_velocity"),
             ("Acceleration", limits.acceleration, cfg.max_acceleration, "max_acceleration"),
             ("Deceleration", limits.deceleration, cfg.max_deceleration, "max_deceleration"),
             ("Jerk", limits.jerk, cfg.max_jerk or math.inf, "max_jerk"),

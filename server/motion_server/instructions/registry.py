@@ -40,6 +40,8 @@ TYPE_CODES: dict[str, int] = {
     "MC_GearOut": 29,
     "MC_GearInPos": 30,
     "MC_CombineAxes": 31,
+    "MC_MoveAdditive": 40,
+    "MC_MoveSuperimposed": 41,
     # homing, redefined positions, status and parameter blocks: 50-69
     "MAH": 50,
     "MRP": 51,
