@@ -89,8 +89,10 @@ def handshake(tagmap: ClientMap, instance: str, until: Sequence[str] = ()) -> Ha
             raise ClientError(f"{instance} has no output {', '.join(missing)}")
         success = tuple(tags[u] for u in until)
     elif trig.field == "Enable":
-        # MC_Power: Status; the Enable-style read blocks (MC_ReadStatus, ...): Valid
-        success = (tags["Status"] if "Status" in tags else tags["Valid"],)
+        # MC_Power: Status; MC_SetOverride: Enabled; the Enable-style read blocks
+        # (MC_ReadStatus, ...): Valid
+        field = next(f for f in ("Status", "Enabled", "Valid") if f in tags)
+        success = (tags[field],)
     else:
         success = tuple(tags[s] for s in SUCCESS if s in tags)[:1]
     return Handshake(

@@ -55,8 +55,8 @@ def run(name: str, tmp_path: Path, opcua: bool = False) -> Trace:
     return Trace.read_csv(tmp_path / f"{name}.csv")
 
 
-def test_examples_01_to_14_are_all_here() -> None:
-    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 15)]
+def test_examples_01_to_15_are_all_here() -> None:
+    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 16)]
 
 
 def test_01_power_and_jog(tmp_path: Path) -> None:
@@ -307,3 +307,25 @@ def test_14_superimposed_on_a_gear_halt_then_additive(tmp_path: Path) -> None:
     # MC_MoveAdditive: the MC_MoveAbsolute target (100 mm) + 25 mm, exactly
     assert t.column("PSlave.CommandPosition")[-1] == 125.0
     assert state[-1] == 2.0 and v[-1] == 0.0
+
+
+def test_15_override_scales_the_running_jog(tmp_path: Path) -> None:
+    t = run("15_mc_setoverride_jog", tmp_path)
+    v = t.column("PSlave.CommandVelocity")
+    state = t.column("PSlave.PLCopenState")
+    vel_f = t.column("Override_PSlave.VelFactor")
+    acc_f = t.column("Override_PSlave.AccFactor")
+    on = t.column("Override_PSlave.Enabled")
+    enabled = [k for k in range(len(t)) if on[k]]
+    # the override never changes the state: ContinuousMotion throughout
+    assert enabled and all(state[k] == 7.0 for k in enabled)
+    # VelFactor 0.5 of 100 mm/s: a plateau at 50; VelFactor 0: at rest, still in motion
+    half = [v[k] for k in enabled if vel_f[k] == 0.5]
+    assert half[-1] == pytest.approx(50.0, abs=1e-9) and min(half) >= 50.0 - 1e-9
+    assert any(v[k] == 0.0 for k in enabled if vel_f[k] == 0.0)
+    # back up with AccFactor 0.5: 500 mm/s^2, at most 5 mm/s per 10 ms sample
+    up = [k for k in enabled if vel_f[k] == 1.0 and acc_f[k] == 0.5]
+    steps = [v[k] - v[k - 1] for k in up if k > 0]
+    assert max(steps) <= 500.0 * 5 * DT + 1e-9
+    assert v[up[-1]] == pytest.approx(100.0, abs=1e-9)
+    assert v[-1] == 0.0

@@ -1,8 +1,8 @@
 """Every motion state in the fast lanes gives the reference's motion bit for bit: random
-mixes of starts, stops, reversals, catch-ups, gears, additive and superimposed moves
-(trapezoidal profiles, stop ramps of every kind, clutch and PLCopen catch-up ramps, real
-and fraction gears on command and actual positions), compared with
-``Controller(lanes=False)`` after every cycle."""
+mixes of starts, stops, reversals, catch-ups, gears, additive and superimposed moves and
+overrides re-planning them (trapezoidal profiles, stop ramps of every kind, clutch and
+PLCopen catch-up ramps, real and fraction gears on command and actual positions),
+compared with ``Controller(lanes=False)`` after every cycle."""
 
 from __future__ import annotations
 
@@ -49,12 +49,15 @@ OVERRIDES: dict[str, st.SearchStrategy[object]] = {
     "Merge": st.sampled_from([0, 0, 1]),
     "BufferMode": st.sampled_from([0, 0, 1]),
     "MoveType": st.sampled_from([0, 1]),
+    "VelFactor": st.sampled_from([0.0, 0.25, 0.5, 1.0]) | st.floats(0.0, 1.0),
+    "AccFactor": st.sampled_from([0.5, 1.0, 0.1]) | st.floats(0.01, 1.0),
+    "JerkFactor": st.sampled_from([1.0, 0.5]),
 }
 
 TYPES = (
     "MAJ", "MAJ", "MAJ", "MAM", "MAM", "MAS", "MGS", "MAG", "MAG", "MCD", "MSO",
     "MC_GearIn", "MC_Halt", "MC_Stop", "MC_MoveVelocity", "MC_MoveAbsolute", "MC_MoveRelative",
-    "MC_MoveAdditive", "MC_MoveSuperimposed",
+    "MC_MoveAdditive", "MC_MoveSuperimposed", "MC_SetOverride", "MC_SetOverride",
 )  # fmt: skip
 
 

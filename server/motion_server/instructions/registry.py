@@ -42,6 +42,7 @@ TYPE_CODES: dict[str, int] = {
     "MC_CombineAxes": 31,
     "MC_MoveAdditive": 40,
     "MC_MoveSuperimposed": 41,
+    "MC_SetOverride": 42,
     # homing, redefined positions, status and parameter blocks: 50-69
     "MAH": 50,
     "MRP": 51,

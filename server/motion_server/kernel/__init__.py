@@ -3,9 +3,10 @@
 ``Controller.step()`` advances one cycle; same inputs give bit-identical traces.
 
 Imports point one way, from the leaves up: ``enums``, ``errors``, ``config``, ``limits``
--> ``trapezoid``, ``profiles``, ``state``, ``sensors`` -> ``processes`` -> ``axis`` ->
-``gearing``, ``gear_in_pos``, ``master_driven``, ``group`` -> ``lanes`` -> ``drive``,
-``motion`` -> ``redefine`` -> ``homing``, ``power`` -> ``mdac_links`` -> ``controller``.
+-> ``trapezoid``, ``profiles``, ``state``, ``sensors`` -> ``processes`` -> ``override``
+-> ``axis`` -> ``gearing``, ``gear_in_pos``, ``master_driven``, ``group`` -> ``lanes``
+-> ``drive``, ``motion`` -> ``redefine`` -> ``homing``, ``power`` -> ``mdac_links``
+-> ``controller``.
 """
 
 from .axis import Axis
@@ -30,6 +31,7 @@ from .enums import (
 )
 from .errors import ErrorCode, MotionError, TransitionError, error_text
 from .group import GroupState, GroupStop, MotionGroup
+from .override import Override
 from .power import PowerEvent
 from .processes import JogProcess, MoveProcess, Pending, Process, StopRamp
 from .profiles import Limits, Profile
@@ -59,6 +61,7 @@ __all__ = [
     "MotionGroup",
     "MotionStatusBit",
     "MoveProcess",
+    "Override",
     "PLCopenState",
     "Pending",
     "PowerEvent",

@@ -24,6 +24,7 @@ from .enums import (
     ProcessKind,
     ProgrammedStopMode,
 )
+from .override import NEUTRAL, Override
 from .processes import Pending, Process
 from .state import AxisArrays
 
@@ -65,6 +66,8 @@ class Axis:
         #: (:mod:`.redefine`; the homing sensors sit in raw coordinates, :mod:`.sensors`)
         self.position_offset = 0.0
         self._homing_armed: object | None = None
+        #: factors scaling the axis's moves and jogs (MC_SetOverride, :mod:`.override`)
+        self.override: Override = NEUTRAL
 
     # -- status attributes (each keeps the shared status arrays current) ---------------------
     @property

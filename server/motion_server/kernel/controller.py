@@ -49,6 +49,7 @@ from .homing import HomeHandle, HomeProcess, HomeRequest, Homing, PassiveHoming,
 from .limits import group_stop_deceleration
 from .mdac_links import MasterDrivenControl
 from .motion import InternalError, Motion
+from .override import Override
 from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
@@ -496,6 +497,11 @@ class Controller:
         """Start a process built by ``make(v, a)`` (see :meth:`Motion.start
         <.motion.Motion.start>`)."""
         return self.motion.start(ax, make, replace, reason)
+
+    def set_override(self, ax: Axis, factors: Override) -> None:
+        """Scale the axis's moves and jogs (see :meth:`Motion.set_override
+        <.motion.Motion.set_override>`)."""
+        self.motion.set_override(ax, factors)
 
     def buffer(self, ax: Axis, make: ProcessFactory, owner: object = None) -> Pending:
         """Queue ``make`` to start when the axis's active motion is done (PLCopen buffered)."""

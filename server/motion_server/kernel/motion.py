@@ -18,6 +18,7 @@ from .enums import AbortReason, ProcessKind, ProcessState
 from .errors import ErrorCode, MotionError
 from .group import MotionGroup
 from .lanes import GroupLanes
+from .override import Override, apply, overridable
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .state import AxisArrays
 
@@ -169,6 +170,8 @@ class Motion:
         p = make(
             sum((q.velocity for q in matching), 0.0), sum((q.acceleration for q in matching), 0.0)
         )
+        if not ax.override.neutral and overridable(p):
+            apply(p, ax.override)  # started under an override: scaled from the start
         self.retire(ax, replace, reason)
         if replace is None and ax.buffered is not None:
             ax.buffered.cancelled = True
@@ -191,6 +194,29 @@ class Motion:
         else:
             ax.buffered = pend
         return pend
+
+    def set_override(self, ax: Axis, factors: Override) -> None:
+        """Set the axis's override (:mod:`.override`): its running moves and jogs are
+        re-planned from where they are with the new factors; the same factors again
+        change nothing. If a process cannot be planned with them, those already
+        re-planned go back to the old factors and MotionError is raised."""
+        old = ax.override
+        if factors == old:
+            return
+        self.settle(ax)
+        done: list[Process] = []
+        try:
+            for p in ax.processes:
+                if overridable(p):
+                    apply(p, factors)
+                    done.append(p)
+        except MotionError:
+            for p in done:
+                apply(p, old)
+            raise
+        ax.override = factors
+        ax.motion_changed()
+        self.offer(ax)
 
     def abort(self, ax: Axis, reason: AbortReason) -> None:
         """End every process on the axis at once (no ramp): disable, shutdown, fault."""

@@ -137,6 +137,9 @@ class ProfiledProcess(Process):
         self.profile: OnlineProfile = profile_for(self.limits, dt, velocity, acceleration)
         self.velocity = velocity
         self.acceleration = acceleration
+        #: while an override scales the process (:mod:`.override`): its programmed limits
+        #: and its programmed target (a jog: its velocity; a move: 1 running, 0 paused)
+        self.override_nominal: tuple[Limits, float] | None = None
 
     def step(self, ctx: StepContext, dt: float) -> None:
         self.profile.step()
@@ -159,6 +162,8 @@ class ProfiledProcess(Process):
         if self.lane is not None:
             self.lane.evict(self)
         self.offer_pending = True
+        # new programmed dynamics (MCD): an override applies again at its next change
+        self.override_nominal = None
         saved = dict(vars(self))
         try:
             self.limits = limits.validated()
