@@ -11,7 +11,7 @@ fails while moving hands its velocity to a stop ramp.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
 
 from .axis import Axis
 from .enums import AbortReason, ProcessKind, ProcessState
@@ -232,32 +232,27 @@ class Motion:
         their velocity to rest at its maximum deceleration (trapezoidal, StoppingStatus
         set), keeping its power state; its other processes go on. An axis whose drive is
         off simply coasts."""
-        hit = [p for p in processes if p.active and p in ax.processes]
-        if not hit:
-            return
-        self.settle(ax)
-        v = sum(p.velocity for p in hit)
-        for p in hit:
-            p.abort(reason)
-            ax.base += p.position
-        ax.processes = [p for p in ax.processes if p.active]
-        self.coupling_changed()
-        if self.s.drive_on[ax.index] and v != 0.0:
-            ax.processes.append(StopRamp(ax.period, ax.config.max_deceleration, 0.0, v))
-        ax.motion_changed()
-        self.offer(ax)
+        self._end_in_ramp(ax, processes, lambda p: p.abort(reason))
 
     def fail(self, ax: Axis, processes: Collection[Process], code: int) -> None:
         """End ``processes`` of ``ax`` with the error ``code`` (their owners report it);
         the axis ramps their velocity to rest at its maximum deceleration, as when a
         process fails in its step."""
+        self._end_in_ramp(ax, processes, lambda p: p.fail(code))
+
+    def _end_in_ramp(
+        self, ax: Axis, processes: Collection[Process], end: Callable[[Process], None]
+    ) -> None:
+        """End ``processes`` of ``ax`` still running with ``end`` (abort or fail), fold
+        their positions into the base and ramp their summed velocity to rest at the
+        axis's maximum deceleration (the drive on), its other processes going on."""
         hit = [p for p in processes if p.active and p in ax.processes]
         if not hit:
             return
         self.settle(ax)
         v = sum(p.velocity for p in hit)
         for p in hit:
-            p.fail(code)
+            end(p)
             ax.base += p.position
         ax.processes = [p for p in ax.processes if p.active]
         self.coupling_changed()
