@@ -43,6 +43,41 @@ class Outputs(dict[str, Any]):
 
 _UNSET = object()
 
+
+class Inputs(dict[str, Any]):
+    """An instance's operands as clients write them. A write adds the instance to
+    ``woken`` (the set its system gives it): an instance that sleeps is scanned again
+    (see :meth:`Instruction.asleep`)."""
+
+    __slots__ = ("owner", "woken")
+
+    def __init__(self, owner: Instruction, values: dict[str, Any]) -> None:
+        super().__init__(values)
+        self.owner = owner
+        self.woken: set[Instruction] | None = None
+
+    def _wake(self) -> None:
+        woken = self.woken
+        if woken is not None:
+            woken.add(self.owner)
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        dict.__setitem__(self, key, value)
+        self._wake()
+
+    def update(self, *args: Any, **kwargs: Any) -> None:
+        dict.update(self, *args, **kwargs)
+        self._wake()
+
+    def setdefault(self, key: str, default: Any = None) -> Any:
+        self._wake()
+        return dict.setdefault(self, key, default)
+
+    def __ior__(self, other: Any) -> Inputs:  # type: ignore[override,misc]
+        self.update(other)
+        return self
+
+
 #: (selector operand, the selector values that make an operand count)
 Gate = tuple[str, frozenset[int]]
 
@@ -66,11 +101,14 @@ class Instruction:
     #: of its gates is open (its selector holds one of the gate's values); operands not
     #: named always count
     GATES: ClassVar[dict[str, tuple[Gate, ...]]] = {}
+    #: outputs that follow the power state of an axis even while the instance is idle:
+    #: its system wakes it whenever an axis changes state (see :meth:`asleep`)
+    FOLLOWS_AXIS_STATE: ClassVar[bool] = False
 
     def __init__(self, name: str, ctl: Controller, defaults: dict[str, Any] | None = None) -> None:
         self.name = name
         self.ctl = ctl
-        self.inputs: dict[str, Any] = {op.name: coerce(op.type, op.default) for op in self.OPERANDS}
+        self.inputs = Inputs(self, {op.name: coerce(op.type, op.default) for op in self.OPERANDS})
         self.inputs[self.TRIGGER] = False
         for key, value in (defaults or {}).items():
             op = self.operand(key)
@@ -200,6 +238,14 @@ class Instruction:
     def poll(self) -> None:
         """Follow the processes this instance started (after the kernel step)."""
 
+    def asleep(self) -> bool:
+        """True when, until an operand is written, neither :meth:`scan` nor :meth:`update`
+        would change anything: no trigger edge to come, no process to follow, no output
+        still to show. Its system then stops calling them (an idle instance costs
+        nothing) and calls them again after a write to :attr:`inputs`. Asked after
+        :meth:`update`; the default (False) scans every cycle."""
+        return False
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
 
@@ -290,6 +336,13 @@ class LogixInstruction(Instruction):
         out = self.outputs
         if out["IP"] or out["AC"]:
             self.poll()
+
+    def asleep(self) -> bool:
+        # scan returns at once (rung false, EN clear) and update has no process to poll
+        out = self.outputs
+        return not (
+            self.inputs[self.TRIGGER] or self._last_trigger or out["EN"] or out["IP"] or out["AC"]
+        )
 
 
 # -- PLCopen -------------------------------------------------------------------------------
@@ -391,6 +444,12 @@ class PLCopenBlock(Instruction):
             self._shown = True  # published at the end of this cycle: visible at least once
         self._publish()
 
+    def asleep(self) -> bool:
+        # idle with Execute low: scan returns at once and update has nothing to follow
+        return (
+            not (self.inputs[self.TRIGGER] or self._last_trigger) and self.state == BlockState.IDLE
+        )
+
     def on_restart(self) -> None:
         """A new rising edge arrived (before the operands are latched)."""
 
@@ -489,6 +548,10 @@ class EnableBlock(Instruction):
     def fail_internal(self) -> None:
         self._error = int(ErrorCode.INTERNAL_ERROR)
         self._publish()
+
+    def asleep(self) -> bool:
+        # Enable low and its fall already published: scan and update return at once
+        return not (self.inputs[self.TRIGGER] or self._last_trigger)
 
     def _publish(self) -> None:
         enabled = self._last_trigger

@@ -23,11 +23,25 @@ class MotionSystem:
     steps one base period, every instance updates its status from the kernel. Outside run
     mode (``Controller.set_mode``) the instances are not scanned, like a program that is
     not executed; their status still follows the kernel.
+
+    An instance that is asleep (:meth:`Instruction.asleep`: nothing can change until an
+    operand is written) is left out of both calls, so idle instances cost nothing; a write
+    to its operands, or for those that follow the axis state any change of it, wakes it.
+    The awake ones keep the instances' order. ``sleep=False`` calls every instance every
+    cycle (the reference the sleeping is tested against).
     """
 
-    def __init__(self, ctl: Controller) -> None:
+    def __init__(self, ctl: Controller, sleep: bool = True) -> None:
         self.ctl = ctl
+        self.sleep = sleep
         self.instances: dict[str, Instruction] = {}
+        #: the instances called this cycle, in the instances' order
+        self._awake: list[Instruction] = []
+        #: instances whose operands were written since they were last called
+        self._woken: set[Instruction] = set()
+        self._state_watchers: list[Instruction] = []
+        self._states_seen = -1
+        self._wired = 0
         #: names of the instances whose outputs changed since the host last looked
         self.changed_outputs: set[str] = set()
         #: (instance name, exception) of instances that raised, for the host to log
@@ -45,27 +59,65 @@ class MotionSystem:
         if inst.name in self.instances:
             raise ValueError(f"duplicate instruction instance {inst.name!r}")
         self.instances[inst.name] = inst
+        self._wire(inst)
+
+    def _wire(self, inst: Instruction) -> None:
         inst.outputs.changed = self.changed_outputs
+        inst.inputs.woken = self._woken
+        self._woken.add(inst)  # scanned at least once: it judges for itself
+        if inst.FOLLOWS_AXIS_STATE:
+            self._state_watchers.append(inst)
         self.changed_outputs.add(inst.name)
+        self._wired = len(self.instances)
 
     def __getitem__(self, name: str) -> Instruction:
         return self.instances[name]
 
     def cycle(self, count: int = 1) -> None:
-        instances = list(self.instances.values())
+        ctl = self.ctl
         for _ in range(count):
-            if self.ctl.run_mode:
-                for inst in instances:
+            if ctl.run_mode:
+                for inst in self._wake():
                     try:
                         inst.scan()
                     except Exception as exc:
                         self._contain(inst, exc)
-            self.ctl.step()
-            for inst in instances:
+            ctl.step()
+            awake = self._wake()
+            for inst in awake:
                 try:
                     inst.update()
                 except Exception as exc:
                     self._contain(inst, exc)
+            if self.sleep:
+                keep = [inst for inst in awake if not inst.asleep()]
+                if len(keep) != len(awake):
+                    self._awake = keep
+
+    def awake(self) -> list[Instruction]:
+        """The instances the next cycle calls (all of them with ``sleep=False``)."""
+        return list(self._wake())
+
+    def _wake(self) -> list[Instruction]:
+        """The awake instances, with those woken since the last call merged in (in order)."""
+        woken = self._woken
+        if len(self.instances) != self._wired:  # put in ``instances`` without adopt()
+            for inst in self.instances.values():
+                if inst.inputs.woken is not woken:
+                    self._wire(inst)
+            self._wired = len(self.instances)
+        changes = self.ctl.arrays.state_changes
+        if changes != self._states_seen:
+            self._states_seen = changes
+            woken.update(self._state_watchers)
+        if woken:
+            if self.sleep:
+                woken.update(self._awake)
+                self._awake = [inst for inst in self.instances.values() if inst in woken]
+            else:
+                self._awake = list(self.instances.values())
+            woken.clear()
+        return self._awake
 
     def _contain(self, inst: Instruction, exc: Exception) -> None:
         """``inst`` raised: the internal error on it, its axes stopped, noted for the host."""

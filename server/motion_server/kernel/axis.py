@@ -78,8 +78,10 @@ class Axis:
     @state.setter
     def state(self, value: AxisState) -> None:
         self._state = value
-        self._s.axis_state[self.index] = int(value)
-        self._s.dirty.add(self.index)
+        s = self._s
+        s.axis_state[self.index] = int(value)
+        s.dirty.add(self.index)
+        s.state_changes += 1
 
     @property
     def fault(self) -> int:

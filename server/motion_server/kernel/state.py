@@ -110,6 +110,8 @@ class AxisArrays:
         self.motion_bits = np.zeros(n, dtype=np.int64)
         #: axes whose process-derived status may have changed since it was last derived
         self.dirty: set[int] = set(range(n))
+        #: how many times an axis changed AxisState (readers compare it with what they saw)
+        self.state_changes = 0
 
     # -- numerics ---------------------------------------------------------------------------
     def commands_finite(self) -> bool:

@@ -23,6 +23,7 @@ class MC_Power(PLCopenBlock):
     TYPE = "MC_Power"
     DESCRIPTION = "Power stage on/off (switched by the edges of Enable)"
     TRIGGER = "Enable"
+    FOLLOWS_AXIS_STATE = True
     OPERANDS = (
         AXIS,
         Operand("EnablePositive", TagType.BOOL, True, description="reserved: always allowed"),
@@ -59,6 +60,12 @@ class MC_Power(PLCopenBlock):
 
     def update(self) -> None:
         self._status()
+
+    def asleep(self) -> bool:
+        # Status follows the axis's power state: the system wakes the block whenever an
+        # axis changes state (FOLLOWS_AXIS_STATE); otherwise nothing changes while Enable
+        # stays low
+        return not (self.inputs[self.TRIGGER] or self._last_trigger)
 
     def _status(self) -> None:
         try:

@@ -42,6 +42,14 @@ class MC_Stop(MotionBlock):
         super().scan()
         self._release_if_idle()
 
+    def asleep(self) -> bool:
+        if not super().asleep():
+            return False
+        try:
+            return self.axis().stop_latch is not self  # else the scan drops the latch
+        except Exception:
+            return True
+
     def _release_if_idle(self) -> None:
         """Drop the Stopping latch once Execute is low and the stop has ended."""
         try:

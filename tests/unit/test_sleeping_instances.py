@@ -1,0 +1,154 @@
+"""Idle instances cost nothing: an instance that is asleep is not called, and the
+controller behaves bit for bit as if every instance were called every cycle.
+
+The reference is the same map built with ``MotionSystem(sleep=False)``: both systems get
+the same writes, and after every cycle every output of every instance and every kernel
+array must be identical (floats compared by their bytes)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from motion_server.config import load
+from motion_server.instructions import MotionSystem
+from motion_server.instructions.schema import Kind, TagType
+
+SITE = load(None, {})
+NAMES = [inst.name for inst in SITE.instances()]
+#: instances that start, stop and follow motion (drawn as often as all the others)
+MOTION = [
+    f"{t}_1"
+    for t in (
+        "MAJ", "MAM", "MAS", "MAG", "MSF", "MSO", "MGS", "MAFR", "MC_Power", "MC_Stop",
+        "MC_Halt", "MC_MoveVelocity", "MC_MoveAbsolute", "MC_GearIn", "MC_GearOut",
+    )
+]  # fmt: skip
+OPERANDS = {name: type(inst).OPERANDS for name, inst in SITE.build().instances.items()}
+
+
+def build(sleep: bool) -> MotionSystem:
+    system = SITE.build()
+    system.sleep = sleep
+    return system
+
+
+def same(a: MotionSystem, b: MotionSystem, where: str) -> None:
+    for name, inst in a.instances.items():
+        other = b.instances[name]
+        assert repr(dict(inst.outputs)) == repr(dict(other.outputs)), f"{name} {where}"
+    sa, sb = a.ctl.arrays, b.ctl.arrays
+    for key, arr in vars(sa).items():
+        if isinstance(arr, np.ndarray):
+            assert arr.tobytes() == getattr(sb, key).tobytes(), f"arrays.{key} {where}"
+    for ax, bx in zip(a.ctl.axes, b.ctl.axes, strict=True):
+        assert (ax.state, ax.fault, len(ax.processes)) == (bx.state, bx.fault, len(bx.processes))
+
+
+def value(kind: Kind, type_: TagType) -> st.SearchStrategy[Any]:
+    """Operand values that make things happen: axes that exist (and one that does not),
+    speeds and distances a demo axis can do, small selectors."""
+    if kind == Kind.AXIS:
+        return st.one_of(st.integers(1, 3), st.integers(1, 5))
+    if kind == Kind.GROUP:
+        return st.integers(1, 2)
+    if type_ == TagType.BOOL:
+        return st.booleans()
+    if type_.is_float:
+        return st.sampled_from([0.0, 0.5, 1.0, 10.0, 100.0, 500.0, -20.0, 1e4])
+    return st.integers(0, 3)
+
+
+@st.composite
+def step(draw: st.DrawFn) -> tuple[str, dict[str, Any], bool | None, int]:
+    """(instance, operands to write, trigger level (None: a one-cycle pulse), cycles to
+    run after)."""
+    name = draw(st.sampled_from(MOTION if draw(st.integers(0, 3)) else NAMES))
+    operands = OPERANDS[name]
+    chosen = draw(st.lists(st.sampled_from(operands), max_size=3)) if operands else []
+    ops = {op.name: draw(value(op.kind, op.type)) for op in chosen}
+    level = draw(st.sampled_from([None, None, True, False]))
+    return name, ops, level, draw(st.integers(1, 60))
+
+
+@settings(max_examples=80, deadline=None)
+@given(script=st.lists(step(), min_size=1, max_size=30), wheel=st.floats(-500.0, 500.0))
+def test_sleeping_changes_nothing(
+    script: list[tuple[str, dict[str, Any], bool | None, int]], wheel: float
+) -> None:
+    a, b = build(sleep=True), build(sleep=False)
+    for system in (a, b):  # the three axes a drive can move, on
+        for axis in (1, 2, 3):
+            system.ctl.servo_on(system.ctl.axis(axis))
+    for k, (name, ops, level, cycles) in enumerate(script):
+        for system in (a, b):
+            inst = system.instances[name]
+            for key, v in ops.items():
+                inst.inputs[key] = v
+            inst.inputs[inst.TRIGGER] = True if level is None else level
+            system.ctl.set_feedback_input(system.ctl.axis(4), wheel * k)
+        if level is None:
+            a.cycle()
+            b.cycle()
+            same(a, b, f"after the pulse of step {k}")
+            a.instances[name].inputs[a.instances[name].TRIGGER] = False
+            b.instances[name].inputs[b.instances[name].TRIGGER] = False
+        for c in range(cycles):
+            a.cycle()
+            b.cycle()
+            same(a, b, f"after step {k}, cycle {c}")
+
+
+def test_idle_instances_are_not_called() -> None:
+    system = build(sleep=True)
+    system.cycle()
+    assert system.awake() == []  # nothing triggered: every instance asleep
+    maj = system.instances["MAJ_1"]
+    maj.inputs["Axis"] = 1  # a write wakes it, even without an edge
+    assert system.awake() == [maj]
+    system.cycle()
+    assert system.awake() == []
+
+
+def test_a_running_instance_stays_awake_until_it_is_done() -> None:
+    system = build(sleep=True)
+    mso, maj, mas = (system.instances[n] for n in ("MSO_1", "MAJ_1", "MAS_1"))
+    for inst, ops in ((mso, {"Axis": 1}), (maj, {"Axis": 1, "Speed": 10.0})):
+        for key, v in ops.items():
+            inst.inputs[key] = v
+        inst.inputs["Execute"] = True
+        system.cycle()
+        inst.inputs["Execute"] = False
+        system.cycle()
+    assert maj.outputs["IP"] and not maj.outputs["EN"]
+    system.cycle(10)
+    assert system.awake() == [maj]  # rung low, EN clear, but the jog goes on: polled
+    mas.inputs["Axis"] = 1
+    mas.inputs["StopType"] = 0  # all motion
+    mas.inputs["Execute"] = True
+    system.cycle()
+    mas.inputs["Execute"] = False
+    # the stop ends the jog: the MAJ that started it no longer shows IP
+    system.cycle(2000)
+    assert not maj.outputs["IP"] and not mas.outputs["IP"]
+    assert system.awake() == []
+
+
+def test_mc_power_follows_an_axis_switched_on_by_another_instruction() -> None:
+    system = build(sleep=True)
+    power = system.instances["MC_Power_1"]
+    mso = system.instances["MSO_1"]
+    power.inputs["Axis"] = 2
+    power.inputs["Enable"] = True
+    system.cycle()
+    power.inputs["Enable"] = False  # off again: the axis is off, the block idle
+    system.cycle(3)
+    assert power not in system.awake() and not power.outputs["Status"]
+    mso.inputs["Axis"] = 2
+    mso.inputs["Execute"] = True
+    system.cycle()
+    # MC_Power's Status follows the axis (its latched Axis 2) though Enable is low
+    assert power.outputs["Status"]
