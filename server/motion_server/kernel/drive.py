@@ -10,7 +10,11 @@
 - Feedback-only axes sample their input (a hand wheel) or a built-in signal at the start
   of the cycle.
 
-All of it is vectorised over a group's axes. A value that is not finite, or overflows
+All of it is vectorised over a group's axes; parts of at most :data:`SCALAR_PART` axes
+are stepped axis by axis in Python floats instead (numpy's cost per call outweighs the
+work on a few elements), with the very same operations in the same order, so both give
+the same bits (``DriveModel(scalar_part=0)`` is the vectorised reference the tests
+compare with). A value that is not finite, or overflows
 (a command near the largest float, a feedback reading times its counts per unit beyond
 it), is never propagated: the controller screens the arrays after composition and after
 the drives (``AxisArrays.commands_finite``, one dot product each), :class:`DriveModel`
@@ -28,6 +32,30 @@ from .axis import Axis
 from .enums import FeedbackSignal
 from .state import AxisArrays, Index, compact
 
+#: parts of a group (drives on, drives off) this small are stepped axis by axis
+SCALAR_PART = 4
+
+
+def _rint_over(x: float, cpu: float) -> float:
+    """``(x * cpu).round() / cpu`` as numpy computes it on one element: round half to
+    even, the sign of a zero kept, infinities and NaN passed through."""
+    v = x * cpu
+    if v - v != 0.0:  # inf or NaN: numpy's round leaves them
+        return v / cpu
+    r = float(round(v))
+    if r == 0.0:
+        r = math.copysign(0.0, v)
+    return r / cpu
+
+
+def _sign(v: float) -> float:
+    """``np.sign`` of one element (0.0 for both zeros, NaN for NaN)."""
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    return v if v != v else 0.0
+
 
 class _Partition:
     """The axes ``idx`` of a group split by drive state, each part as a slice when its
@@ -42,7 +70,10 @@ class _Partition:
         "n_on",
         "n_watched",
         "off",
+        "off_rows",
         "on",
+        "on_rows",
+        "rows",
         "version",
         "watch_all",
         "watched",
@@ -59,6 +90,10 @@ class _Partition:
         self.off: Index = compact(off_idx)
         self.watched: Index = compact(watched)
         self.n_on, self.n_off, self.n_watched = on_idx.size, off_idx.size, watched.size
+        #: the indices as Python ints, for the axis-by-axis path
+        self.on_rows: list[int] = on_idx.tolist()
+        self.off_rows: list[int] = off_idx.tolist()
+        self.rows: list[int] = idx.tolist()
         #: every axis that is on has a following-error limit: the check reads the
         #: drive update's own arrays
         self.watch_all = watched.size == on_idx.size
@@ -75,8 +110,9 @@ class _Partition:
 
 
 class DriveModel:
-    def __init__(self, arrays: AxisArrays) -> None:
+    def __init__(self, arrays: AxisArrays, scalar_part: int = SCALAR_PART) -> None:
         self.s = arrays
+        self.scalar_part = scalar_part
         #: bumped whenever a drive switches on or off; the per-group on/off index
         #: partitions below are recomputed only then (fancy indexing costs on small groups)
         self._version = 0
@@ -134,7 +170,10 @@ class DriveModel:
         beyond: list[int] = []
         part = self._partition(idx)
         on_idx, off_idx = part.on, part.off
-        if part.n_on:
+        small = self.scalar_part
+        if part.n_on and part.n_on <= small:
+            beyond = self._follow_rows(part, dt, servo)
+        elif part.n_on:
             if servo:
                 # x'' + 2w x' + w^2 x = w^2 c(t), c(t) the command ramp from the last
                 # cycle's command c0 to the new one c1 (slope v). Its exact solution: the
@@ -160,7 +199,9 @@ class DriveModel:
                 s.act_x[on_idx] = s.cmd_pos[on_idx]
                 s.act_pos[on_idx] = s.cmd_pos[on_idx]
                 s.act_vel[on_idx] = s.cmd_vel[on_idx]
-        if part.n_off:
+        if part.n_off and part.n_off <= small:
+            self._coast_rows(part.off_rows, dt, servo)
+        elif part.n_off:
             v0 = s.act_vel[off_idx]
             step = s.coast[off_idx] * dt
             speed = np.maximum(np.abs(v0) - step, 0.0)
@@ -180,8 +221,72 @@ class DriveModel:
             s.cmd_pos[off_idx] = q
             s.cmd_vel[off_idx] = v1
             s.cmd_acc[off_idx] = 0.0
-        s.drv_cmd[part.all] = s.cmd_pos[part.all]
+        if part.n_on + part.n_off <= small:
+            drv_cmd, cmd_pos = s.drv_cmd, s.cmd_pos
+            for i in part.rows:
+                drv_cmd[i] = cmd_pos.item(i)
+        else:
+            s.drv_cmd[part.all] = s.cmd_pos[part.all]
         return beyond
+
+    def _follow_rows(self, part: _Partition, dt: float, servo: bool) -> list[int]:
+        """The drives that are on, axis by axis (the vectorised branch of :meth:`follow`
+        written out for one element)."""
+        s = self.s
+        act_x, act_vel, act_pos, cmd_pos = s.act_x, s.act_vel, s.act_pos, s.cmd_pos
+        beyond: list[int] = []
+        if not servo:
+            cmd_vel = s.cmd_vel
+            for i in part.on_rows:
+                c = cmd_pos.item(i)
+                act_x[i] = c
+                act_pos[i] = c
+                act_vel[i] = cmd_vel.item(i)
+            return beyond
+        decay = part.decay_for(s, dt)
+        drv_cmd, omega, cpu, fe_limit = s.drv_cmd, s.omega, s.cpu, s.fe_limit
+        for k, i in enumerate(part.on_rows):
+            c0 = drv_cmd.item(i)
+            c1 = cmd_pos.item(i)
+            w = omega.item(i)
+            slope = (c1 - c0) / dt
+            lag = 2.0 * slope / w
+            e0 = act_x.item(i) - (c0 - lag)
+            de0 = act_vel.item(i) - slope
+            d = decay.item(k)
+            b = de0 + w * e0
+            x = c1 - lag + (e0 + b * dt) * d
+            act_x[i] = x
+            act_vel[i] = slope + (de0 - w * b * dt) * d
+            q = _rint_over(x, cpu.item(i))
+            act_pos[i] = q
+            limit = fe_limit.item(i)
+            if limit > 0.0 and abs(c1 - q) > limit:
+                beyond.append(i)
+        return beyond
+
+    def _coast_rows(self, rows: list[int], dt: float, servo: bool) -> None:
+        """The drives that are off, axis by axis (see :meth:`follow`)."""
+        s = self.s
+        act_x, act_vel, act_pos, coast, cpu = s.act_x, s.act_vel, s.act_pos, s.coast, s.cpu
+        cmd_pos, cmd_vel, cmd_acc = s.cmd_pos, s.cmd_vel, s.cmd_acc
+        for i in rows:
+            v0 = act_vel.item(i)
+            step = coast.item(i) * dt
+            speed = abs(v0) - step
+            if not speed > 0.0 and speed == speed:  # np.maximum(speed, 0.0)
+                speed = 0.0
+            if speed <= 1e-9 * step:
+                speed = 0.0
+            v1 = _sign(v0) * speed
+            x = act_x.item(i) + 0.5 * (v0 + v1) * dt
+            q = _rint_over(x, cpu.item(i)) if servo else x
+            act_x[i] = x
+            act_vel[i] = v1
+            act_pos[i] = q
+            cmd_pos[i] = q
+            cmd_vel[i] = v1
+            cmd_acc[i] = 0.0
 
     def _following_errors(self, part: _Partition, c1: np.ndarray, q: np.ndarray) -> list[int]:
         """Axes whose |command - actual| exceeds their following error limit, from the
@@ -208,7 +313,7 @@ class DriveModel:
         cfg = ax.config
         s = self.s
         i = ax.index
-        old = float(s.act_x[i])
+        old = s.act_x.item(i)
         # the signal and the input are raw readings: the axis reads them plus the offset
         # its redefinitions added (Axis.position_offset)
         offset = ax.position_offset
@@ -224,15 +329,16 @@ class DriveModel:
             new = ax.feedback_input
         if offset:
             new += offset
-        cpu = float(s.cpu[i])
+        cpu = s.cpu.item(i)
         counts = new * cpu
         if not math.isfinite(counts):
             s.act_vel[i] = s.cmd_vel[i] = 0.0
             return f"feedback sample {new!r} x {cpu:g} counts/unit is not a finite count"
         q = round(counts) / cpu
-        s.act_vel[i] = (q - s.act_pos[i]) / dt
+        v = (q - s.act_pos.item(i)) / dt
+        s.act_vel[i] = v
         s.act_x[i] = new
         s.act_pos[i] = q
         s.cmd_pos[i] = q
-        s.cmd_vel[i] = s.act_vel[i]
+        s.cmd_vel[i] = v
         return None
