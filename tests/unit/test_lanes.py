@@ -222,3 +222,26 @@ def test_a_line_shaft_runs_in_the_lanes_and_leaves_them_when_touched() -> None:
     assert ctl.axis(2).command_velocity == 0.0
     # axis 1 jogs, axes 3 and 5 are geared again after the move: laned; 4 holds a velocity
     assert {ax.number for ax in ctl.axes if ax.processes and ax.processes[0].lane} == {1, 3, 5}
+
+
+def test_by_default_only_groups_of_lane_min_axes_use_the_lanes() -> None:
+    """``Controller(lanes=None)``: a group of fewer than LANE_MIN_AXES axes composes in
+    Python (cheaper there), a larger one in the lanes; ``lanes=True`` offers them to
+    every group (what the tests above compare)."""
+    from motion_server.kernel.motion import LANE_MIN_AXES
+
+    def jogging(n_axes: int, lanes: bool | None) -> int:
+        cfg = [AxisConfig(k, f"V{k}", AxisType.VIRTUAL) for k in range(1, n_axes + 1)]
+        s = MotionSystem(
+            Controller(cfg, [GroupConfig(1, "G", tuple(range(1, n_axes + 1)), 0.002)], lanes=lanes)
+        )
+        for n in range(1, n_axes + 1):
+            s.ctl.servo_on(s.ctl.axis(n))
+            maj = s.add("MAJ", f"J{n}", {"Axis": n, "Speed": 10.0, "AccelRate": 1e4})
+            maj.inputs["Execute"] = True
+        s.cycle(5)
+        return laned(s)
+
+    assert jogging(LANE_MIN_AXES - 1, None) == 0
+    assert jogging(LANE_MIN_AXES, None) == LANE_MIN_AXES
+    assert jogging(LANE_MIN_AXES - 1, True) == LANE_MIN_AXES - 1

@@ -86,10 +86,15 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 
 class Controller:
     def __init__(
-        self, axes: Sequence[AxisConfig], groups: Sequence[GroupConfig], lanes: bool = True
+        self,
+        axes: Sequence[AxisConfig],
+        groups: Sequence[GroupConfig],
+        lanes: bool | None = None,
     ) -> None:
         """``lanes=False`` composes every axis in Python (the reference the fast lanes
-        are tested against)."""
+        are tested against); ``lanes=True`` offers the fast lanes to every group; None
+        (the default) to groups of at least ``LANE_MIN_AXES`` axes, as a few axes compose
+        faster in Python."""
         if not groups:
             raise ConfigError("at least one motion group is required")
         self._check_unique([a.number for a in axes], "axis number")
@@ -108,7 +113,7 @@ class Controller:
         self._by_name = {a.name: a for a in self.axes}
         self.groups = self._build_groups(groups)
         self._groups_by_number = {g.number: g for g in self.groups}
-        self.lanes_enabled = lanes
+        self.lanes_enabled = lanes is not False
         self.drive = DriveModel(s)
         self.motion = Motion(s, self.axes, self.groups, lanes)
         self.power = Power(self.motion, self.drive)
@@ -273,9 +278,10 @@ class Controller:
                     else PowerEvent.STOPPED_SHUTDOWN
                 )
                 self.power.fire(ax, event)
-        for stop in g.stops:
-            stop.update(s)
-        g.stops = [stop for stop in g.stops if not stop.complete]
+        if g.stops:
+            for stop in g.stops:
+                stop.update(s)
+            g.stops = [stop for stop in g.stops if not stop.complete]
 
     def _numeric_fault(self, ax: Axis, where: str, problem: str) -> None:
         self.motion.internal_errors.append((ax.name, where, FloatingPointError(problem)))

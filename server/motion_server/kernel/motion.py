@@ -31,6 +31,11 @@ def _rounding_apart(x: float, y: float) -> bool:
     return abs(x - y) <= 1e-9 * max(1.0, abs(y))
 
 
+#: the smallest group whose processes join the fast lanes by default: with fewer axes the
+#: lanes' numpy calls cost more than composing in Python (bench/fast_clock.py, the demo)
+LANE_MIN_AXES = 8
+
+
 class Motion:
     """The processes of every axis of a controller."""
 
@@ -39,15 +44,22 @@ class Motion:
         arrays: AxisArrays,
         axes: Sequence[Axis],
         groups: Sequence[MotionGroup],
-        lanes: bool,
+        lanes: bool | None,
     ) -> None:
         self.s = arrays
         self.axes = list(axes)
         self._by_number = {a.number: a for a in axes}
         self.groups = list(groups)
-        self.lanes_enabled = lanes
+        self.lanes_enabled = lanes is not False
         self.lanes = {g.number: GroupLanes(g) for g in groups}
-        self._offer_to = self.lanes if lanes else {}
+        #: groups whose processes may join the fast lanes (``Controller``'s ``lanes``): by
+        #: default not a group of a few axes, which composes faster in Python
+        minimum = LANE_MIN_AXES if lanes is None else 1
+        self._offer_to = {
+            n: lane
+            for n, lane in self.lanes.items()
+            if lanes is not False and len(lane.group.axes) >= minimum
+        }
         #: masters and slaves changed: the composition order is recomputed at the next step
         self.order_dirty = True
         #: unexpected failures since the host last took them
