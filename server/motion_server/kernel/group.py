@@ -77,6 +77,8 @@ class MotionGroup:
         self.order: list[Axis] = list(axes)
         #: the shared status arrays of the group's axes (None for a group without axes)
         self._s: AxisArrays | None = axes[0]._s if axes else None
+        #: (AxisArrays.state_changes, Faulted / Shutdown / None) when last read
+        self._power: tuple[int, GroupState | None] | None = None
 
     @property
     def state(self) -> GroupState:
@@ -90,11 +92,19 @@ class MotionGroup:
                 if any(not x.complete for x in self.stops)
                 else (GroupState.NORMAL)
             )
-        if (s.axis_state[self.idx] == AxisState.AXIS_FAULTED).any():
-            return GroupState.FAULTED
-        motion = self.motion_idx
-        if motion.size and (s.axis_state[motion] == AxisState.AXIS_SHUTDOWN).all():
-            return GroupState.SHUTDOWN
+        power = self._power
+        if power is None or power[0] != s.state_changes:
+            # Faulted / Shutdown: from the axis states, again only once one has changed
+            motion = self.motion_idx
+            if (s.axis_state[self.idx] == AxisState.AXIS_FAULTED).any():
+                held: GroupState | None = GroupState.FAULTED
+            elif motion.size and (s.axis_state[motion] == AxisState.AXIS_SHUTDOWN).all():
+                held = GroupState.SHUTDOWN
+            else:
+                held = None
+            power = self._power = (s.state_changes, held)
+        if power[1] is not None:
+            return power[1]
         if any(not x.complete for x in self.stops):
             return GroupState.STOPPING
         # Axis.stopping is the MotionStatus Stopping bit (Axis.process_bits), current in
