@@ -18,7 +18,6 @@ import difflib
 import logging
 import os
 import re
-import stat
 import tomllib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -30,6 +29,7 @@ from pydantic import ValidationError
 
 from ..tagmap.layout import plan_tagmap
 from ..tagmap.model import TagMap
+from ..textfile import Refusal, TextFileError, read_text_file
 from .checks import Problem, duplicates
 from .schema import (
     DEFAULT_USERS_FILE,
@@ -237,32 +237,21 @@ def read_text(path: str | Path, what: str = "site map") -> str:
     :class:`SiteMapError` naming the file otherwise. Never blocks on a FIFO or a device."""
     p = Path(path)
     try:
-        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK)
-    except (OSError, ValueError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) else str(exc)
-        raise SiteMapError(f"{p}: cannot read {what}: {reason}") from None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise SiteMapError(f"{p}: cannot read {what}: not a regular file")
-        if info.st_size > MAX_FILE_BYTES:
-            raise SiteMapError(
-                f"{p}: cannot read {what}: {info.st_size} bytes, more than "
-                f"{MAX_FILE_BYTES // 2**20} MiB"
-            )
-        with os.fdopen(fd, "rb", closefd=False) as f:
-            data = f.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
+        return read_text_file(p, MAX_FILE_BYTES)
+    except FileNotFoundError as exc:
         raise SiteMapError(f"{p}: cannot read {what}: {exc.strerror}") from None
-    finally:
-        os.close(fd)
-    if len(data) > MAX_FILE_BYTES:
-        raise SiteMapError(f"{p}: cannot read {what}: more than {MAX_FILE_BYTES // 2**20} MiB")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data[: exc.start].count(b"\n") + 1
-        raise SiteMapError(f"{p}:{line}: {what} is not UTF-8 text") from None
+    except TextFileError as exc:
+        mib = MAX_FILE_BYTES // 2**20
+        if exc.refusal == Refusal.NOT_UTF8:
+            raise SiteMapError(f"{p}:{exc.line}: {what} is not UTF-8 text") from None
+        if exc.refusal == Refusal.TOO_LARGE:
+            size = f"{exc.size} bytes, " if exc.size else ""
+            reason = f"{size}more than {mib} MiB"
+        elif exc.refusal == Refusal.NOT_REGULAR:
+            reason = "not a regular file"
+        else:
+            reason = exc.reason
+        raise SiteMapError(f"{p}: cannot read {what}: {reason}") from None
 
 
 def _toml(text: str, source: str) -> dict[str, Any]:

@@ -28,13 +28,13 @@ import hashlib
 import json
 import math
 import os
-import stat
 from pathlib import Path
 from typing import Any
 
 from ..config.checks import operand_problem
 from ..config.schema import SiteMap
 from ..instructions import MotionSystem
+from ..textfile import Refusal, TextFileError, read_text_file
 
 FORMAT = "motion-server-retain/1"
 #: a retain file larger than this is refused unread (it holds a few numbers per tag)
@@ -132,27 +132,19 @@ def load(path: Path, site_name: str) -> dict[str, Any] | None:
 def _read(path: Path) -> str | None:
     """The file's text; None when there is none. Regular files of a bounded size only."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        return read_text_file(path, MAX_RETAIN_BYTES)
     except FileNotFoundError:
         return None
-    except (OSError, ValueError) as exc:
-        raise RetainError(f"{path}: cannot read the retain file: {_reason(exc)}") from None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise RetainError(f"{path}: cannot read the retain file: not a regular file")
-        with os.fdopen(fd, "rb", closefd=False) as f:
-            data = f.read(MAX_RETAIN_BYTES + 1)
-    except OSError as exc:
-        raise RetainError(f"{path}: cannot read the retain file: {_reason(exc)}") from None
-    finally:
-        os.close(fd)
-    if len(data) > MAX_RETAIN_BYTES:
-        raise RetainError(f"{path}: retain file larger than {MAX_RETAIN_BYTES // 2**20} MiB")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise RetainError(f"{path}: torn or corrupt retain file (not UTF-8)") from None
+    except TextFileError as exc:
+        if exc.refusal == Refusal.TOO_LARGE:
+            problem = f"retain file larger than {MAX_RETAIN_BYTES // 2**20} MiB"
+        elif exc.refusal == Refusal.NOT_UTF8:
+            problem = "torn or corrupt retain file (not UTF-8)"
+        elif exc.refusal == Refusal.NOT_REGULAR:
+            problem = "cannot read the retain file: not a regular file"
+        else:
+            problem = f"cannot read the retain file: {exc.reason}"
+        raise RetainError(f"{path}: {problem}") from None
 
 
 def _reason(exc: BaseException) -> str:

@@ -31,7 +31,6 @@ import math
 import os
 import platform
 import re
-import stat
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,6 +44,7 @@ from ..config import SiteMap
 from ..image.layout import ImageLayout
 from ..safety.client import ClientInfo
 from ..tagmap.model import Folder
+from ..textfile import Refusal, TextFileError, read_text_file
 
 FORMAT = "motion-server-snapshot/1"
 #: snapshot names: what a ``Clock.Snapshot`` number spells, or a word of these characters
@@ -174,26 +174,19 @@ def save(site: SiteMap, layout: ImageLayout, name: str, tick: int, log: InputLog
 
 def _read(path: Path) -> str:
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        return read_text_file(path, MAX_BYTES)
     except FileNotFoundError:
         raise SnapshotError(f"{path}: no such snapshot") from None
-    except OSError as exc:
-        raise SnapshotError(f"{path}: cannot read the snapshot: {exc.strerror or exc}") from None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise SnapshotError(f"{path}: not a regular file")
-        with os.fdopen(fd, "rb", closefd=False) as f:
-            data = f.read(MAX_BYTES + 1)
-    except OSError as exc:
-        raise SnapshotError(f"{path}: cannot read the snapshot: {exc.strerror or exc}") from None
-    finally:
-        os.close(fd)
-    if len(data) > MAX_BYTES:
-        raise SnapshotError(f"{path}: larger than {MAX_BYTES // 2**20} MiB")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise SnapshotError(f"{path}: corrupt snapshot (not UTF-8)") from None
+    except TextFileError as exc:
+        if exc.refusal == Refusal.TOO_LARGE:
+            problem = f"larger than {MAX_BYTES // 2**20} MiB"
+        elif exc.refusal == Refusal.NOT_UTF8:
+            problem = "corrupt snapshot (not UTF-8)"
+        elif exc.refusal == Refusal.NOT_REGULAR:
+            problem = "not a regular file"
+        else:
+            problem = f"cannot read the snapshot: {exc.reason}"
+        raise SnapshotError(f"{path}: {problem}") from None
 
 
 def _no_constant(name: str) -> Any:
