@@ -1,4 +1,5 @@
-"""MC_ReadParameter, MC_ReadBoolParameter, MC_WriteParameter: the PLCopen parameter
+"""MC_ReadParameter, MC_ReadBoolParameter, MC_WriteParameter, MC_WriteBoolParameter: the
+PLCopen parameter
 numbers (Part 1; TwinCAT MC_AxisParameter numbers them the same, 1 CommandedPosition
 ... 17 MaxJerkAppl) as our axes hold them.
 
@@ -40,6 +41,7 @@ def rig(fe_limit: float = 0.0) -> MotionSystem:
     system.add("MC_ReadParameter", "Read", {"Axis": 1})
     system.add("MC_ReadBoolParameter", "ReadBool", {"Axis": 1})
     system.add("MC_WriteParameter", "Write", {"Axis": 1})
+    system.add("MC_WriteBoolParameter", "WriteBool", {"Axis": 1})
     trigger(system, system["MSO_1"])
     return system
 
@@ -151,3 +153,53 @@ def test_a_written_lag_limit_acts_the_same_with_and_without_lanes() -> None:
     for s in (fast, ref):
         assert s.ctl.axis(3).fault & AxisFault.POSITION_ERROR
         assert s.ctl.axis(1).fault == 0  # the master jogs on
+
+
+def write_bool(system: MotionSystem, number: int, value: bool) -> dict[str, object]:
+    inst = system["WriteBool"]
+    inst.inputs["Execute"] = False
+    system.cycle()
+    trigger(system, inst, ParameterNumber=number, Value=value)
+    return dict(inst.outputs)
+
+
+def test_lag_monitoring_switched_off_lets_the_jog_run_and_on_again_faults_it() -> None:
+    """MaxPositionLag 0.5 mm is below the 0.796 mm a 100 mm/s jog lags by. With
+    EnablePosLagMonitoring FALSE the jog runs (the limit is kept: 7 still reads 0.5);
+    TRUE again and the axis faults within the cycle the error is checked in."""
+    system = rig(fe_limit=0.5)
+    assert read(system, 6, "ReadBool")["Value"] is True
+    out = write_bool(system, 6, False)
+    assert out["Done"] and not out["Error"]
+    assert read(system, 6, "ReadBool")["Value"] is False
+    assert read(system, 7)["Value"] == 0.5
+    ax = system.ctl.axis(1)
+    trigger(system, system["MAJ_1"], Speed=100.0, AccelRate=1000.0, DecelRate=1000.0)
+    for _ in range(300):  # at speed after 0.1 s: the steady error 2v/w
+        system.cycle()
+    assert ax.state == AxisState.SERVO_CONTROL and ax.fault == 0
+    assert ax.position_error > 0.5
+    assert write_bool(system, 6, True)["Done"]
+    assert ax.state == AxisState.AXIS_FAULTED and ax.fault & AxisFault.POSITION_ERROR
+
+
+def test_lag_monitoring_cannot_be_switched_on_without_a_limit() -> None:
+    system = rig(fe_limit=0.0)
+    out = write_bool(system, 6, True)
+    assert out["Error"] and out["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
+    assert read(system, 6, "ReadBool")["Value"] is False
+    # a limit written while the monitoring is off waits for it to be on again
+    assert write_bool(system, 6, False)["Done"]
+    assert write(system, 7, 0.5)["Done"]
+    assert read(system, 6, "ReadBool")["Value"] is False
+    assert write_bool(system, 6, True)["Done"]
+    assert read(system, 6, "ReadBool")["Value"] is True
+
+
+@pytest.mark.parametrize("number", [4, 5, 7, 99])
+def test_other_bool_writes_are_refused(number: int) -> None:
+    system = rig(fe_limit=2.0)
+    out = write_bool(system, number, True)
+    assert out["Error"] and not out["Done"]
+    assert out["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
+    assert read(system, 6, "ReadBool")["Value"] is True  # unchanged

@@ -55,6 +55,7 @@ TYPE_CODES: dict[str, int] = {
     "MC_ReadParameter": 58,
     "MC_WriteParameter": 59,
     "MC_ReadBoolParameter": 60,
+    "MC_WriteBoolParameter": 61,
 }
 _SUBPACKAGES = ("logix", "plcopen")
 _loaded = False

@@ -68,6 +68,11 @@ class Axis:
         self._homing_armed: object | None = None
         #: factors scaling the axis's moves and jogs (MC_SetOverride, :mod:`.override`)
         self.override: Override = NEUTRAL
+        #: the following error limit (PLCopen MaxPositionLag) and whether it is monitored
+        #: (EnablePosLagMonitoring): the drive watches ``lag_limit`` only while
+        #: ``lag_monitoring`` (``AxisArrays.fe_limit`` holds what it watches, 0: nothing)
+        self.lag_limit = float(config.following_error_limit)
+        self.lag_monitoring = True
 
     # -- status attributes (each keeps the shared status arrays current) ---------------------
     @property

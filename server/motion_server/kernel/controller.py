@@ -693,10 +693,26 @@ class Controller:
         return armed
 
     def set_following_error_limit(self, ax: Axis, limit: float) -> None:
-        """The position error that faults the axis (0: no limit), from now on."""
+        """The position error that faults the axis (0: no limit), from now on (while the
+        monitoring is on: :meth:`set_lag_monitoring`)."""
         if not (math.isfinite(limit) and limit >= 0.0):
             raise MotionError(
                 ErrorCode.PARAMETER_OUT_OF_RANGE, f"following error limit {limit!r} must be >= 0"
             )
-        self.fe_limit[ax.index] = float(limit)
+        ax.lag_limit = float(limit)
+        self._watch_lag(ax)
+
+    def set_lag_monitoring(self, ax: Axis, on: bool) -> None:
+        """Switch the following error monitoring on or off (the limit is kept). On needs a
+        limit above 0 (MotionError 13)."""
+        if on and not ax.lag_limit > 0.0:
+            raise MotionError(
+                ErrorCode.PARAMETER_OUT_OF_RANGE,
+                f"{ax.name} has no following error limit to monitor (MaxPositionLag is 0)",
+            )
+        ax.lag_monitoring = bool(on)
+        self._watch_lag(ax)
+
+    def _watch_lag(self, ax: Axis) -> None:
+        self.fe_limit[ax.index] = ax.lag_limit if ax.lag_monitoring else 0.0
         self.drive.switched()  # the drive's partitions cache the limits

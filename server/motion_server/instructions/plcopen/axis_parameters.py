@@ -6,9 +6,12 @@ The numbers are PLCopen's (TwinCAT MC_AxisParameter and CODESYS SM3_Basic use th
 
 - 1 CommandedPosition, 10 ActualVelocity, 11 CommandedVelocity: as the axis tags show
   them after the cycle;
-- 6 EnablePosLagMonitoring (BOOL): the following error limit is on (> 0);
-  7 MaxPositionLag: that limit (site map ``following_error_limit``), the one writable
-  parameter: a value >= 0, 0 turning the monitoring off, effective from the next cycle;
+- 6 EnablePosLagMonitoring (BOOL): the following error is monitored (switched on and a
+  limit above 0); writable (MC_WriteBoolParameter): FALSE switches the monitoring off
+  and keeps the limit, TRUE switches it on again (refused while the limit is 0);
+  7 MaxPositionLag: that limit (site map ``following_error_limit``), writable
+  (MC_WriteParameter): a value >= 0, 0 turning the monitoring off; both effective from
+  the next cycle;
 - 8 / 9 MaxVelocity, 12 / 13 MaxAcceleration, 14 / 15 MaxDeceleration, 16 / 17 MaxJerk
   (0: unlimited): the axis's maxima; an axis here has one limit, so System and Appl read
   the same value;
@@ -63,11 +66,19 @@ class Parameter:
 
 
 def _fe_limit(ctl: Controller, ax: Axis) -> float:
-    return float(ctl.fe_limit[ax.index])
+    return ax.lag_limit
 
 
 def _set_fe_limit(ctl: Controller, ax: Axis, value: float) -> None:
     ctl.set_following_error_limit(ax, value)
+
+
+def _lag_watched(ctl: Controller, ax: Axis) -> float:
+    return float(ctl.fe_limit[ax.index] > 0.0)
+
+
+def _set_lag_watched(ctl: Controller, ax: Axis, value: float) -> None:
+    ctl.set_lag_monitoring(ax, bool(value))
 
 
 P = MCAxisParameter
@@ -75,7 +86,7 @@ PARAMETERS: dict[MCAxisParameter, Parameter] = {
     P.COMMANDED_POSITION: Parameter(False, lambda c, a: a.command_position),
     P.ENABLE_LIMIT_POS: Parameter(True, lambda c, a: 0.0),
     P.ENABLE_LIMIT_NEG: Parameter(True, lambda c, a: 0.0),
-    P.ENABLE_POS_LAG_MONITORING: Parameter(True, lambda c, a: float(_fe_limit(c, a) > 0.0)),
+    P.ENABLE_POS_LAG_MONITORING: Parameter(True, _lag_watched, _set_lag_watched),
     P.MAX_POSITION_LAG: Parameter(False, _fe_limit, _set_fe_limit),
     P.MAX_VELOCITY_SYSTEM: Parameter(False, lambda c, a: a.config.max_velocity),
     P.MAX_VELOCITY_APPL: Parameter(False, lambda c, a: a.config.max_velocity),

@@ -1,9 +1,10 @@
 """MC_WriteParameter: write a numeric PLCopen axis parameter (Execute-style).
 
 PLCopen Part 1: "modifies the value of a vendor specific parameter". Of the standard
-numbers our axes hold (:mod:`.axis_parameters`) one is writable: 7 MaxPositionLag, the
-following error limit (>= 0; 0 turns the monitoring off), effective from the next cycle
-and read back by MC_ReadParameter and MC_ReadBoolParameter 6. Done in the cycle of the
+numeric numbers our axes hold (:mod:`.axis_parameters`) one is writable: 7
+MaxPositionLag, the following error limit (>= 0; 0 turns the monitoring off), effective
+from the next cycle and read back by MC_ReadParameter and MC_ReadBoolParameter 6 (the
+BOOL 6 itself is written with MC_WriteBoolParameter). Done in the cycle of the
 rising edge, in any axis state. A read-only or unknown number, or a value out of range,
 is Error with ErrorID 13.
 """
