@@ -1,13 +1,15 @@
 """PLCopen status and parameter blocks on PSlave (Axis6, a servo): MC_ReadStatus,
-MC_ReadAxisError, MC_ReadActualVelocity, MC_ReadParameter and MC_WriteParameter.
+MC_ReadAxisError, MC_ReadActualVelocity, MC_ReadParameter, MC_WriteParameter and
+MC_WriteBoolParameter.
 
 The read blocks are Enable-style: triggered once, Enable stays high and they read every
 cycle. Parameter 7 (MaxPositionLag) is the following error limit, off (0) on the bench.
 PSlave's drive follows its command with bandwidth ω = 2π · 40 rad/s, so at a steady
 100 mm/s its following error is 2v/ω = 0.796 mm: with the limit written to 1.2 mm the
-move runs (ContinuousMotion); written to 0.5 mm the axis faults at once (ErrorStop,
-AxisErrorID 1: bit 0, position error). The limit goes back to 0, MC_Reset and MC_Power
-bring the axis back to StandStill.
+move runs (ContinuousMotion); written to 0.5 mm with the monitoring switched off
+(parameter 6 EnablePosLagMonitoring FALSE, MC_WriteBoolParameter) it runs on; switched
+on again, the axis faults at once (ErrorStop, AxisErrorID 1: bit 0, position error).
+The limit goes back to 0, MC_Reset and MC_Power bring the axis back to StandStill.
 """
 
 from __future__ import annotations
@@ -55,7 +57,11 @@ async def body(sc: Scenario) -> None:
         2 * 100.0 / (2 * math.pi * 40.0),
         1e-3,
     )
+    await sc.trigger("LagWatch_PSlave", Value=False)  # the monitoring off, the limit kept
     await sc.trigger("WriteParameter_PSlave", Value=0.5)
+    await sc.run(0.05)
+    sc.check("no ErrorStop, monitoring off", int(await sc.read("Status_PSlave.ErrorStop")), 0, 0)
+    await sc.trigger("LagWatch_PSlave", Value=True)
     await sc.run(0.01)
     sc.check("ErrorStop", int(await sc.read("Status_PSlave.ErrorStop")), 1, 0)
     sc.check(

@@ -283,9 +283,12 @@ def test_13_read_blocks_and_the_lag_limit(tmp_path: Path) -> None:
     under = [k for k in range(len(t)) if limit[k] == 1.2]
     assert any(moving[k] for k in under) and not any(stop[k] for k in under)
     assert max(va[k] for k in under) == pytest.approx(100.0, abs=1e-6)
-    # the fault comes with the 0.5 mm limit, the position error bit with it
+    # the fault comes with the 0.5 mm limit once the monitoring is on again (it runs
+    # on at 0.5 mm while it is off), the position error bit with it
     first = stop.index(1.0)
     assert limit[first] == 0.5 and err[first] == 1.0
+    unwatched = [k for k in range(first) if limit[k] == 0.5]
+    assert len(unwatched) >= 2 and all(moving[k] for k in unwatched)
     assert err[-1] == 0.0 and not stop[-1]
 
 
