@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Mapping
 from enum import IntEnum
 from pathlib import Path
 
@@ -59,6 +60,12 @@ def read_text_file(path: str | Path, limit: int) -> str:
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         raise TextFileError(Refusal.NOT_UTF8, line=line) from None
+
+
+def explain(exc: TextFileError, words: Mapping[Refusal, str]) -> str:
+    """The caller's words for ``exc``: ``words[refusal]`` with ``{reason}``, ``{size}``
+    and ``{line}`` filled in."""
+    return words[exc.refusal].format(reason=exc.reason, size=exc.size, line=exc.line)
 
 
 def _reason(exc: BaseException) -> str:

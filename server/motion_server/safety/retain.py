@@ -34,7 +34,7 @@ from typing import Any
 from ..config.checks import operand_problem
 from ..config.schema import SiteMap
 from ..instructions import MotionSystem
-from ..textfile import Refusal, TextFileError, read_text_file
+from ..textfile import Refusal, TextFileError, explain, read_text_file
 
 FORMAT = "motion-server-retain/1"
 #: a retain file larger than this is refused unread (it holds a few numbers per tag)
@@ -129,6 +129,15 @@ def load(path: Path, site_name: str) -> dict[str, Any] | None:
     return Payload(payload, path)
 
 
+#: how the retain file's refusals read
+_REFUSED = {
+    Refusal.TOO_LARGE: f"retain file larger than {MAX_RETAIN_BYTES // 2**20} MiB",
+    Refusal.NOT_UTF8: "torn or corrupt retain file (not UTF-8)",
+    Refusal.NOT_REGULAR: "cannot read the retain file: not a regular file",
+    Refusal.UNREADABLE: "cannot read the retain file: {reason}",
+}
+
+
 def _read(path: Path) -> str | None:
     """The file's text; None when there is none. Regular files of a bounded size only."""
     try:
@@ -136,15 +145,7 @@ def _read(path: Path) -> str | None:
     except FileNotFoundError:
         return None
     except TextFileError as exc:
-        if exc.refusal == Refusal.TOO_LARGE:
-            problem = f"retain file larger than {MAX_RETAIN_BYTES // 2**20} MiB"
-        elif exc.refusal == Refusal.NOT_UTF8:
-            problem = "torn or corrupt retain file (not UTF-8)"
-        elif exc.refusal == Refusal.NOT_REGULAR:
-            problem = "cannot read the retain file: not a regular file"
-        else:
-            problem = f"cannot read the retain file: {exc.reason}"
-        raise RetainError(f"{path}: {problem}") from None
+        raise RetainError(f"{path}: {explain(exc, _REFUSED)}") from None
 
 
 def _reason(exc: BaseException) -> str:

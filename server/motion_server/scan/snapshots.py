@@ -44,7 +44,7 @@ from ..config import SiteMap
 from ..image.layout import ImageLayout
 from ..safety.client import ClientInfo
 from ..tagmap.model import Folder
-from ..textfile import Refusal, TextFileError, read_text_file
+from ..textfile import Refusal, TextFileError, explain, read_text_file
 
 FORMAT = "motion-server-snapshot/1"
 #: snapshot names: what a ``Clock.Snapshot`` number spells, or a word of these characters
@@ -172,21 +172,22 @@ def save(site: SiteMap, layout: ImageLayout, name: str, tick: int, log: InputLog
     return path
 
 
+#: how a snapshot file's refusals read
+_REFUSED = {
+    Refusal.TOO_LARGE: f"larger than {MAX_BYTES // 2**20} MiB",
+    Refusal.NOT_UTF8: "corrupt snapshot (not UTF-8)",
+    Refusal.NOT_REGULAR: "not a regular file",
+    Refusal.UNREADABLE: "cannot read the snapshot: {reason}",
+}
+
+
 def _read(path: Path) -> str:
     try:
         return read_text_file(path, MAX_BYTES)
     except FileNotFoundError:
         raise SnapshotError(f"{path}: no such snapshot") from None
     except TextFileError as exc:
-        if exc.refusal == Refusal.TOO_LARGE:
-            problem = f"larger than {MAX_BYTES // 2**20} MiB"
-        elif exc.refusal == Refusal.NOT_UTF8:
-            problem = "corrupt snapshot (not UTF-8)"
-        elif exc.refusal == Refusal.NOT_REGULAR:
-            problem = "not a regular file"
-        else:
-            problem = f"cannot read the snapshot: {exc.reason}"
-        raise SnapshotError(f"{path}: {problem}") from None
+        raise SnapshotError(f"{path}: {explain(exc, _REFUSED)}") from None
 
 
 def _no_constant(name: str) -> Any:

@@ -12,18 +12,20 @@ number (4/5 EnableLimitPos/Neg: the axes have no software limits) is Error with 
 
 from __future__ import annotations
 
-from ...kernel import MotionError
-from ..base import BlockEvent, PLCopenBlock
 from ..operands import AXIS
 from ..registry import register
-from ..schema import Operand, StatusField, TagType
-from .axis_parameters import MCAxisParameter, lookup
+from ..schema import Operand, TagType
+from .axis_parameters import MCAxisParameter
+from .mc_write_parameter import MC_WriteParameter
 
 
 @register
-class MC_WriteBoolParameter(PLCopenBlock):
+class MC_WriteBoolParameter(MC_WriteParameter):
+    """MC_WriteParameter's block (outputs, execution) on the BOOL parameters."""
+
     TYPE = "MC_WriteBoolParameter"
     DESCRIPTION = "Write a BOOL PLCopen axis parameter (6 EnablePosLagMonitoring)"
+    BOOLEAN = True
     OPERANDS = (
         AXIS,
         Operand(
@@ -35,23 +37,3 @@ class MC_WriteBoolParameter(PLCopenBlock):
         ),
         Operand("Value", TagType.BOOL, True, description="the new value"),
     )
-    COMMON_STATUS = (
-        StatusField("Done", TagType.BOOL, "the parameter has its new value"),
-        StatusField("Busy", TagType.BOOL, "the block has not finished"),
-        StatusField("Error", TagType.BOOL, "finished with an error, see ErrorID"),
-        StatusField("ErrorID", TagType.UDINT, "error code (the shared .ERR table)"),
-    )
-
-    def execute(self) -> None:
-        ax = self.axis()
-        try:
-            param = lookup(int(self.op["ParameterNumber"]), boolean=True, write=True)
-        except MotionError as exc:
-            raise self.out_of_range("ParameterNumber", str(exc)) from None
-        assert param.write is not None
-        try:
-            param.write(self.ctl, ax, float(bool(self.op["Value"])))
-        except MotionError as exc:
-            raise self.out_of_range("Value", str(exc)) from None
-        self.fire(BlockEvent.START)
-        self.fire(BlockEvent.COMPLETE)

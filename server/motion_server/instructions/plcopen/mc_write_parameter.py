@@ -11,6 +11,8 @@ is Error with ErrorID 13.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from ...kernel import MotionError
 from ..base import BlockEvent, PLCopenBlock
 from ..operands import AXIS
@@ -40,16 +42,19 @@ class MC_WriteParameter(PLCopenBlock):
         StatusField("Error", TagType.BOOL, "finished with an error, see ErrorID"),
         StatusField("ErrorID", TagType.UDINT, "error code (the shared .ERR table)"),
     )
+    #: the kind of parameter written (MC_WriteBoolParameter: True)
+    BOOLEAN: ClassVar[bool] = False
 
     def execute(self) -> None:
         ax = self.axis()
         try:
-            param = lookup(int(self.op["ParameterNumber"]), boolean=False, write=True)
+            param = lookup(int(self.op["ParameterNumber"]), boolean=self.BOOLEAN, write=True)
         except MotionError as exc:
             raise self.out_of_range("ParameterNumber", str(exc)) from None
         assert param.write is not None
+        value = self.op["Value"]
         try:
-            param.write(self.ctl, ax, float(self.op["Value"]))
+            param.write(self.ctl, ax, float(bool(value)) if self.BOOLEAN else float(value))
         except MotionError as exc:
             raise self.out_of_range("Value", str(exc)) from None
         self.fire(BlockEvent.START)
