@@ -142,3 +142,39 @@ def test_the_servers_own_subscriptions_keep_asyncuas_objects() -> None:
     own = isub._pop_triggered_datachanges
     install(isub)
     assert isub._pop_triggered_datachanges == own
+
+
+def _dv(value: Any, vtype: ua.VariantType, status: ua.StatusCode | None = None) -> ua.DataValue:
+    return ua.DataValue(ua.Variant(value, vtype), StatusCode=status or ua.StatusCode())
+
+
+GOOD = ua.StatusCode()
+NAN = float("nan")
+#: (old, new) pairs: same object, equal, different value, type, status; NaN; no old value
+CHANGES: list[tuple[ua.DataValue | None, ua.DataValue]] = [
+    (None, _dv(1.0, ua.VariantType.Double)),
+    (_dv(1.0, ua.VariantType.Double, GOOD), _dv(1.0, ua.VariantType.Double, GOOD)),
+    (_dv(1.0, ua.VariantType.Double), _dv(1.0, ua.VariantType.Double)),
+    (_dv(1.0, ua.VariantType.Double), _dv(1.5, ua.VariantType.Double)),
+    (_dv(1, ua.VariantType.Int32), _dv(1, ua.VariantType.UInt32)),
+    (
+        _dv(1.0, ua.VariantType.Double),
+        _dv(1.0, ua.VariantType.Double, ua.StatusCode(ua.StatusCodes.BadOutOfRange)),
+    ),
+    (_dv(NAN, ua.VariantType.Double), _dv(NAN, ua.VariantType.Double)),
+    (_dv(True, ua.VariantType.Boolean), _dv(True, ua.VariantType.Boolean)),
+]
+
+
+@pytest.mark.parametrize(("old", "new"), CHANGES)
+def test_the_lean_change_check_is_asyncuas(old: ua.DataValue | None, new: ua.DataValue) -> None:
+    from asyncua.server.monitored_item_service import MonitoredItemService, MonitoredItemValues
+
+    from motion_server.frontends.opcua import _value_changed
+
+    values = MonitoredItemValues()
+    values.old_dvalue, values.current_dvalue = old, new
+    trigger = ua.DataChangeTrigger.StatusValue
+    assert _value_changed(old, new) == MonitoredItemService._is_data_changed(values, trigger)
+    same = _dv(2.0, ua.VariantType.Double)
+    assert _value_changed(same, same) is False

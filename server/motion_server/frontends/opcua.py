@@ -233,6 +233,8 @@ class OpcUaFrontend:
         #: the values last published, one per image slot; which slots are analog
         self._last = np.zeros(0)
         self._analog = np.zeros(0, dtype=bool)
+        #: every node is read from the image (no node needs asyncua's write path)
+        self._all_served = True
         self._following: dict[str, asyncio.Task[None]] = {}
         self._task: asyncio.Task[None] | None = None
         self._idle_task: asyncio.Task[None] | None = None
@@ -587,6 +589,7 @@ class OpcUaFrontend:
         self._published.sort(key=lambda p: p.slot)
         self._last = values.copy()
         self._analog = np.array([p.is_float for p in self._published], dtype=bool)
+        self._all_served = all(p.served for p in self._published)
 
     def _serve_from_image(self, pub: _Published) -> None:
         """Answer reads of ``pub``'s Value (and ValueAsText) from the image: asyncua reads
@@ -688,7 +691,13 @@ class OpcUaFrontend:
         pubs = self._published
         typed = self.image.typed
         slices = _Slices(self.config.chunk_size)
-        for k in changed.tolist():
+        server = self._server
+        idle = (
+            server is not None
+            and not server.iserver.subscription_service.subscriptions
+            and self._all_served
+        )
+        for k in [] if idle else changed.tolist():  # idle: no subscription to notify
             pub = pubs[k]
             if pub.served:
                 if not pub.watched():
@@ -772,17 +781,26 @@ def _in_batches(create: Any) -> Any:
 
 
 def _lean_datachange_callback(mis: Any) -> Any:
-    """``MonitoredItemService.datachange_callback`` without its first statement: asyncua
-    builds a default ``MonitoredItemNotification()`` for every change it is told of (a
-    default DataValue and Variant, whose type it guesses) and then overwrites both of
-    its fields; that was a fifth of the front-end's CPU under a 1,000-tag subscription
-    load. The notification is built once its fields are known; the filter and trigger
-    checks are asyncua's own."""
+    """``MonitoredItemService.datachange_callback`` made lean, for a 1,000-tag subscription
+    load (each step was measured there):
+
+    - asyncua builds a default ``MonitoredItemNotification()`` for every change it is told
+      of (a default DataValue and Variant, whose type it guesses) and then overwrites
+      both of its fields; that was a fifth of the front-end's CPU. The notification is
+      built once its fields are known.
+    - Without a filter, the trigger is StatusValue: :func:`_value_changed` is asyncua's
+      ``_is_data_changed`` for it, short-cut when the status code is the same object
+      (the publisher's DataValues share one).
+    - The notification is queued as ``InternalSubscription._enqueue_event`` queues it
+      (a new item's first change triggers a publish; then at most the item's queue size,
+      the oldest dropped), with queue size 0 meaning 1 (see ``_patch_queue_size``),
+      without the two coroutine layers in between.
+
+    A filter (deadband, another trigger) takes asyncua's own checks."""
     upstream = mis.datachange_callback
     datachange = mis._monitored_datachange
     items = mis._monitored_items
     disabled = ua.MonitoringMode.Disabled
-    status_value = ua.DataChangeTrigger.StatusValue
 
     async def datachange_callback(
         handle: int, value: ua.DataValue, error: ua.StatusCode | None = None
@@ -794,18 +812,43 @@ def _lean_datachange_callback(mis: Any) -> Any:
         mdata = items[mid]
         if mdata.mode == disabled:
             return
-        mdata.mvalue.set_current_datavalue(value)
+        mvalue = mdata.mvalue
+        mvalue.set_current_datavalue(value)
         if mdata.filter:
             changed = mis._is_data_changed(
-                mdata.mvalue, mdata.filter.Trigger
-            ) and mis._is_deadband_exceeded(mdata.mvalue, mdata.filter)
+                mvalue, mdata.filter.Trigger
+            ) and mis._is_deadband_exceeded(mvalue, mdata.filter)
         else:
-            changed = mis._is_data_changed(mdata.mvalue, status_value)
+            changed = _value_changed(mvalue.get_old_datavalue(), value)
         if changed:
             event = ua.MonitoredItemNotification(ClientHandle=mdata.client_handle, Value=value)
-            await mis.isub.enqueue_datachange_event(mid, event, mdata.queue_size)
+            isub = mis.isub
+            queue = isub._triggered_datachanges
+            pending = queue.get(mid)
+            if pending is None:
+                queue[mid] = [event]
+                await isub._trigger_publish()
+                return
+            if len(pending) >= (mdata.queue_size or 1):
+                pending.pop(0)
+            pending.append(event)
 
     return datachange_callback
+
+
+def _value_changed(old: ua.DataValue | None, new: ua.DataValue) -> bool:
+    """asyncua's ``MonitoredItemService._is_data_changed`` with the StatusValue trigger:
+    the status code or the value (type and value) differ."""
+    if old is None:
+        return True
+    if old.StatusCode is not new.StatusCode and old.StatusCode != new.StatusCode:
+        return True
+    ov, nv = old.Value, new.Value
+    if ov is nv:
+        return False
+    if ov is None or nv is None:
+        return True
+    return not (ov.VariantType == nv.VariantType and ov.Value == nv.Value)
 
 
 class _SharedValues(MonitoredItemValues):
