@@ -170,11 +170,11 @@ CHANGES: list[tuple[ua.DataValue | None, ua.DataValue]] = [
 def test_the_lean_change_check_is_asyncuas(old: ua.DataValue | None, new: ua.DataValue) -> None:
     from asyncua.server.monitored_item_service import MonitoredItemService, MonitoredItemValues
 
-    from motion_server.frontends.opcua import _value_changed
+    from motion_server.frontends.opcua_notify import value_changed
 
     values = MonitoredItemValues()
     values.old_dvalue, values.current_dvalue = old, new
     trigger = ua.DataChangeTrigger.StatusValue
-    assert _value_changed(old, new) == MonitoredItemService._is_data_changed(values, trigger)
+    assert value_changed(old, new) == MonitoredItemService._is_data_changed(values, trigger)
     same = _dv(2.0, ua.VariantType.Double)
-    assert _value_changed(same, same) is False
+    assert value_changed(same, same) is False

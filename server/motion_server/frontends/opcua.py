@@ -93,7 +93,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import dataclasses
 import ipaddress
 import logging
 import socket
@@ -109,7 +108,6 @@ from asyncua.common.connection import TransportLimits
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
 from asyncua.server.internal_session import InternalSession, SessionState
-from asyncua.server.monitored_item_service import MonitoredItemValues
 from asyncua.ua import status_codes
 
 from ..config import OpcUaSection, OpcUaUser
@@ -437,19 +435,19 @@ class OpcUaFrontend:
 
             def make_monitored_item(params: ua.MonitoredItemCreateRequest) -> Any:
                 result, mdata = make_common(params)
-                mdata.mvalue = _SharedValues()
+                mdata.mvalue = opcua_notify.SharedValues()
                 return result, mdata
 
             mis._make_monitored_item_common = make_monitored_item
             # before any item exists: each item registers mis.datachange_callback
-            mis.datachange_callback = _lean_datachange_callback(mis)
+            mis.datachange_callback = opcua_notify.lean_datachange_callback(mis)
             enqueue = isub.enqueue_datachange_event
 
             async def enqueue_datachange_event(mid: int, event: Any, maxsize: int) -> None:
                 await enqueue(mid, event, maxsize or 1)
 
             isub.enqueue_datachange_event = enqueue_datachange_event
-            mis.create_monitored_items = _in_batches(mis.create_monitored_items)
+            mis.create_monitored_items = opcua_notify.in_batches(mis.create_monitored_items)
             opcua_notify.install(isub)
             return result
 
@@ -753,112 +751,6 @@ class _Slices:
         """Count one node update; True if the pass yielded (other cycles may have run)."""
         self.budget -= 1
         return await self._yield_if(self.budget <= 0)
-
-
-#: monitored items created between two yields to the event loop
-CREATE_BATCH = 16
-
-
-def _in_batches(create: Any) -> Any:
-    """CreateMonitoredItems in batches with a yield in between: asyncua creates all the
-    items of a request in one go (about 0.1 ms each), so a SCADA client subscribing to
-    1,000 tags at once would stop the event loop, and the motion cycles, for 100 ms."""
-
-    async def create_monitored_items(
-        params: ua.CreateMonitoredItemsParameters,
-    ) -> list[ua.MonitoredItemCreateResult]:
-        items = params.ItemsToCreate
-        if len(items) <= CREATE_BATCH:
-            return list(await create(params))
-        results: list[ua.MonitoredItemCreateResult] = []
-        for start in range(0, len(items), CREATE_BATCH):
-            part = dataclasses.replace(params, ItemsToCreate=items[start : start + CREATE_BATCH])
-            results += await create(part)
-            await asyncio.sleep(0)
-        return results
-
-    return create_monitored_items
-
-
-def _lean_datachange_callback(mis: Any) -> Any:
-    """``MonitoredItemService.datachange_callback`` made lean, for a 1,000-tag subscription
-    load (each step was measured there):
-
-    - asyncua builds a default ``MonitoredItemNotification()`` for every change it is told
-      of (a default DataValue and Variant, whose type it guesses) and then overwrites
-      both of its fields; that was a fifth of the front-end's CPU. The notification is
-      built once its fields are known.
-    - Without a filter, the trigger is StatusValue: :func:`_value_changed` is asyncua's
-      ``_is_data_changed`` for it, short-cut when the status code is the same object
-      (the publisher's DataValues share one).
-    - The notification is queued as ``InternalSubscription._enqueue_event`` queues it
-      (a new item's first change triggers a publish; then at most the item's queue size,
-      the oldest dropped), with queue size 0 meaning 1 (see ``_patch_queue_size``),
-      without the two coroutine layers in between.
-
-    A filter (deadband, another trigger) takes asyncua's own checks."""
-    upstream = mis.datachange_callback
-    datachange = mis._monitored_datachange
-    items = mis._monitored_items
-    disabled = ua.MonitoringMode.Disabled
-
-    async def datachange_callback(
-        handle: int, value: ua.DataValue, error: ua.StatusCode | None = None
-    ) -> None:
-        if error:
-            await upstream(handle, value, error)
-            return
-        mid = datachange[handle]
-        mdata = items[mid]
-        if mdata.mode == disabled:
-            return
-        mvalue = mdata.mvalue
-        mvalue.set_current_datavalue(value)
-        if mdata.filter:
-            changed = mis._is_data_changed(
-                mvalue, mdata.filter.Trigger
-            ) and mis._is_deadband_exceeded(mvalue, mdata.filter)
-        else:
-            changed = _value_changed(mvalue.get_old_datavalue(), value)
-        if changed:
-            event = ua.MonitoredItemNotification(ClientHandle=mdata.client_handle, Value=value)
-            isub = mis.isub
-            queue = isub._triggered_datachanges
-            pending = queue.get(mid)
-            if pending is None:
-                queue[mid] = [event]
-                await isub._trigger_publish()
-                return
-            if len(pending) >= (mdata.queue_size or 1):
-                pending.pop(0)
-            pending.append(event)
-
-    return datachange_callback
-
-
-def _value_changed(old: ua.DataValue | None, new: ua.DataValue) -> bool:
-    """asyncua's ``MonitoredItemService._is_data_changed`` with the StatusValue trigger:
-    the status code or the value (type and value) differ."""
-    if old is None:
-        return True
-    if old.StatusCode is not new.StatusCode and old.StatusCode != new.StatusCode:
-        return True
-    ov, nv = old.Value, new.Value
-    if ov is nv:
-        return False
-    if ov is None or nv is None:
-        return True
-    return not (ov.VariantType == nv.VariantType and ov.Value == nv.Value)
-
-
-class _SharedValues(MonitoredItemValues):
-    """A monitored item's last values without asyncua's defensive deep copy, which was
-    most of the cost of a published change: neither the publisher nor asyncua's write
-    path changes a DataValue after writing it (each write makes a new one)."""
-
-    def set_current_datavalue(self, cur_val: ua.DataValue) -> None:
-        self.old_dvalue = self.get_current_datavalue()
-        self.current_dvalue = cur_val
 
 
 class _DiscoveryOnly(PermissionRuleset):
