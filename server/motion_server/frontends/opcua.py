@@ -43,17 +43,23 @@ scrypt hashes (:mod:`.opcua_users`); anonymous sessions and the None endpoint on
 the site map sets ``allow_anonymous`` / ``allow_none_endpoint``. Client application
 certificates are accepted without a trust list (a simulator's choice; see README).
 
-Publishing: every ``1/publish_rate_hz`` seconds the tags whose value changed (analog
-values: by more than ``deadband``) are written to their nodes: the newest snapshot is
-compared with the values last published for every tag at once (numpy), and the changed
-nodes get their values all at once, from that one snapshot (a Read never sees nodes of
-two cycles). The monitored items are then notified in slices that yield to the event
+Reads: the Value of a tag's node (and of its ValueAsText) is answered from the scan's
+image through the node's ``value_callback`` (asyncua reads an attribute through it when
+it has one): the newest snapshot, with this front-end's own writes the scan has not
+applied yet laid over it. Every value of one Read request comes from one snapshot and
+carries one timestamp (the Read service takes the snapshot once per request), so a Read
+never shows two cycles, whatever a publishing pass is doing meanwhile. With a
+``deadband``, an analog value within it of the value last published reads as that value.
+
+Publishing: every ``1/publish_rate_hz`` seconds the newest snapshot is compared with the
+values last published for every tag at once (numpy; analog values count as changed when
+they moved by more than ``deadband``), the changed values are noted as published, and
+the monitored items of the changed nodes are notified in slices that yield to the event
 loop after ``chunk_size`` notifications or ``PUBLISH_SLICE_S`` of work, whichever comes
 first, so requests run in between (the motion cycle runs in another process and never
-waits for this one). A node's value is
-set as asyncua's ``write_attribute_value`` sets it (value, then the data-change callbacks
-of its monitored items), without looking the node up again or re-checking the variant
-type the publisher built. Monitored items created with
+waits for this one). A node nobody monitors costs nothing beyond the comparison. The
+notifications of a client's subscription are encoded by :mod:`.opcua_notify` (about a
+ninth of the time asyncua's generic serializer takes). Monitored items created with
 queue size 0 get a queue of one (latest value), as the specification asks.
 
 The wire (:mod:`.opcua_wire`): chunks are framed and judged before they are buffered
@@ -77,16 +83,16 @@ says Hello, a client silent after its Hello, a connection whose session has time
 Closes are logged and audited (``disconnect``, ``idle timeout``).
 
 A client's write of an instruction's BOOL input (``Execute``, ``Enable``) in realtime or
-scaled time also publishes that instance's tags as soon as the scan acknowledges the
-write (the cycle that took it is in the image), so its EN/DN/ER are readable within a
-cycle or two instead of waiting for the next pass.
+scaled time also notifies the monitored items of that instance's tags as soon as the
+scan acknowledges the write (the cycle that took it is in the image), so a subscriber
+sees its EN/DN/ER within a cycle or two instead of waiting for the next pass (a Read
+shows them from that cycle on anyway).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import dataclasses
 import ipaddress
 import logging
 import socket
@@ -102,7 +108,6 @@ from asyncua.common.connection import TransportLimits
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.crypto.security_policies import SecurityPolicyFactory, SecurityPolicyNone
 from asyncua.server.internal_session import InternalSession, SessionState
-from asyncua.server.monitored_item_service import MonitoredItemValues
 from asyncua.ua import status_codes
 
 from ..config import OpcUaSection, OpcUaUser
@@ -111,11 +116,12 @@ from ..safety.client import ClientInfo
 from ..safety.roles import Role, required_role
 from ..tagmap import BadValueError, ClockMode, Folder, ReadOnlyError, Tag, TagType
 from ..tagmap.nodeset import enum_text
+from . import opcua_notify
 from .certificates import self_signed
 from .comm_faults import CommFaults
 from .opcua_identity import identify
 from .opcua_limits import OperationLimits, OperationScreen, QuotaSession, publish_capabilities
-from .opcua_space import VARIANT_TYPES, build_space, variant
+from .opcua_space import VARIANT_TYPES, build_space
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
 from .opcua_wire import ChannelFault, GuardedProtocol, Wire, WireServer
 from .view import ImageView, ScanUnavailable, Ticket, WriteRefused, outcome
@@ -147,6 +153,15 @@ class _Published:
     attval: Any = None
     #: the Value attribute of its ValueAsText node
     text_attval: Any = None
+    #: reads of the node are answered from the image (:meth:`OpcUaFrontend._read`)
+    served: bool = False
+
+    def watched(self) -> bool:
+        """Monitored items watch the node or its ValueAsText."""
+        text = self.text_attval
+        return bool(self.attval.datachange_callbacks) or (
+            text is not None and bool(text.datachange_callbacks)
+        )
 
 
 def _is_loopback(host: str) -> bool:
@@ -208,11 +223,16 @@ class OpcUaFrontend:
         self.port = 0
         self._published: list[_Published] = []
         self._standard_write: Any = None
+        self._standard_read: Any = None
+        #: the snapshot and time of the Read request being answered
+        self._pinned: tuple[np.ndarray, datetime] | None = None
         self._by_node: dict[str, _Published] = {}
         self._by_owner: dict[str, list[_Published]] = {}
         #: the values last published, one per image slot; which slots are analog
         self._last = np.zeros(0)
         self._analog = np.zeros(0, dtype=bool)
+        #: every node is read from the image (no node needs asyncua's write path)
+        self._all_served = True
         self._following: dict[str, asyncio.Task[None]] = {}
         self._task: asyncio.Task[None] | None = None
         self._idle_task: asyncio.Task[None] | None = None
@@ -278,6 +298,8 @@ class OpcUaFrontend:
         self._watch(space)
         self._standard_write = iserver.attribute_service.write
         iserver.attribute_service.write = self._write
+        self._standard_read = iserver.attribute_service.read
+        iserver.attribute_service.read = self._read
         self._patch_queue_size(server)
         self._live_diagnostics(server)
         await server.start()
@@ -413,19 +435,20 @@ class OpcUaFrontend:
 
             def make_monitored_item(params: ua.MonitoredItemCreateRequest) -> Any:
                 result, mdata = make_common(params)
-                mdata.mvalue = _SharedValues()
+                mdata.mvalue = opcua_notify.SharedValues()
                 return result, mdata
 
             mis._make_monitored_item_common = make_monitored_item
             # before any item exists: each item registers mis.datachange_callback
-            mis.datachange_callback = _lean_datachange_callback(mis)
+            mis.datachange_callback = opcua_notify.lean_datachange_callback(mis)
             enqueue = isub.enqueue_datachange_event
 
             async def enqueue_datachange_event(mid: int, event: Any, maxsize: int) -> None:
                 await enqueue(mid, event, maxsize or 1)
 
             isub.enqueue_datachange_event = enqueue_datachange_event
-            mis.create_monitored_items = _in_batches(mis.create_monitored_items)
+            mis.create_monitored_items = opcua_notify.in_batches(mis.create_monitored_items)
+            opcua_notify.install(isub)
             return result
 
         service.create_subscription = create_subscription
@@ -557,68 +580,92 @@ class OpcUaFrontend:
                 text_node = nodes.get(pub.text_node)
                 if text_node is not None:
                     pub.text_attval = text_node.attributes.get(ua.AttributeIds.Value)
+            self._serve_from_image(pub)
             self._published.append(pub)
             self._by_node[tag.node_id] = pub
             self._by_owner.setdefault(tag.owner, []).append(pub)
         self._published.sort(key=lambda p: p.slot)
         self._last = values.copy()
         self._analog = np.array([p.is_float for p in self._published], dtype=bool)
+        self._all_served = all(p.served for p in self._published)
 
-    async def _set(self, pub: _Published, value: Any, now: datetime) -> None:
-        """Set one node's value and notify its monitored items."""
-        dv = self._store(pub, value, now)
-        if dv is None:
-            await self._write_slow(pub, value, now)
-            return
-        await self._notify(pub, dv)
-
-    def _store(self, pub: _Published, value: Any, now: datetime) -> ua.DataValue | None:
-        """Set the node's value (and its ValueAsText) at once, without yielding; the
-        data-change notifications follow (:meth:`_notify`). None when the node needs
-        asyncua's own write path (:meth:`_write_slow`)."""
+    def _serve_from_image(self, pub: _Published) -> None:
+        """Answer reads of ``pub``'s Value (and ValueAsText) from the image: asyncua reads
+        an attribute through its ``value_callback`` when it has one. A node another
+        component gave a ``value_setter`` keeps asyncua's own write path."""
         att, text = pub.attval, pub.text_attval
         if att is None or att.value_setter is not None:
-            return None
+            return
         if pub.text_node is not None and (text is None or text.value_setter is not None):
-            return None
-        pub.last = value
-        dv = ua.DataValue(variant(pub.tag, value), SourceTimestamp=now, ServerTimestamp=now)
-        # what AddressSpace.write_attribute_value does for a value of the right type
-        att.value = dv
-        att.value_callback = None
+            return
+        pub.served = True
+        att.value_callback = lambda nodeid, attr, pub=pub: self._read_value(pub)
         if text is not None:
-            label = ua.LocalizedText(enum_text(pub.tag, value))
-            text.value = ua.DataValue(ua.Variant(label, ua.VariantType.LocalizedText))
-            text.value_callback = None
-        self.updates += 1
-        return dv
+            text.value_callback = lambda nodeid, attr, pub=pub: self._read_text(pub)
 
-    async def _notify(self, pub: _Published, dv: ua.DataValue) -> None:
-        att = pub.attval
-        for handle, callback in list(att.datachange_callbacks.items()):
+    def _read(self, params: ua.ReadParameters) -> list[ua.DataValue]:
+        """The Read service: every tag value of one request comes from one snapshot
+        (whatever a publishing pass is doing meanwhile), stamped with one time."""
+        self._pinned = (self.image.values(), _now())
+        try:
+            results: list[ua.DataValue] = self._standard_read(params)
+        finally:
+            self._pinned = None
+        return results
+
+    def _current(self, pub: _Published) -> tuple[Any, datetime]:
+        """``pub``'s value as a Read shows it: from the newest snapshot (or the one the
+        Read being answered took); an analog value within the deadband of the value last
+        published reads as that value."""
+        pinned = self._pinned
+        values, now = pinned if pinned is not None else (self.image.values(), _now())
+        slot = pub.slot
+        raw = float(values[slot])
+        deadband = self.config.deadband
+        if deadband and pub.is_float:
+            last = float(self._last[slot])
+            if abs(raw - last) <= deadband:
+                raw = last
+        return self.image.typed(slot, raw), now
+
+    def _read_value(self, pub: _Published) -> ua.DataValue:
+        value, now = self._current(pub)
+        return _datavalue(pub, value, now)
+
+    def _read_text(self, pub: _Published) -> ua.DataValue:
+        value, _ = self._current(pub)
+        return _text(pub, value)
+
+    async def _set(self, pub: _Published, value: Any, now: datetime) -> None:
+        """Notify the monitored items of ``pub`` (and of its ValueAsText) of ``value``."""
+        if not pub.served:
+            await self._write_slow(pub, value, now)
+            return
+        if pub.watched():
+            await self._notify(pub, value, _datavalue(pub, value, now))
+
+    async def _notify(self, pub: _Published, value: Any, dv: ua.DataValue) -> None:
+        for handle, callback in list(pub.attval.datachange_callbacks.items()):
             try:
                 await callback(handle, dv)
             except Exception:
                 log.exception("OPC UA: data-change callback of %s failed", pub.tag.name)
         text = pub.text_attval
         if text is not None and text.datachange_callbacks:
+            tdv = _text(pub, value)
             for handle, callback in list(text.datachange_callbacks.items()):
                 try:
-                    await callback(handle, text.value)
+                    await callback(handle, tdv)
                 except Exception:
                     log.exception("OPC UA: data-change callback of %s failed", pub.tag.name)
 
     async def _write_slow(self, pub: _Published, value: Any, now: datetime) -> None:
+        """A node that asyncua's own write path must set (it has a ``value_setter``)."""
         assert self._server is not None
         pub.last = value
-        dv = ua.DataValue(variant(pub.tag, value), SourceTimestamp=now, ServerTimestamp=now)
-        await self._server.write_attribute_value(pub.node_id, dv)
-        self.updates += 1
+        await self._server.write_attribute_value(pub.node_id, _datavalue(pub, value, now))
         if pub.text_node is not None:
-            text = ua.Variant(
-                ua.LocalizedText(enum_text(pub.tag, value)), ua.VariantType.LocalizedText
-            )
-            await self._server.write_attribute_value(pub.text_node, ua.DataValue(text))
+            await self._server.write_attribute_value(pub.text_node, _text(pub, value))
 
     async def publish(self) -> int:
         """Push the values that changed since they were last published; returns how many."""
@@ -626,39 +673,41 @@ class OpcUaFrontend:
             return await self._publish_pass()
 
     async def _publish_pass(self) -> int:
-        """One pass: every changed node gets its value from one snapshot at once (a Read
-        never sees nodes of two cycles), then the monitored items are notified in slices
-        that yield to requests."""
+        """One pass: the values that changed in the newest snapshot since the last pass
+        (beyond the deadband) are noted at once, then the monitored items of those nodes
+        are notified in slices that yield to requests. Nodes nobody monitors cost nothing
+        more: a Read takes its values from the image (:meth:`_read`)."""
         deadband = self.config.deadband
         values = self.image.values()
         last = self._last
         moved = values != last
         if deadband:
             moved &= ~(self._analog & (np.abs(values - last) <= deadband))
+        changed = np.flatnonzero(moved)
+        last[changed] = values[changed]
         now = _now()
         pubs = self._published
         typed = self.image.typed
-        stored: list[tuple[_Published, ua.DataValue]] = []
-        slow: list[tuple[_Published, Any]] = []
-        for k in np.flatnonzero(moved).tolist():
-            raw = float(values[k])
-            last[k] = raw
-            value = typed(k, raw)
-            dv = self._store(pubs[k], value, now)
-            if dv is None:
-                slow.append((pubs[k], value))
-            else:
-                stored.append((pubs[k], dv))
         slices = _Slices(self.config.chunk_size)
-        for pub, dv in stored:
-            if pub.attval.datachange_callbacks:
-                await self._notify(pub, dv)
-                await slices.after_update()
-        for pub, value in slow:
-            await self._write_slow(pub, value, now)
+        server = self._server
+        idle = (
+            server is not None
+            and not server.iserver.subscription_service.subscriptions
+            and self._all_served
+        )
+        for k in [] if idle else changed.tolist():  # idle: no subscription to notify
+            pub = pubs[k]
+            if pub.served:
+                if not pub.watched():
+                    continue
+                value = typed(k, float(values[k]))
+                await self._notify(pub, value, _datavalue(pub, value, now))
+            else:
+                await self._write_slow(pub, typed(k, float(values[k])), now)
             await slices.after_update()
+        self.updates += len(changed)
         self.passes += 1
-        return len(stored) + len(slow)
+        return len(changed)
 
     async def _publish_loop(self) -> None:
         period = 1.0 / self.config.publish_rate_hz
@@ -674,6 +723,9 @@ class OpcUaFrontend:
             if deadline < now:  # a slow pass: do not try to catch up
                 deadline = now
             await asyncio.sleep(deadline - now)
+
+
+_new = object.__new__
 
 
 class _Slices:
@@ -701,78 +753,6 @@ class _Slices:
         return await self._yield_if(self.budget <= 0)
 
 
-#: monitored items created between two yields to the event loop
-CREATE_BATCH = 16
-
-
-def _in_batches(create: Any) -> Any:
-    """CreateMonitoredItems in batches with a yield in between: asyncua creates all the
-    items of a request in one go (about 0.1 ms each), so a SCADA client subscribing to
-    1,000 tags at once would stop the event loop, and the motion cycles, for 100 ms."""
-
-    async def create_monitored_items(
-        params: ua.CreateMonitoredItemsParameters,
-    ) -> list[ua.MonitoredItemCreateResult]:
-        items = params.ItemsToCreate
-        if len(items) <= CREATE_BATCH:
-            return list(await create(params))
-        results: list[ua.MonitoredItemCreateResult] = []
-        for start in range(0, len(items), CREATE_BATCH):
-            part = dataclasses.replace(params, ItemsToCreate=items[start : start + CREATE_BATCH])
-            results += await create(part)
-            await asyncio.sleep(0)
-        return results
-
-    return create_monitored_items
-
-
-def _lean_datachange_callback(mis: Any) -> Any:
-    """``MonitoredItemService.datachange_callback`` without its first statement: asyncua
-    builds a default ``MonitoredItemNotification()`` for every change it is told of (a
-    default DataValue and Variant, whose type it guesses) and then overwrites both of
-    its fields; that was a fifth of the front-end's CPU under a 1,000-tag subscription
-    load. The notification is built once its fields are known; the filter and trigger
-    checks are asyncua's own."""
-    upstream = mis.datachange_callback
-    datachange = mis._monitored_datachange
-    items = mis._monitored_items
-    disabled = ua.MonitoringMode.Disabled
-    status_value = ua.DataChangeTrigger.StatusValue
-
-    async def datachange_callback(
-        handle: int, value: ua.DataValue, error: ua.StatusCode | None = None
-    ) -> None:
-        if error:
-            await upstream(handle, value, error)
-            return
-        mid = datachange[handle]
-        mdata = items[mid]
-        if mdata.mode == disabled:
-            return
-        mdata.mvalue.set_current_datavalue(value)
-        if mdata.filter:
-            changed = mis._is_data_changed(
-                mdata.mvalue, mdata.filter.Trigger
-            ) and mis._is_deadband_exceeded(mdata.mvalue, mdata.filter)
-        else:
-            changed = mis._is_data_changed(mdata.mvalue, status_value)
-        if changed:
-            event = ua.MonitoredItemNotification(ClientHandle=mdata.client_handle, Value=value)
-            await mis.isub.enqueue_datachange_event(mid, event, mdata.queue_size)
-
-    return datachange_callback
-
-
-class _SharedValues(MonitoredItemValues):
-    """A monitored item's last values without asyncua's defensive deep copy, which was
-    most of the cost of a published change: neither the publisher nor asyncua's write
-    path changes a DataValue after writing it (each write makes a new one)."""
-
-    def set_current_datavalue(self, cur_val: ua.DataValue) -> None:
-        self.old_dvalue = self.get_current_datavalue()
-        self.current_dvalue = cur_val
-
-
 class _DiscoveryOnly(PermissionRuleset):
     """Refuses every service a session uses (discovery and session set-up are never checked)."""
 
@@ -782,6 +762,27 @@ class _DiscoveryOnly(PermissionRuleset):
 
 def _now() -> datetime:
     return datetime.now(UTC)
+
+
+_GOOD = ua.StatusCode()
+
+
+def _datavalue(pub: _Published, value: Any, now: datetime) -> ua.DataValue:
+    """``value`` (typed by :meth:`ImageView.typed`: bool, int or float) as the node's
+    DataValue. The Variant is made without ``Variant.__post_init__``, which guesses and
+    checks the type of any value and took most of the time of a data-change notification
+    (2.5 against 0.7 us): its result for a scalar of a known type is these four fields."""
+    var = _new(ua.Variant)
+    var.Value = value
+    var.VariantType = pub.vtype
+    var.Dimensions = None
+    var.is_array = False
+    return ua.DataValue(var, StatusCode=_GOOD, SourceTimestamp=now, ServerTimestamp=now)
+
+
+def _text(pub: _Published, value: Any) -> ua.DataValue:
+    label = ua.LocalizedText(enum_text(pub.tag, value))
+    return ua.DataValue(ua.Variant(label, ua.VariantType.LocalizedText))
 
 
 def _free_port(host: str) -> int:
