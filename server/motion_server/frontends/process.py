@@ -33,6 +33,7 @@ from ..launch import LaunchSpec, setup_logging
 from ..safety.access import AccessPolicy
 from ..safety.audit import AuditLog
 from ..scan.channel import MODBUS, OPCUA
+from ..scheduling import LOAD_WINDOW, MODBUS_RT_PRIORITY, CpuLoad, Policy
 from ..tagmap import build_tagmap
 from ..tagmap.judge import Judge
 from . import modbus as modbus_module
@@ -45,6 +46,10 @@ log = logging.getLogger("motion_server.frontends")
 KINDS = {"modbus": MODBUS, "opcua": OPCUA}
 #: connection numbers of the n-th start of a front-end begin at n * this + 1
 GENERATION_SPAN = 1_000_000
+#: the Modbus front-end's load (% of a core each second) beyond which it leaves the
+#: real-time policy until the load is below half of it: a flood of requests must not take
+#: a whole core from the rest
+MODBUS_OVERLOAD = 75.0
 
 
 def _say(obj: dict[str, Any]) -> None:
@@ -132,13 +137,16 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
             stop.set()
 
     loop.add_reader(sys.stdin.fileno(), lifeline)
-    broken = asyncio.create_task(_watch_link(link, stop))
+    tasks = [asyncio.create_task(_watch_link(link, stop))]
+    if kind == "modbus":
+        tasks.append(asyncio.create_task(_follow_policy(modbus_policy())))
     try:
         await stop.wait()
     finally:
-        broken.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await broken
+        for task in tasks:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
         await frontend.stop()
         link.close()
     return 0
@@ -154,6 +162,20 @@ async def _watch_link(link: ScanLink, stop: asyncio.Event) -> None:
     while not link.broken:
         await asyncio.sleep(0.5)
     stop.set()
+
+
+def modbus_policy() -> Policy:
+    """Real-time below the scan (:data:`~motion_server.scheduling.MODBUS_RT_PRIORITY`):
+    a PLC's write and its polls of DN come before the OPC UA front-end's bulk work."""
+    return Policy("Modbus front-end", MODBUS_RT_PRIORITY, MODBUS_OVERLOAD, recover=True)
+
+
+async def _follow_policy(policy: Policy) -> None:
+    cpu = CpuLoad()
+    policy.follow(True, 0.0)
+    while True:
+        await asyncio.sleep(LOAD_WINDOW)
+        policy.follow(True, cpu.sample())
 
 
 def main() -> int:

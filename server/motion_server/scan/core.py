@@ -55,6 +55,7 @@ from ..kernel.group import OperatingMode
 from ..safety import retain
 from ..safety.client import writing_as
 from ..safety.watchdog import Watchdog
+from ..scheduling import LOAD_WINDOW
 from ..tagmap import ClockMode, CommFault, TagAccessError, TagImage, build_tagmap
 from ..tagmap.image import CommSettings, Getter, Setter
 from ..tagmap.judge import Judge
@@ -72,8 +73,6 @@ MANUAL_CHUNK = 200
 FAST_SLICE = 0.001
 #: stop cycles run per pass
 STOP_CHUNK = 50
-#: how often the scan load is computed (wall seconds)
-LOAD_WINDOW = 1.0
 
 RetainSink = Callable[[dict[str, Any]], None]
 

@@ -28,9 +28,10 @@ from ..image import wire
 from ..image.buffer import map_shared
 from ..launch import LaunchSpec, setup_logging
 from ..safety.retain import RetainError
+from ..scheduling import SCAN_RT_PRIORITY, Policy
 from ..tagmap.fields import ClockMode
 from .channel import CONTROL, Channel
-from .core import LOAD_WINDOW, Scan
+from .core import Scan
 
 log = logging.getLogger("motion_server.scan")
 
@@ -39,63 +40,21 @@ log = logging.getLogger("motion_server.scan")
 SCAN_NICE = -10
 #: seconds the scan waits, when it ends, for the supervisor to take what it still has to send
 DRAIN_TIMEOUT = 5.0
-#: the scan's load (% of each second busy) beyond which it leaves the real-time policy
+#: the scan's load (% of each second busy) beyond which it leaves the real-time policy: it
+#: cannot keep its period then, and on a machine of one core it would leave the front-ends
+#: almost no time to answer
 OVERLOAD = 90.0
-#: the scan's real-time priority (SCHED_FIFO, 1-99) while the clock runs in real time
-SCAN_RT_PRIORITY = 10
 
 
-class _Priority:
-    """The operating system's scheduling of the scan, following the clock mode.
+def scan_policy() -> Policy:
+    """Real-time (:data:`~motion_server.scheduling.SCAN_RT_PRIORITY`) while the clock
+    follows the wall clock; in the manual and fast modes, where cycles run back to back
+    on demand, the ordinary policy at nice :data:`SCAN_NICE`."""
+    return Policy("scan", SCAN_RT_PRIORITY, OVERLOAD, nice=SCAN_NICE)
 
-    While the clock follows the wall clock (realtime, scaled) the scan asks for SCHED_FIFO
-    at priority :data:`SCAN_RT_PRIORITY`, as a controller's motion task runs: a waking
-    cycle then preempts every ordinary process at once (front-ends, clients on the same
-    machine), and the kernel's real-time throttling (``sched_rt_runtime_us``, 95 % by
-    default) still leaves the machine to them should a cycle never end. In the manual and
-    fast modes, where cycles run back to back on demand, it runs under the ordinary
-    policy at nice :data:`SCAN_NICE`. Either needs root or CAP_SYS_NICE (a container
-    without it, an unprivileged user): otherwise the scan keeps what it has, said once
-    at DEBUG."""
 
-    def __init__(self) -> None:
-        self.realtime: bool | None = None
-        self.demoted = False
-        self._since = 0.0
-        try:
-            os.setpriority(os.PRIO_PROCESS, 0, SCAN_NICE)
-        except OSError as exc:
-            log.debug("scan priority unchanged: %s", exc)
-        else:
-            log.debug("scan priority raised (nice %d)", SCAN_NICE)
-
-    def follow(self, mode: ClockMode, load: float) -> None:
-        """Apply the policy for ``mode``. ``load``: the share of the last second the scan
-        was busy (%). A scan busy beyond :data:`OVERLOAD` % cannot keep its period; as a
-        real-time task it would leave the front-ends (on a machine of one core) almost
-        no time to answer, so it goes back to the ordinary policy for good, said once."""
-        settled = self.realtime and time.monotonic() - self._since > 2 * LOAD_WINDOW
-        if load > OVERLOAD and settled and not self.demoted:
-            self.demoted = True
-            log.warning(
-                "scan busy %.0f %% of the time (the cycle takes about as long as its "
-                "period): it leaves the real-time scheduling policy so that clients are "
-                "still served",
-                load,
-            )
-        realtime = mode in (ClockMode.REALTIME, ClockMode.SCALED) and not self.demoted
-        if realtime == self.realtime:
-            return
-        self.realtime = realtime
-        self._since = time.monotonic()  # the load of the mode before is not this one's
-        policy, priority = (os.SCHED_FIFO, SCAN_RT_PRIORITY) if realtime else (os.SCHED_OTHER, 0)
-        try:
-            os.sched_setscheduler(0, policy, os.sched_param(priority))
-        except OSError as exc:
-            if realtime:
-                log.debug("scan keeps the ordinary scheduling policy: %s", exc)
-        else:
-            log.debug("scan scheduling: %s", "SCHED_FIFO" if realtime else "SCHED_OTHER")
+def _realtime(mode: ClockMode) -> bool:
+    return mode in (ClockMode.REALTIME, ClockMode.SCALED)
 
 
 def main() -> int:
@@ -134,8 +93,8 @@ def main() -> int:
         return 2
     for ch in channels.values():
         scan.attach(ch)
-    priority = _Priority()
-    priority.follow(scan.mode, scan.load)
+    priority = scan_policy()
+    priority.follow(_realtime(scan.mode), scan.load)
     # the start-up heap (the whole system) is never scanned by the collector again
     gc.collect()
     gc.freeze()
@@ -144,7 +103,7 @@ def main() -> int:
         if stop[0]:
             scan.request_stop()
         wake = scan.service(time.monotonic())
-        priority.follow(scan.mode, scan.load)
+        priority.follow(_realtime(scan.mode), scan.load)
         if scan.finished:
             break
         fds: list[int] = [wake_r, *(ch.fileno() for ch in scan.channels.values())]
