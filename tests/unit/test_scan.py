@@ -16,6 +16,7 @@ from motion_server.instructions.plcopen.mc_move_velocity import MC_MoveVelocity
 from motion_server.kernel import ErrorCode
 from motion_server.runtime import Runtime
 from motion_server.safety.client import ClientInfo
+from motion_server.tagmap import ClockMode
 
 SITE = """
 [site]
@@ -222,3 +223,21 @@ def test_a_clock_step_during_the_programmed_stop_is_answered_at_once() -> None:
     ticket = rt.image.write("Clock.Step", True)
     assert ticket.ack is not None and ticket.ack.result == wire.Result.NOT_RUN
     assert rt.scan.finished and rt.ctl.axis(1).command_velocity == 0.0
+
+
+@pytest.mark.parametrize("mode", [ClockMode.FAST, ClockMode.REALTIME])
+def test_a_clock_mode_written_takes_effect_at_once(mode: ClockMode) -> None:
+    """The manual clock waits for writes, with nothing due before its next timer (the
+    load window: a second). A write that switches the clock asks to be called again at
+    once, so the first cycles of the new mode do not wait for that timer."""
+    rt = Runtime(site())
+    scan = rt.scan
+    scan.start(0.0)
+    assert scan.service(0.5) == pytest.approx(1.0)  # manual, idle: the next timer
+    slot = rt.layout.slot("Clock.Mode")
+    scan.deliver(rt._local.channel, wire.Batch(1, ClientInfo("modbus", "10.0.0.1"), [(slot, mode)]))
+    tick = rt.ctl.tick
+    assert scan.service(0.5) == 0.5
+    assert scan.mode == mode and rt.ctl.tick == tick
+    scan.service(0.5)
+    assert rt.ctl.tick > tick

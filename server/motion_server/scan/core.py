@@ -409,6 +409,10 @@ class Scan:
         else:
             wake = self._realtime(now)
         self._flush()
+        if self.mode != mode:
+            # a write just switched the clock: the new mode's schedule starts now, not at
+            # the old one's next wake-up (a manual clock's: a timer up to a second away)
+            return now
         if wake is None:
             return timer
         return wake if timer is None else min(wake, timer)
