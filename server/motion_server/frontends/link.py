@@ -167,7 +167,8 @@ class ScanLink:
                 self._break(str(exc))
                 return
             if not data:
-                self._break("the scan closed the channel", logging.INFO)
+                # the scan ended, stopped or died: the supervisor says which, in one line
+                self._break("the scan closed the channel", logging.DEBUG)
                 return
             try:
                 self._packet(data)
