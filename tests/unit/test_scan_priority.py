@@ -26,6 +26,14 @@ def calls(monkeypatch: pytest.MonkeyPatch) -> list[tuple[int, int]]:
     return made
 
 
+@pytest.fixture
+def now(monkeypatch: pytest.MonkeyPatch) -> list[float]:
+    """The monotonic clock the policies read, moved by hand."""
+    clock = [1000.0]
+    monkeypatch.setattr(scheduling.time, "monotonic", lambda: clock[0])
+    return clock
+
+
 FIFO_SCAN = (os.SCHED_FIFO, scheduling.SCAN_RT_PRIORITY)
 OTHER = (os.SCHED_OTHER, 0)
 
@@ -46,10 +54,8 @@ def test_real_time_policy_while_the_clock_follows_the_wall_clock(
 
 
 def test_an_overloaded_scan_leaves_the_real_time_policy_for_good(
-    calls: list[tuple[int, int]], monkeypatch: pytest.MonkeyPatch
+    calls: list[tuple[int, int]], now: list[float]
 ) -> None:
-    now = [1000.0]
-    monkeypatch.setattr(scheduling.time, "monotonic", lambda: now[0])
     p = process.scan_policy()
     p.follow(True, 0.0)
     now[0] += 1.0
@@ -63,10 +69,8 @@ def test_an_overloaded_scan_leaves_the_real_time_policy_for_good(
 
 
 def test_the_modbus_front_end_runs_real_time_below_the_scan(
-    calls: list[tuple[int, int]], monkeypatch: pytest.MonkeyPatch
+    calls: list[tuple[int, int]], now: list[float]
 ) -> None:
-    now = [1000.0]
-    monkeypatch.setattr(scheduling.time, "monotonic", lambda: now[0])
     p = frontend.modbus_policy()
     p.follow(True, 0.0)
     assert calls == [(os.SCHED_FIFO, scheduling.MODBUS_RT_PRIORITY)]
@@ -95,10 +99,8 @@ def test_cpu_load_is_the_share_of_a_window_spent_on_a_cpu(
 
 
 def test_the_modbus_front_end_is_real_time_again_once_a_flood_has_passed(
-    calls: list[tuple[int, int]], monkeypatch: pytest.MonkeyPatch
+    calls: list[tuple[int, int]], now: list[float]
 ) -> None:
-    now = [1000.0]
-    monkeypatch.setattr(scheduling.time, "monotonic", lambda: now[0])
     p = frontend.modbus_policy()
     p.follow(True, 0.0)
     now[0] += 3.0
@@ -114,7 +116,7 @@ def test_the_modbus_front_end_is_real_time_again_once_a_flood_has_passed(
 
 
 def test_without_the_permission_the_policy_is_asked_for_once(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, now: list[float]
 ) -> None:
     asked: list[int] = []
 
@@ -123,8 +125,6 @@ def test_without_the_permission_the_policy_is_asked_for_once(
         raise PermissionError(1, "Operation not permitted")
 
     monkeypatch.setattr(os, "sched_setscheduler", refuse)
-    now = [1000.0]
-    monkeypatch.setattr(scheduling.time, "monotonic", lambda: now[0])
     p = frontend.modbus_policy()
     p.follow(True, 0.0)
     now[0] += 3.0
