@@ -726,9 +726,6 @@ class OpcUaFrontend:
             await asyncio.sleep(deadline - now)
 
 
-_new = object.__new__
-
-
 class _Slices:
     """Where a publishing pass yields to the event loop: after ``chunk`` node updates or
     ``PUBLISH_SLICE_S`` of work, whichever comes first.
@@ -773,6 +770,7 @@ def _now() -> datetime:
 
 
 _GOOD = ua.StatusCode()
+_new = object.__new__
 
 
 def _datavalue(pub: _Published, value: Any, now: datetime) -> ua.DataValue:
