@@ -6,6 +6,7 @@ arrays; both are recorded for the host to log, once."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -184,4 +185,44 @@ def test_a_gear_that_overflows_faults_the_slave_with_or_without_lanes(lanes: boo
     ctl.run(2)
     assert slave.state == AxisState.AXIS_FAULTED and slave.fault == AxisFault.NUMERIC
     assert master.state == AxisState.SERVO_CONTROL and master.command_position == 1e303
+    assert np.isfinite(ctl.arrays.kinematics).all()
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_overflowing_values_warn_neither_in_a_step_nor_in_a_batch(batched: bool) -> None:
+    """Non-finite values are screened, not warned about: a step on its own sets numpy's
+    error state itself, steps in ``Controller.batch()`` share the batch's; numpy's own
+    setting is back after the batch. The vectorised paths (lanes, a group of 8 axes)
+    overflow here: a gear of 1e6 on masters at 1e303."""
+    n = 4
+    axes = [AxisConfig(k, f"M{k}", AxisType.VIRTUAL) for k in range(1, n + 1)]
+    axes += [AxisConfig(n + k, f"S{k}", AxisType.SERVO) for k in range(1, n + 1)]
+    ctl = Controller(axes, [GroupConfig(1, "G", tuple(range(1, 2 * n + 1)), DT)], lanes=True)
+    for ax in ctl.axes:
+        ctl.servo_on(ax)
+    for k in range(1, n + 1):
+        slave = ctl.axis(n + k)
+        ctl.start(
+            slave,
+            lambda v, a, k=k, slave=slave: GearProcess(
+                ctl, slave, (GearTerm(k, MasterSource.COMMAND, 1e6),)
+            ),
+        )
+    ctl.run(3)
+    for k in range(1, n + 1):
+        ctl.start(ctl.axis(k), lambda v, a: Runaway(1e303))
+    before = np.geterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        if batched:
+            with ctl.batch():
+                ctl.step()
+                ctl.step()
+        else:
+            ctl.step()
+            ctl.step()
+    assert np.geterr() == before
+    for k in range(1, n + 1):
+        slave = ctl.axis(n + k)
+        assert slave.state == AxisState.AXIS_FAULTED and slave.fault == AxisFault.NUMERIC
     assert np.isfinite(ctl.arrays.kinematics).all()

@@ -22,8 +22,10 @@ goes wrong in a step ends it: a process that raises is contained by
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Callable, Collection, Iterable, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import NamedTuple
 
 import numpy as np
@@ -116,6 +118,8 @@ class Controller:
         self.lanes_enabled = lanes is not False
         self.drive = DriveModel(s)
         self.motion = Motion(s, self.axes, self.groups, lanes)
+        #: the failures :meth:`take_internal_errors` takes (a host tests it each cycle)
+        self.internal_errors: Sequence[InternalError] = self.motion.internal_errors
         self.power = Power(self.motion, self.drive)
         #: MDAC master assignments (master-driven speed control)
         self.mdsc = MasterDrivenControl(self.motion)
@@ -124,17 +128,23 @@ class Controller:
         #: fault causes a test bench holds on axes (:mod:`.faults`)
         self.faults = FaultInjection()
         self.tick = 0
+        #: depth of :meth:`batch` blocks entered
+        self._batched = 0
         self.mode = OperatingMode.RUN
         #: per group: compose one axis in Python now (and offer it to the lanes)
-        self._composers = {g.number: self._composer(g.period) for g in self.groups}
+        self._composers = {g.number: self._composer(g) for g in self.groups}
         self._status_views = (
             _readonly(s.axis_state),
             _readonly(s.plcopen_state),
             _readonly(s.fault),
         )
 
-    def _composer(self, dt: float) -> Callable[[Axis], None]:
+    def _composer(self, g: MotionGroup) -> Callable[[Axis], None]:
         motion = self.motion
+        dt = g.period
+        if not motion.offers(g.number):
+            # a group without fast lanes: nothing to offer (a call saved per axis and cycle)
+            return functools.partial(motion.compose, dt=dt)
 
         def compose(ax: Axis) -> None:
             motion.compose(ax, dt)
@@ -223,15 +233,33 @@ class Controller:
         self.tick += 1
         if self.motion.order_dirty:
             self.motion.sort()
-        with np.errstate(all="ignore"):  # non-finite values are checked, not warned about
+        if self._batched:
             for g in self.groups:
                 if self.tick % g.every == 0:
                     self._step_group(g)
+        else:
+            with np.errstate(all="ignore"):  # non-finite values are checked, not warned about
+                for g in self.groups:
+                    if self.tick % g.every == 0:
+                        self._step_group(g)
         self.mdsc.update()
 
+    @contextmanager
+    def batch(self) -> Iterator[None]:
+        """Steps taken inside share one numpy error state (non-finite values are screened,
+        not warned about), set once: set by each step on its own, entering and leaving it
+        costs as much as a small group's drive update."""
+        with np.errstate(all="ignore"):
+            self._batched += 1
+            try:
+                yield
+            finally:
+                self._batched -= 1
+
     def run(self, cycles: int) -> None:
-        for _ in range(cycles):
-            self.step()
+        with self.batch():
+            for _ in range(cycles):
+                self.step()
 
     def _step_group(self, g: MotionGroup) -> None:
         dt = g.period
@@ -292,8 +320,9 @@ class Controller:
         failed (a process's repr, "feedback", "command", "drive model"), the exception).
         The process concerned ended with ERR ``INTERNAL_ERROR`` (its axis ramped to rest);
         a value that was not finite faulted its axis (``AxisFault.NUMERIC``)."""
-        out = self.motion.internal_errors
-        self.motion.internal_errors = []
+        errors = self.motion.internal_errors
+        out = errors.copy()
+        errors.clear()
         return out
 
     # -- status -----------------------------------------------------------------------------

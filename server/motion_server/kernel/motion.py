@@ -80,6 +80,10 @@ class Motion:
             if p.lane is not None:
                 p.lane.evict(p)
 
+    def offers(self, group: int) -> bool:
+        """Processes of ``group`` may join its fast lanes."""
+        return group in self._offer_to
+
     def offer(self, ax: Axis) -> None:
         """After a change or a composition: one active process on a driven axis, with
         nothing buffered, may go to a fast lane, if something happened to it since it was

@@ -331,15 +331,16 @@ class Scan:
         """Run cycles until ``tick`` as the scan ran them (watchdogs, then the system)."""
         system, watchdogs = self.system, list(self.watchdogs.values())
         ctl = self.ctl
-        while ctl.tick < tick:
-            for wd in watchdogs:
-                wd.check()
-            try:
-                system.cycle()
-            except Exception:  # as the scan contains it (logged the first time round)
-                self.kernel_failures += 1
-            system.internal_errors.clear()
-            ctl.take_internal_errors()
+        with ctl.batch():
+            while ctl.tick < tick:
+                for wd in watchdogs:
+                    wd.check()
+                try:
+                    system.cycle()
+                except Exception:  # as the scan contains it (logged the first time round)
+                    self.kernel_failures += 1
+                system.internal_errors.clear()
+                ctl.take_internal_errors()
 
     def _carry_out_snapshot(self, ch: Channel, seq: int) -> bool:
         """The snapshot command of the batch just applied; False when it failed."""
@@ -402,12 +403,13 @@ class Scan:
             return None
         timer = self._periodic(now)
         mode = self.mode
-        if mode == ClockMode.MANUAL:
-            wake = self._manual()
-        elif mode == ClockMode.FAST:
-            wake = self._fast(now)
-        else:
-            wake = self._realtime(now)
+        with self.ctl.batch():
+            if mode == ClockMode.MANUAL:
+                wake = self._manual()
+            elif mode == ClockMode.FAST:
+                wake = self._fast(now)
+            else:
+                wake = self._realtime(now)
         self._flush()
         if self.mode != mode:
             # a write just switched the clock: the new mode's schedule starts now, not at
@@ -421,11 +423,12 @@ class Scan:
         """Run ``count`` cycles now, whatever the clock mode (tests, tools); the writes
         waiting are applied first and the image is published after each cycle."""
         self._receive()
-        for _ in range(count):
-            self._apply_queued()
-            self._run_cycle()
-            self._ack_due()
-            self._publish()
+        with self.ctl.batch():
+            for _ in range(count):
+                self._apply_queued()
+                self._run_cycle()
+                self._ack_due()
+                self._publish()
         if not count and self._dirty:
             self._apply_queued()
             self._publish()
@@ -501,9 +504,8 @@ class Scan:
                 )
         if self.system.internal_errors:
             self._log_internal_errors()
-        kernel_errors = self.ctl.take_internal_errors()
-        if kernel_errors:
-            self._log_kernel_errors(kernel_errors)
+        if self.ctl.internal_errors:
+            self._log_kernel_errors(self.ctl.take_internal_errors())
         self.heartbeat = (self.heartbeat + 1) & 0xFFFFFFFF
         # Diagnostics.CycleTime: the cycle's own work (watchdogs, instructions, kernel);
         # copying it into the image is counted in the scan load
@@ -516,7 +518,7 @@ class Scan:
         # filler's change sets (outputs, fault causes) accumulate until then
         self._refill = True
         self._dirty = True
-        self._load_busy += time.perf_counter() - t0
+        self._load_busy += spent
 
     def _log_internal_errors(self) -> None:
         errors = self.system.internal_errors
@@ -702,11 +704,12 @@ class Scan:
         self._apply_queued()
         done = all(s.complete for s in self._stops)
         n = 0
-        while not done and self._stop_cycles < limit and n < STOP_CHUNK:
-            self._run_cycle()
-            self._stop_cycles += 1
-            n += 1
-            done = all(s.complete for s in self._stops)
+        with self.ctl.batch():
+            while not done and self._stop_cycles < limit and n < STOP_CHUNK:
+                self._run_cycle()
+                self._stop_cycles += 1
+                n += 1
+                done = all(s.complete for s in self._stops)
         self._publish()
         if not done and self._stop_cycles < limit:
             self._flush()
