@@ -73,7 +73,6 @@ class _Partition:
         "off_rows",
         "on",
         "on_rows",
-        "rows",
         "version",
         "watch_all",
         "watched",
@@ -93,7 +92,6 @@ class _Partition:
         #: the indices as Python ints, for the axis-by-axis path
         self.on_rows: list[int] = on_idx.tolist()
         self.off_rows: list[int] = off_idx.tolist()
-        self.rows: list[int] = idx.tolist()
         #: every axis that is on has a following-error limit: the check reads the
         #: drive update's own arrays
         self.watch_all = watched.size == on_idx.size
@@ -221,11 +219,8 @@ class DriveModel:
             s.cmd_pos[off_idx] = q
             s.cmd_vel[off_idx] = v1
             s.cmd_acc[off_idx] = 0.0
-        if part.n_on + part.n_off <= small:
-            drv_cmd, cmd_pos = s.drv_cmd, s.cmd_pos
-            for i in part.rows:
-                drv_cmd[i] = cmd_pos.item(i)
-        else:
+        # the command the drives followed (the rows' loops keep it for their own axes)
+        if part.n_on > small or part.n_off > small:
             s.drv_cmd[part.all] = s.cmd_pos[part.all]
         return beyond
 
@@ -235,6 +230,7 @@ class DriveModel:
         s = self.s
         act_x, act_vel, act_pos, cmd_pos = s.act_x, s.act_vel, s.act_pos, s.cmd_pos
         beyond: list[int] = []
+        drv_cmd = s.drv_cmd
         if not servo:
             cmd_vel = s.cmd_vel
             for i in part.on_rows:
@@ -242,12 +238,14 @@ class DriveModel:
                 act_x[i] = c
                 act_pos[i] = c
                 act_vel[i] = cmd_vel.item(i)
+                drv_cmd[i] = c
             return beyond
         decay = part.decay_for(s, dt)
-        drv_cmd, omega, cpu, fe_limit = s.drv_cmd, s.omega, s.cpu, s.fe_limit
+        omega, cpu, fe_limit = s.omega, s.cpu, s.fe_limit
         for k, i in enumerate(part.on_rows):
             c0 = drv_cmd.item(i)
             c1 = cmd_pos.item(i)
+            drv_cmd[i] = c1
             w = omega.item(i)
             slope = (c1 - c0) / dt
             lag = 2.0 * slope / w
@@ -269,7 +267,7 @@ class DriveModel:
         """The drives that are off, axis by axis (see :meth:`follow`)."""
         s = self.s
         act_x, act_vel, act_pos, coast, cpu = s.act_x, s.act_vel, s.act_pos, s.coast, s.cpu
-        cmd_pos, cmd_vel, cmd_acc = s.cmd_pos, s.cmd_vel, s.cmd_acc
+        cmd_pos, cmd_vel, cmd_acc, drv_cmd = s.cmd_pos, s.cmd_vel, s.cmd_acc, s.drv_cmd
         for i in rows:
             v0 = act_vel.item(i)
             step = coast.item(i) * dt
@@ -287,6 +285,7 @@ class DriveModel:
             cmd_pos[i] = q
             cmd_vel[i] = v1
             cmd_acc[i] = 0.0
+            drv_cmd[i] = q
 
     def _following_errors(self, part: _Partition, c1: np.ndarray, q: np.ndarray) -> list[int]:
         """Axes whose |command - actual| exceeds their following error limit, from the

@@ -116,12 +116,13 @@ class AxisArrays:
     # -- numerics ---------------------------------------------------------------------------
     def commands_finite(self) -> bool:
         """Every command position, velocity and acceleration is finite (one dot product:
-        0 x inf and 0 x NaN are NaN)."""
-        return not math.isnan(self._commands @ self._zeros)
+        0 x inf and 0 x NaN are NaN; ``ndarray.dot`` costs half of ``@`` on small
+        arrays)."""
+        return not math.isnan(self._commands.dot(self._zeros))
 
     def actuals_finite(self) -> bool:
         """Every actual position (continuous and quantised) and velocity is finite."""
-        return not math.isnan(self._actuals @ self._zeros)
+        return not math.isnan(self._actuals.dot(self._zeros))
 
     # -- masters ----------------------------------------------------------------------------
     def master_arrays(self, reference: MasterReference) -> MasterArrays:
