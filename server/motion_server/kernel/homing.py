@@ -446,16 +446,25 @@ class Homing:
             members = [ax for ax in g.axes if ax.index in self.sensors]
             if members:
                 self.groups[g.number] = members
-        #: raw position of each sensor axis at the end of its last cycle (None: not yet)
+        #: raw position of each sensor axis at the end of its last cycle (None: not yet),
+        #: and at the end of the cycle before (what :meth:`marker_seen` compares)
         self._raw: dict[int, float | None] = dict.fromkeys(self.sensors)
-        #: a marker was crossed in the axis's last cycle (the ``Marker`` tag)
-        self.marker_seen: dict[int, bool] = dict.fromkeys(self.sensors, False)
+        self._before: dict[int, float | None] = dict.fromkeys(self.sensors)
         #: the homing waiting for events, per axis index
         self.jobs: dict[int, HomeHandle] = {}
 
     def raw(self, ax: Axis) -> float:
         """The axis's raw position now (continuous drive position minus the offset)."""
-        return float(self._motion.s.act_x[ax.index]) - ax.position_offset
+        return self._motion.s.act_x.item(ax.index) - ax.position_offset
+
+    def marker_seen(self, index: int) -> bool:
+        """A marker was crossed in the last cycle of the axis ``index`` (the ``Marker``
+        tag; worked out when read, not every cycle)."""
+        r0 = self._before.get(index)
+        r1 = self._raw.get(index)
+        if r0 is None or r1 is None:
+            return False
+        return self.sensors[index].first(SensorEvent.MARKER, r0, r1) is not None
 
     def switch(self, ax: Axis) -> bool:
         """The home switch of ``ax`` now (the ``HomeSwitch`` tag)."""
@@ -478,18 +487,19 @@ class Homing:
             ax.homing_armed = None
 
     def update(self, group: int) -> None:
+        act_x = self._motion.s.act_x
+        jobs = self.jobs
         for ax in self.groups.get(group, ()):
             i = ax.index
-            sensors = self.sensors[i]
-            r1 = self.raw(ax)
-            r0 = self._raw[i]
+            r1 = act_x.item(i) - ax.position_offset
+            r0 = self._before[i] = self._raw[i]
             self._raw[i] = r1
             if r0 is None:
                 continue
-            self.marker_seen[i] = sensors.first(SensorEvent.MARKER, r0, r1) is not None
-            job = self.jobs.get(i)
+            job = jobs.get(i)
             if job is None:
                 continue
+            sensors = self.sensors[i]
             if not job.active:  # an active homing ended (done, stopped, superseded)
                 del self.jobs[i]
                 continue

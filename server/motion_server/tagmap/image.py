@@ -184,7 +184,7 @@ def _switch_getter(homing: Homing, ax: Axis) -> Getter:
 
 def _marker_getter(homing: Homing, ax: Axis) -> Getter:
     seen, i = homing.marker_seen, ax.index
-    return lambda: seen[i]
+    return lambda: seen(i)
 
 
 #: axis fields read from the kernel's homing sensors (the axes that have them)
