@@ -10,6 +10,11 @@ from .base import LogixInstruction
 from .operands import AXIS
 from .schema import Operand
 
+# read every cycle by poll(), as module constants (see motion_server.kernel.enums)
+_ACTIVE = ProcessState.ACTIVE
+_DONE = ProcessState.DONE
+_ERROR = ProcessState.ERROR
+
 
 class AxisCommand(LogixInstruction):
     """A one-scan instruction on one axis (MSO, MSF, MAFR, MASD, MASR): DN at once."""
@@ -45,11 +50,12 @@ class ProcessInstruction(LogixInstruction):
         p = self.process
         if p is None:
             return
-        if p.state == ProcessState.ACTIVE:
+        state = p.state
+        if state == _ACTIVE:
             return
-        if p.state == ProcessState.DONE:
+        if state == _DONE:
             self.set_bits(IP=False, PC=self.SETS_PC)
-        elif p.state == ProcessState.ERROR:
+        elif state == _ERROR:
             self.outputs["ERR"] = p.error_code
             self.set_bits(IP=False, ER=True)
         else:

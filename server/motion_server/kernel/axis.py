@@ -145,7 +145,7 @@ class Axis:
         s = self._s
         if busy is None:
             busy = any(p.active for p in self.processes)
-        s.busy[self.index] = busy
+        s.scalars.busy[self.index] = busy
         s.dirty.add(self.index)
 
     # -- kinematic values (views into the shared arrays) -----------------------------------

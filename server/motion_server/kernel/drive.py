@@ -35,6 +35,10 @@ from .state import AxisArrays, Index, compact
 #: parts of a group (drives on, drives off) this small are stepped axis by axis
 SCALAR_PART = 4
 
+# read every cycle, as module constants (see .enums)
+_CONSTANT_VELOCITY = FeedbackSignal.CONSTANT_VELOCITY
+_SINE = FeedbackSignal.SINE
+
 
 def _rint_over(x: float, cpu: float) -> float:
     """``(x * cpu).round() / cpu`` as numpy computes it on one element: round half to
@@ -64,6 +68,7 @@ class _Partition:
     __slots__ = (
         "all",
         "decay",
+        "decay_list",
         "dt",
         "limit",
         "n_off",
@@ -98,13 +103,20 @@ class _Partition:
         self.limit = s.fe_limit[on_idx] if self.watch_all else s.fe_limit[watched]
         #: exp(-w dt) of the axes that are on, for the period ``dt`` (set on first use)
         self.decay = np.zeros(0)
+        self.decay_list: list[float] = []
         self.dt = 0.0
 
     def decay_for(self, s: AxisArrays, dt: float) -> np.ndarray:
         if dt != self.dt or self.decay.size != self.n_on:
             self.decay = np.exp(-s.omega[self.on] * dt)
+            self.decay_list = self.decay.tolist()
             self.dt = dt
         return self.decay
+
+    def decay_rows(self, s: AxisArrays, dt: float) -> list[float]:
+        """:meth:`decay_for` as Python floats (the same values)."""
+        self.decay_for(s, dt)
+        return self.decay_list
 
 
 class DriveModel:
@@ -226,59 +238,72 @@ class DriveModel:
 
     def _follow_rows(self, part: _Partition, dt: float, servo: bool) -> list[int]:
         """The drives that are on, axis by axis (the vectorised branch of :meth:`follow`
-        written out for one element)."""
-        s = self.s
-        act_x, act_vel, act_pos, cmd_pos = s.act_x, s.act_vel, s.act_pos, s.cmd_pos
+        written out for one element, on the arrays' scalar views)."""
+        r = self.s.scalars
+        act_x, act_vel, act_pos = r.act_x, r.act_vel, r.act_pos
+        cmd_pos, drv_cmd = r.cmd_pos, r.drv_cmd
         beyond: list[int] = []
-        drv_cmd = s.drv_cmd
         if not servo:
-            cmd_vel = s.cmd_vel
+            cmd_vel = r.cmd_vel
             for i in part.on_rows:
-                c = cmd_pos.item(i)
+                c = cmd_pos[i]
                 act_x[i] = c
                 act_pos[i] = c
-                act_vel[i] = cmd_vel.item(i)
+                act_vel[i] = cmd_vel[i]
                 drv_cmd[i] = c
             return beyond
-        decay = part.decay_for(s, dt)
-        omega, cpu, fe_limit = s.omega, s.cpu, s.fe_limit
+        decay = part.decay_rows(self.s, dt)
+        omega, cpu, fe_limit = r.omega, r.cpu, r.fe_limit
         for k, i in enumerate(part.on_rows):
-            c0 = drv_cmd.item(i)
-            c1 = cmd_pos.item(i)
+            c0 = drv_cmd[i]
+            c1 = cmd_pos[i]
             drv_cmd[i] = c1
-            w = omega.item(i)
+            w = omega[i]
             slope = (c1 - c0) / dt
             lag = 2.0 * slope / w
-            e0 = act_x.item(i) - (c0 - lag)
-            de0 = act_vel.item(i) - slope
-            d = decay.item(k)
+            e0 = act_x[i] - (c0 - lag)
+            de0 = act_vel[i] - slope
+            d = decay[k]
             b = de0 + w * e0
             x = c1 - lag + (e0 + b * dt) * d
             act_x[i] = x
             act_vel[i] = slope + (de0 - w * b * dt) * d
-            q = _rint_over(x, cpu.item(i))
+            q = _rint_over(x, cpu[i])
             act_pos[i] = q
-            limit = fe_limit.item(i)
+            limit = fe_limit[i]
             if limit > 0.0 and abs(c1 - q) > limit:
                 beyond.append(i)
         return beyond
 
     def _coast_rows(self, rows: list[int], dt: float, servo: bool) -> None:
         """The drives that are off, axis by axis (see :meth:`follow`)."""
-        s = self.s
-        act_x, act_vel, act_pos, coast, cpu = s.act_x, s.act_vel, s.act_pos, s.coast, s.cpu
-        cmd_pos, cmd_vel, cmd_acc, drv_cmd = s.cmd_pos, s.cmd_vel, s.cmd_acc, s.drv_cmd
+        r = self.s.scalars
+        act_x, act_vel, act_pos, coast, cpu = r.act_x, r.act_vel, r.act_pos, r.coast, r.cpu
+        cmd_pos, cmd_vel, cmd_acc, drv_cmd = r.cmd_pos, r.cmd_vel, r.cmd_acc, r.drv_cmd
         for i in rows:
-            v0 = act_vel.item(i)
-            step = coast.item(i) * dt
+            v0 = act_vel[i]
+            if v0 == 0.0 and coast[i] >= 0.0:
+                # at rest: what the lines below compute for a velocity of +-0 and a
+                # coast rate that is not NaN (v1 = +0.0, x = act_x + 0.0), in fewer steps
+                x = act_x[i] + 0.0
+                q = _rint_over(x, cpu[i]) if servo else x
+                act_x[i] = x
+                act_vel[i] = 0.0
+                act_pos[i] = q
+                cmd_pos[i] = q
+                cmd_vel[i] = 0.0
+                cmd_acc[i] = 0.0
+                drv_cmd[i] = q
+                continue
+            step = coast[i] * dt
             speed = abs(v0) - step
             if not speed > 0.0 and speed == speed:  # np.maximum(speed, 0.0)
                 speed = 0.0
             if speed <= 1e-9 * step:
                 speed = 0.0
             v1 = _sign(v0) * speed
-            x = act_x.item(i) + 0.5 * (v0 + v1) * dt
-            q = _rint_over(x, cpu.item(i)) if servo else x
+            x = act_x[i] + 0.5 * (v0 + v1) * dt
+            q = _rint_over(x, cpu[i]) if servo else x
             act_x[i] = x
             act_vel[i] = v1
             act_pos[i] = q
@@ -310,17 +335,18 @@ class DriveModel:
         """The feedback of a feedback-only axis for this cycle. Returns why the sample
         cannot be taken (not finite in counts), leaving the last sample and no velocity."""
         cfg = ax.config
-        s = self.s
+        r = self.s.scalars
         i = ax.index
-        old = s.act_x.item(i)
+        old = r.act_x[i]
         # the signal and the input are raw readings: the axis reads them plus the offset
         # its redefinitions added (Axis.position_offset)
         offset = ax.position_offset
-        if cfg.feedback_signal == FeedbackSignal.CONSTANT_VELOCITY:
+        signal = cfg.feedback_signal
+        if signal == _CONSTANT_VELOCITY:
             new = cfg.signal_velocity * time
-        elif cfg.feedback_signal == FeedbackSignal.SINE:
+        elif signal == _SINE:
             new = cfg.signal_amplitude * math.sin(2.0 * math.pi * cfg.signal_frequency * time)
-        elif cfg.rotary:
+        elif cfg.rollover > 0.0:  # cfg.rotary, without the property call
             # the input is a wrapped reading: unwind it against the last sample
             delta = math.remainder(ax.feedback_input - ax.wrap(old - offset), cfg.rollover)
             new = old - offset + delta
@@ -328,16 +354,16 @@ class DriveModel:
             new = ax.feedback_input
         if offset:
             new += offset
-        cpu = s.cpu.item(i)
+        cpu = r.cpu[i]
         counts = new * cpu
         if not math.isfinite(counts):
-            s.act_vel[i] = s.cmd_vel[i] = 0.0
+            r.act_vel[i] = r.cmd_vel[i] = 0.0
             return f"feedback sample {new!r} x {cpu:g} counts/unit is not a finite count"
         q = round(counts) / cpu
-        v = (q - s.act_pos.item(i)) / dt
-        s.act_vel[i] = v
-        s.act_x[i] = new
-        s.act_pos[i] = q
-        s.cmd_pos[i] = q
-        s.cmd_vel[i] = v
+        v = (q - r.act_pos[i]) / dt
+        r.act_vel[i] = v
+        r.act_x[i] = new
+        r.act_pos[i] = q
+        r.cmd_pos[i] = q
+        r.cmd_vel[i] = v
         return None

@@ -487,11 +487,11 @@ class Homing:
             ax.homing_armed = None
 
     def update(self, group: int) -> None:
-        act_x = self._motion.s.act_x
+        act_x = self._motion.s.scalars.act_x
         jobs = self.jobs
         for ax in self.groups.get(group, ()):
             i = ax.index
-            r1 = act_x.item(i) - ax.position_offset
+            r1 = act_x[i] - ax.position_offset
             r0 = self._before[i] = self._raw[i]
             self._raw[i] = r1
             if r0 is None:

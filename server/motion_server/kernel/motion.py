@@ -22,6 +22,11 @@ from .override import Override, apply, overridable
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .state import AxisArrays
 
+# members read every cycle, as module constants (see .enums)
+_ACTIVE = ProcessState.ACTIVE
+_DONE = ProcessState.DONE
+_ERROR = ProcessState.ERROR
+
 #: (axis name, what failed, the exception): an unexpected failure the host should log
 InternalError = tuple[str, str, BaseException]
 
@@ -289,7 +294,7 @@ class Motion:
     def compose(self, ax: Axis, dt: float) -> None:
         """Step ``ax``'s processes and sum them into its command (Logix superposition)."""
         s = self.s
-        active = ProcessState.ACTIVE
+        active = _ACTIVE
         procs = ax.processes
         failed_moving: list[Process] = []
         for p in procs:
@@ -303,7 +308,7 @@ class Motion:
                     p.position, p.velocity, p.acceleration = before
                     p.fail(ErrorCode.INTERNAL_ERROR)
                     self.internal_errors.append((ax.name, repr(p), exc))
-                if p.state is ProcessState.ERROR and p.velocity != 0.0:
+                if p.state is _ERROR and p.velocity != 0.0:
                     failed_moving.append(p)
         for p in failed_moving:
             # a process that fails while moving hands its velocity to a stop ramp at the
@@ -315,9 +320,10 @@ class Motion:
         if len(procs) == 1 and procs[0].state is active and ax.buffered is None:
             # the common case, one running process: no lists, no sums
             p = procs[0]
-            s.cmd_pos[i] = ax.base + p.position
-            s.cmd_vel[i] = p.velocity
-            s.cmd_acc[i] = p.acceleration
+            r = s.scalars
+            r.cmd_pos[i] = ax.base + p.position
+            r.cmd_vel[i] = p.velocity
+            r.cmd_acc[i] = p.acceleration
             ax.motion_changed(True)
             return
         keep: list[Process] = []
@@ -327,7 +333,7 @@ class Motion:
                 keep.append(p)
             else:
                 ax.base += p.position
-                if p.state == ProcessState.DONE and p.landing is not None:
+                if p.state == _DONE and p.landing is not None:
                     landing = p.landing
         ax.processes = keep
         if landing is not None and not keep and _rounding_apart(ax.base, landing):

@@ -22,6 +22,9 @@ from .profiles import Limits, OnlineProfile, TrapezoidProfile, profile_for
 from .state import StepContext
 from .trapezoid import judge_ramp
 
+# read every cycle, as module constants (see .enums)
+_ACTIVE = ProcessState.ACTIVE
+
 
 class Lane(Protocol):
     """A fast lane stepping processes as arrays (:mod:`.lanes`)."""
@@ -60,7 +63,7 @@ class Process:
 
     @property
     def active(self) -> bool:
-        return self.state == ProcessState.ACTIVE
+        return self.state == _ACTIVE
 
     def step(self, ctx: StepContext, dt: float) -> None:
         raise NotImplementedError
