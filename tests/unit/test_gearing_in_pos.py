@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from motion_server.instructions import Instruction, MotionSystem
-from motion_server.kernel import AxisConfig, AxisType, ProcessKind
+from motion_server.kernel import AxisConfig, AxisType, MotionStatusBit, ProcessKind
 
 from ..support import make_system, trigger
 
@@ -524,3 +524,28 @@ def test_slave_acceleration_during_lock_on_is_smooth() -> None:
     peak = np.max(np.abs(a))
     assert abs(a[start]) < 0.05 * peak
     assert abs(a[sync - 1]) < 0.05 * peak and np.all(np.abs(a[sync + 1 :]) < 1e-6)
+
+
+def test_the_status_arrays_show_the_lock_in_the_cycle_it_happens() -> None:
+    """Composition in Python marks an axis's status stale only when a step changes it:
+    the cycle the slave reaches sync, ``status_arrays()`` shows GearingLockStatus as the
+    axis property does, and in steady gearing a cycle leaves no axis to re-derive."""
+    s = system()
+    st_example(s)
+    jog(s, 50.0)
+    ctl = s.ctl
+    lock = 1 << MotionStatusBit.GEARING_LOCK
+    s.cycle(20)
+    for _ in range(5000):
+        ctl.status_arrays()
+        s.cycle()
+        word = int(ctl.status_arrays().motion_status[1])
+        assert word == ctl.axis(2).motion_status
+        if word & lock:
+            break
+    else:
+        pytest.fail("the slave never reached sync")
+    for _ in range(10):
+        s.cycle()
+        assert ctl.arrays.dirty == set()
+        assert int(ctl.status_arrays().motion_status[1]) == ctl.axis(2).motion_status

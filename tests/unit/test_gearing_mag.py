@@ -158,6 +158,25 @@ def test_clutch_ramps_at_accel_rate_then_locks_when_speeds_match(rate: float, un
     assert g.outputs["IP"]
 
 
+def test_the_status_arrays_show_the_clutch_locking_in_the_cycle_it_locks() -> None:
+    """What a front-end publishes (``Controller.status_arrays``) shows GearingLockStatus
+    from the cycle the clutch reaches the gear speed: 50 / (1000 x 0.002) = 25 cycles, the
+    same cycle as the axis property (the slave is composed in Python, a group of 6)."""
+    s = system()
+    jog(s, 1, 100.0)
+    ctl = s.ctl
+    g = s.add("MAG", "MAG", {})
+    fire(s, g, SlaveAxis=2, MasterAxis=1, Ratio=0.5, Clutch=0, AccelRate=1000.0, AccelUnits=0)
+    locked = []  # after 1, 2, ... steps of the gear (the first ran in the scan of the edge)
+    for _ in range(40):
+        word = int(ctl.status_arrays().motion_status[1])
+        assert word == ctl.axis(2).motion_status
+        locked.append(bool(word & LOCK))
+        s.cycle()
+    first_lock = locked.index(True) + 1
+    assert first_lock in (25, 26) and all(locked[first_lock - 1 :])
+
+
 def test_clutch_merges_a_ratio_change_on_the_fly() -> None:
     s = system()
     jog(s, 1, 100.0)

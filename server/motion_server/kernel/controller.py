@@ -64,6 +64,8 @@ MAX_POSITION_COUNTS = 2.0**53
 __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArrays"]
 
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
+# read every cycle, as a module constant (see .enums)
+_RUN = OperatingMode.RUN
 
 
 class ConfigError(ValueError):
@@ -133,6 +135,8 @@ class Controller:
         self.mode = OperatingMode.RUN
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
+        #: the groups whose processes may join fast lanes (the others' lanes stay empty)
+        self._laned = frozenset(g.number for g in self.groups if self.motion.offers(g.number))
         self._status_views = (
             _readonly(s.axis_state),
             _readonly(s.plcopen_state),
@@ -274,7 +278,8 @@ class Controller:
         if lanes.dirty:
             lanes.rebuild(s, self.axes)
         compose = self._composers[g.number]
-        lanes.step(s, dt, compose)
+        if g.number in self._laned:
+            lanes.step(s, dt, compose)
         for ax in lanes.python_order:
             if ax.processes or ax.buffered is not None:
                 compose(ax)
@@ -501,7 +506,7 @@ class Controller:
 
     @property
     def run_mode(self) -> bool:
-        return self.mode == OperatingMode.RUN
+        return self.mode == _RUN
 
     # -- motion -----------------------------------------------------------------------------
     def require_motion(self, ax: Axis) -> None:

@@ -330,6 +330,7 @@ class GearInPosProcess(Process):
                 return
             self.sync_state = SyncState.IN_SYNC
             self.locked = True
+            self.status_changed = True  # GearingLockStatus
         self.position = self._p_sync + (m - plan.master_sync) * plan.numerator / plan.denominator
         self.velocity = plan.ratio * vm
         self.acceleration = plan.ratio * am

@@ -407,6 +407,7 @@ class GearProcess(Process):
         for c in self._c:
             c.lock()
         self.locked = True
+        self.status_changed = True  # GearingLockStatus
 
     def step(self, ctx: StepContext, dt: float) -> None:
         c1 = self.single

@@ -324,7 +324,12 @@ class Motion:
             r.cmd_pos[i] = ax.base + p.position
             r.cmd_vel[i] = p.velocity
             r.cmd_acc[i] = p.acceleration
-            ax.motion_changed(True)
+            # what Axis.motion_changed(True) does, except that the status is marked stale
+            # only when the step changed it: the process is still the same, still active
+            r.busy[i] = True
+            if p.status_changed:
+                p.status_changed = False
+                s.dirty.add(i)
             return
         keep: list[Process] = []
         landing: float | None = None

@@ -46,6 +46,10 @@ class Process:
     #: the process may have entered a state a lane steps (it started, left its lane,
     #: reached its speed, locked): the kernel offers it to the lanes once, then clears it
     offer_pending: bool = True
+    #: a step changed what the axis's status reads of the process (``Axis.process_bits``,
+    #: ``Axis.plcopen_state``) while it stayed active: a gear locked. Composition marks
+    #: the axis for the status arrays, then clears it
+    status_changed: bool = False
 
     def __init__(self, owner: Any = None) -> None:
         self.owner = owner
