@@ -47,6 +47,11 @@ class GroupState(IntEnum):
     FAULTED = 3
 
 
+# read at every publish, as module constants (see .enums)
+_NORMAL = GroupState.NORMAL
+_STOPPING = GroupState.STOPPING
+
+
 class MotionGroup:
     def __init__(self, config: GroupConfig, axes: list[Axis], every: int) -> None:
         self.config = config
@@ -105,19 +110,21 @@ class MotionGroup:
             power = self._power = (s.state_changes, held)
         if power[1] is not None:
             return power[1]
-        if any(not x.complete for x in self.stops):
-            return GroupState.STOPPING
+        if self.stops and any(not x.complete for x in self.stops):
+            return _STOPPING
         # Axis.stopping is the MotionStatus Stopping bit (Axis.process_bits), current in
         # ``motion_bits`` for every axis not in ``dirty``
         dirty = s.dirty
         for i in dirty:
             ax = self.by_index.get(i)
             if ax is not None and ax.stopping:
-                return GroupState.STOPPING
-        flagged = self.idx[(s.motion_bits[self.idx] & _STOPPING_BIT) != 0]
-        if any(int(i) not in dirty for i in flagged):
-            return GroupState.STOPPING
-        return GroupState.NORMAL
+                return _STOPPING
+        stopping = s.motion_bits[self.idx] & _STOPPING_BIT
+        if not dirty:
+            return _STOPPING if stopping.any() else _NORMAL
+        if any(int(i) not in dirty for i in self.idx[stopping != 0]):
+            return _STOPPING
+        return _NORMAL
 
     @property
     def time(self) -> float:
