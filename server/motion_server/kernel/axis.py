@@ -95,8 +95,10 @@ class Axis:
 
     @fault.setter
     def fault(self, bits: int) -> None:
-        self._s.fault[self.index] = int(bits)
-        self._s.dirty.add(self.index)  # PLCopenState: ErrorStop in Servo Control
+        s = self._s
+        s.fault[self.index] = int(bits)
+        s.fault_changes += 1
+        s.dirty.add(self.index)  # PLCopenState: ErrorStop in Servo Control
 
     @property
     def homed(self) -> bool:

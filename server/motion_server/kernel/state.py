@@ -156,6 +156,9 @@ class AxisArrays:
         self.dirty: set[int] = set(range(n))
         #: how many times an axis changed AxisState (readers compare it with what they saw)
         self.state_changes = 0
+        #: how many times an axis's AxisFault bits were set (``fault`` is written only by
+        #: ``Axis.fault``; readers compare the count with what they saw)
+        self.fault_changes = 0
         #: the same arrays, element by element in Python floats
         self.scalars = Scalars(self)
 

@@ -88,9 +88,11 @@ class ImageFiller:
         self._status = any(
             field in AXIS_STATUS or field in AXIS_FAULT_WORDS for field, _, _ in self._arrays
         )
-        #: the AxisFault bits the fault words were last computed from
-        self._fault_seen: np.ndarray | None = None
-        #: rotary axes: positions are published wrapped (as ``Axis.wrap`` reads them)
+        #: ``AxisArrays.fault_changes`` when the fault words were last computed
+        self._fault_seen: int | None = None
+        self._kernel = ctl.arrays
+        #: rotary axes: positions are published wrapped (as ``Axis.wrap`` reads them), at
+        #: these offsets from the start of a position field's run of slots
         self._rot = ctl.rotary_idx
         self._rollover = ctl.rollover[self._rot]
         self._each_slots = np.array([s for s, _ in self._each_cycle], dtype=np.intp)
@@ -113,12 +115,10 @@ class ImageFiller:
         values = self.values
         ctl = self.image.system.ctl
         status = ctl.status_arrays() if self._status else None
-        fault_words = status is not None and not (
-            self._fault_seen is not None and np.array_equal(self._fault_seen, status.fault)
-        )
+        faults_now = self._kernel.fault_changes
+        fault_words = status is not None and self._fault_seen != faults_now
         if fault_words:
-            assert status is not None
-            self._fault_seen = status.fault.copy()
+            self._fault_seen = faults_now
         for field, slots, axes in self._arrays:
             if field in AXIS_FAULT_WORDS:
                 if fault_words:
