@@ -238,15 +238,17 @@ class Controller:
         if self.motion.order_dirty:
             self.motion.sort()
         if self._batched:
-            for g in self.groups:
-                if self.tick % g.every == 0:
-                    self._step_group(g)
+            self._step_groups()
         else:
             with np.errstate(all="ignore"):  # non-finite values are checked, not warned about
-                for g in self.groups:
-                    if self.tick % g.every == 0:
-                        self._step_group(g)
+                self._step_groups()
         self.mdsc.update()
+
+    def _step_groups(self) -> None:
+        """Step the groups whose period ends at this tick."""
+        for g in self.groups:
+            if self.tick % g.every == 0:
+                self._step_group(g)
 
     @contextmanager
     def batch(self) -> Iterator[None]:

@@ -403,13 +403,12 @@ class Scan:
             return None
         timer = self._periodic(now)
         mode = self.mode
-        with self.ctl.batch():
-            if mode == ClockMode.MANUAL:
-                wake = self._manual()
-            elif mode == ClockMode.FAST:
-                wake = self._fast(now)
-            else:
-                wake = self._realtime(now)
+        if mode == ClockMode.MANUAL:
+            wake = self._manual()
+        elif mode == ClockMode.FAST:
+            wake = self._fast(now)
+        else:
+            wake = self._realtime(now)
         self._flush()
         if self.mode != mode:
             # a write just switched the clock: the new mode's schedule starts now, not at
@@ -438,8 +437,9 @@ class Scan:
         self._apply_queued()
         if self._pending_cycles:
             n = min(self._pending_cycles, MANUAL_CHUNK)
-            for _ in range(n):
-                self._run_cycle()
+            with self.ctl.batch():
+                for _ in range(n):
+                    self._run_cycle()
             self._pending_cycles -= n
             self._ack_due()
             self._publish()
@@ -450,11 +450,12 @@ class Scan:
 
     def _fast(self, now: float) -> float:
         end = time.perf_counter() + FAST_SLICE
-        while True:
-            self._apply_queued()
-            self._run_cycle()
-            if time.perf_counter() >= end:
-                break
+        with self.ctl.batch():
+            while True:
+                self._apply_queued()
+                self._run_cycle()
+                if time.perf_counter() >= end:
+                    break
         self._ack_due()
         self._publish()
         return now
@@ -478,11 +479,12 @@ class Scan:
             )
             self._deadline += (due - self.max_catch_up) * step
             due = self.max_catch_up
-        for _ in range(due):
-            self._apply_queued()
-            self._run_cycle()
-            self._ack_due()
-            self._publish()
+        with self.ctl.batch():
+            for _ in range(due):
+                self._apply_queued()
+                self._run_cycle()
+                self._ack_due()
+                self._publish()
         self._deadline += due * step
         return self._deadline
 
