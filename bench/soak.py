@@ -203,16 +203,28 @@ def run_clients(args: dict[str, Any], protocol: str, out: Any) -> None:
 
 
 # -- server and report -----------------------------------------------------------------------
+def wait_for_servo(tags: TagClient, axis: str, timeout: float = 5.0) -> None:
+    """Poll until ``axis`` is in Servo Control (AxisState 2), as an HMI waits for MSO."""
+    end = time.monotonic() + timeout
+    while int(tags.read(f"{axis}.AxisState")) != 2:
+        if time.monotonic() > end:
+            raise RuntimeError(f"{axis} was not enabled within {timeout:g} s")
+        time.sleep(0.01)
+
+
 def start_motion(tags: TagClient) -> None:
-    """MSO on Axis1 and Axis2, a jog on Axis1 (10 mm/s), Axis2 geared to it (0.5)."""
+    """MSO on Axis1 and Axis2, a jog on Axis1 (10 mm/s), Axis2 geared to it (0.5). Each
+    axis is enabled before it is commanded: MAG_1 scans before MSO_1, so a MAG edge that
+    reached the same cycle as MSO's would find Axis2 off (ERR 5)."""
     for name, value in [("MSO_1.Axis", 1), ("MAJ_1.Axis", 1), ("MAJ_1.Speed", 10.0)]:
         tags.write(name, value)
     tags.write("MSO_1.Execute", True)
-    time.sleep(0.1)
+    wait_for_servo(tags, "Axis1")
     tags.write("MSO_1.Axis", 2)
     tags.write("MSO_1.Execute", False)
     time.sleep(0.05)
     tags.write("MSO_1.Execute", True)
+    wait_for_servo(tags, "Axis2")
     tags.write("MAJ_1.Execute", True)
     for name, value in [("MAG_1.SlaveAxis", 2), ("MAG_1.MasterAxis", 1), ("MAG_1.Ratio", 0.5)]:
         tags.write(name, value)
