@@ -29,6 +29,11 @@ TYPE_CODES: dict[str, int] = {
     "MGSD": 12,
     "MGSR": 13,
     "MDAC": 14,
+    # cams (Logix): 15-18
+    "MCCP": 15,
+    "MCSV": 16,
+    "MAPC": 17,
+    "MATC": 18,
     "MC_Power": 21,
     "MC_Reset": 22,
     "MC_MoveAbsolute": 23,
@@ -40,9 +45,14 @@ TYPE_CODES: dict[str, int] = {
     "MC_GearOut": 29,
     "MC_GearInPos": 30,
     "MC_CombineAxes": 31,
+    # cams (PLCopen): 32-34
+    "MC_CamTableSelect": 32,
+    "MC_CamIn": 33,
+    "MC_CamOut": 34,
     "MC_MoveAdditive": 40,
     "MC_MoveSuperimposed": 41,
     "MC_SetOverride": 42,
+    "MC_HaltSuperimposed": 43,
     # homing, redefined positions, status and parameter blocks: 50-69
     "MAH": 50,
     "MRP": 51,
