@@ -10,6 +10,7 @@ Imports point one way, from the leaves up: ``enums``, ``errors``, ``config``, ``
 """
 
 from .axis import Axis
+from .cam_tables import CamStore, CamTableConfig
 from .config import AxisConfig, GroupConfig
 from .controller import ConfigError, Controller, StatusArrays
 from .enums import (
@@ -44,6 +45,8 @@ __all__ = [
     "AxisFault",
     "AxisState",
     "AxisType",
+    "CamStore",
+    "CamTableConfig",
     "ConfigError",
     "Controller",
     "ErrorCode",

@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .axis import Axis
+from .cam_tables import CamStore, CamTableConfig
 from .config import MAX_PERIOD, MIN_PERIOD, AxisConfig, GroupConfig
 from .drive import DriveModel
 from .enums import (
@@ -94,8 +95,10 @@ class Controller:
         axes: Sequence[AxisConfig],
         groups: Sequence[GroupConfig],
         lanes: bool | None = None,
+        cams: Sequence[CamTableConfig] = (),
     ) -> None:
-        """``lanes=False`` composes every axis in Python (the reference the fast lanes
+        """``cams`` declares the cam tables (:mod:`.cam_tables`). ``lanes=False``
+        composes every axis in Python (the reference the fast lanes
         are tested against); ``lanes=True`` offers the fast lanes to every group; None
         (the default) to groups of at least ``LANE_MIN_AXES`` axes, as a few axes compose
         faster in Python."""
@@ -129,6 +132,11 @@ class Controller:
         self.homing = Homing(self.motion, self.axes, self.groups)
         #: fault causes a test bench holds on axes (:mod:`.faults`)
         self.faults = FaultInjection()
+        #: cam tables and their profiles (MCCP, MC_CamTableSelect; :mod:`.cam_tables`)
+        try:
+            self.cams = CamStore(cams)
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
         self.tick = 0
         #: depth of :meth:`batch` blocks entered
         self._batched = 0

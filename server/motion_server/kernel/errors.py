@@ -22,6 +22,15 @@ class ErrorCode(IntEnum):
     AXIS_FAULTED = 20
     GROUP_FAULTED = 21
     AXIS_IN_MOTION = 22
+    ILLEGAL_DYNAMIC_CHANGE = 23
+    ILLEGAL_CAM_LENGTH = 26
+    ILLEGAL_CAM_PROFILE_LENGTH = 27
+    ILLEGAL_CAM_TYPE = 28
+    ILLEGAL_CAM_ORDER = 29
+    CAM_PROFILE_BEING_CALCULATED = 30
+    CAM_PROFILE_BEING_USED = 31
+    CAM_PROFILE_NOT_CALCULATED = 32
+    POSITION_CAM_NOT_ENABLED = 33
     NOT_ALLOWED_WHILE_STOPPING = 78
     MDSC_IDLE_MASTER_AND_SLAVE_MOVING = 97
     MDSC_INVALID_SLAVE_SPEED_REDUCTION = 103
@@ -33,6 +42,7 @@ class ErrorCode(IntEnum):
     NOT_GEARED = 1003
     BUFFER_FULL = 1004
     INTERNAL_ERROR = 1005
+    NOT_CAMMING = 1006
     OVERTRAVEL = 1010
 
 
@@ -48,6 +58,21 @@ ERROR_TEXT: dict[ErrorCode, str] = {
     ErrorCode.AXIS_FAULTED: "axis faulted (reset with MAFR/MC_Reset)",
     ErrorCode.GROUP_FAULTED: "group faulted",
     ErrorCode.AXIS_IN_MOTION: "axis in motion",
+    ErrorCode.ILLEGAL_DYNAMIC_CHANGE: "illegal dynamic change: the axis is already camming "
+    "(use the Pending schedule, or stop the cam first)",
+    ErrorCode.ILLEGAL_CAM_LENGTH: "illegal cam length: fewer than 2 points, or beyond the "
+    "cam table",
+    ErrorCode.ILLEGAL_CAM_PROFILE_LENGTH: "illegal cam profile length: the profile holds fewer "
+    "points than the cam",
+    ErrorCode.ILLEGAL_CAM_TYPE: "illegal cam type: a SegmentType other than 0 (linear) or "
+    "1 (cubic)",
+    ErrorCode.ILLEGAL_CAM_ORDER: "illegal cam order: master values must strictly increase",
+    ErrorCode.CAM_PROFILE_BEING_CALCULATED: "cam profile being calculated",
+    ErrorCode.CAM_PROFILE_BEING_USED: "cam profile being used by a running cam: it cannot be "
+    "recalculated",
+    ErrorCode.CAM_PROFILE_NOT_CALCULATED: "cam profile not calculated (run MCCP or "
+    "MC_CamTableSelect first)",
+    ErrorCode.POSITION_CAM_NOT_ENABLED: "position cam not enabled",
     ErrorCode.NOT_ALLOWED_WHILE_STOPPING: "not allowed while the axis or group is stopping",
     ErrorCode.MDSC_IDLE_MASTER_AND_SLAVE_MOVING: "MDSC: new master idle while the slave moves",
     ErrorCode.MDSC_INVALID_SLAVE_SPEED_REDUCTION: "MDSC: slave speed would drop below 5 %",
@@ -57,6 +82,7 @@ ERROR_TEXT: dict[ErrorCode, str] = {
     ErrorCode.COMBINED_SLAVE_GEAR_OUT: "MC_GearOut is not allowed on a combined (two-master) slave",
     ErrorCode.NOT_GEARED: "the slave axis is not geared",
     ErrorCode.BUFFER_FULL: "a buffered command is already waiting on this axis",
+    ErrorCode.NOT_CAMMING: "the slave axis is not camming",
     ErrorCode.INTERNAL_ERROR: "internal error in the server (logged with its traceback); "
     "its axes ramp to rest",
     ErrorCode.OVERTRAVEL: "overtravel: the axis is beyond its travel limit in this direction "
