@@ -35,6 +35,19 @@ _BITS: dict[ProcessKind, int] = {
     ProcessKind.JOG: 1 << MotionStatusBit.JOG,
     ProcessKind.GEAR: 1 << MotionStatusBit.GEARING,
     ProcessKind.HOME: 1 << MotionStatusBit.HOMING,
+    ProcessKind.POSITION_CAM: 1 << MotionStatusBit.POSITION_CAM,
+    ProcessKind.TIME_CAM: 1 << MotionStatusBit.TIME_CAM,
+}
+#: the lock bit of a following process (``locked``): gear, position cam, time cam
+_LOCK_BITS: dict[ProcessKind, int] = {
+    ProcessKind.GEAR: 1 << MotionStatusBit.GEARING_LOCK,
+    ProcessKind.POSITION_CAM: 1 << MotionStatusBit.POSITION_CAM_LOCK,
+    ProcessKind.TIME_CAM: 1 << MotionStatusBit.TIME_CAM_LOCK,
+}
+#: the pending bit of a cam waiting to take over (``successor``) or preloaded
+_PENDING_BITS: dict[ProcessKind, int] = {
+    ProcessKind.POSITION_CAM: 1 << MotionStatusBit.POSITION_CAM_PENDING,
+    ProcessKind.TIME_CAM: 1 << MotionStatusBit.TIME_CAM_PENDING,
 }
 _HOMING = 1 << MotionStatusBit.HOMING
 
@@ -73,6 +86,13 @@ class Axis:
         #: ``lag_monitoring`` (``AxisArrays.fe_limit`` holds what it watches, 0: nothing)
         self.lag_limit = float(config.following_error_limit)
         self.lag_monitoring = True
+        #: cams started with the Pending schedule while no cam of their kind ran: they
+        #: wait here, moving nothing, for the next cam of their kind to follow (Logix
+        #: "preload"); a stop of all motion or of their kind ends them
+        self.preloaded_cams: list[Process] = []
+        #: +1 (same) or -1 (opposite): the direction of the latest cam of this slave (MAPC
+        #: and MATC Reverse and Unchanged act on it; +1 if it never cammed)
+        self.cam_direction = 1
 
     # -- status attributes (each keeps the shared status arrays current) ---------------------
     @property
@@ -232,9 +252,15 @@ class Axis:
             if p.stopping:
                 bits |= 1 << MotionStatusBit.STOPPING
             elif p.kind in _BITS:
-                bits |= _BITS[p.kind]
-                if p.kind == ProcessKind.GEAR and getattr(p, "locked", False):
-                    bits |= 1 << MotionStatusBit.GEARING_LOCK
+                kind = p.kind
+                bits |= _BITS[kind]
+                if kind in _LOCK_BITS and getattr(p, "locked", False):
+                    bits |= _LOCK_BITS[kind]
+                if kind in _PENDING_BITS and getattr(p, "successor", None) is not None:
+                    bits |= _PENDING_BITS[kind]
+        for p in self.preloaded_cams:
+            if p.active:
+                bits |= _PENDING_BITS[p.kind]
         if self._stop_latch is not None:
             bits |= 1 << MotionStatusBit.STOPPING
         if self._homed:
@@ -267,8 +293,10 @@ class Axis:
         kinds = {p.kind for p in self.processes if p.active}
         if ProcessKind.HOME in kinds:
             return PLCopenState.HOMING
-        if ProcessKind.GEAR in kinds:
+        if ProcessKind.GEAR in kinds or ProcessKind.POSITION_CAM in kinds:
             return PLCopenState.SYNCHRONIZED_MOTION
+        if ProcessKind.TIME_CAM in kinds:
+            return PLCopenState.CONTINUOUS_MOTION
         if ProcessKind.JOG in kinds:
             return PLCopenState.CONTINUOUS_MOTION
         if ProcessKind.MOVE in kinds or ProcessKind.STOP in kinds:

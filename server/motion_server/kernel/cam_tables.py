@@ -17,12 +17,27 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from .cam_profile import CamError, CamProfile, compute_profile
 from .errors import ErrorCode, MotionError
 
 #: the most points a cam table may hold
 MAX_CAM_POINTS = 1000
+#: the most PLCopen selections (CamTableIDs) kept: older ones are forgotten (a cam that
+#: runs on one keeps its profile)
+MAX_SELECTIONS = 256
+
+
+@dataclass(frozen=True)
+class Selection:
+    """A PLCopen MC_CamTableSelect: the profile it computed and how MC_CamIn runs it."""
+
+    profile: CamProfile
+    table: int
+    periodic: bool
+    master_absolute: bool
+    slave_absolute: bool
 
 
 @dataclass(frozen=True)
@@ -38,11 +53,14 @@ class CamTableConfig:
     length: int = 0
 
 
-class ProfileUser:
+class ProfileUser(Protocol):
     """What a profile slot asks of a cam that runs on its profile."""
 
-    profile: CamProfile | None
-    active: bool
+    @property
+    def profile(self) -> CamProfile: ...
+
+    @property
+    def active(self) -> bool: ...
 
 
 @dataclass
@@ -115,6 +133,9 @@ class CamStore:
                 raise ValueError(f"cam table {cfg.name}: more points than its capacity")
             self.tables[cfg.number] = CamTable.from_config(cfg)
             self.slots[cfg.number] = ProfileSlot(cfg.number, cfg.capacity)
+        #: PLCopen selections by CamTableID (1, 2, ...; at most MAX_SELECTIONS kept)
+        self.selections: dict[int, Selection] = {}
+        self.last_id = 0
 
     def table(self, number: int) -> CamTable:
         t = self.tables.get(number)
@@ -172,8 +193,10 @@ class CamStore:
                 source=table,
             )
         except CamError as exc:
-            if exc.point >= 0:
-                raise CamError(exc.code, f"cam {t.name}[{first + exc.point}]: {exc}") from None
+            if exc.point >= 0:  # name the element of the table
+                where = f"{t.name}[{first + exc.point}]"
+                text = str(exc).replace(f"point {exc.point}", where, 1)
+                raise CamError(exc.code, f"cam {text}", first + exc.point) from None
             raise
         s.profile = prof
         return prof
@@ -191,3 +214,29 @@ class CamStore:
     def register(self, slot: int, user: ProfileUser) -> None:
         """Count ``user`` in the slot's Status while it is active."""
         self.slot(slot).users.append(user)
+
+    def select(
+        self, table: int, periodic: bool, master_absolute: bool, slave_absolute: bool
+    ) -> int:
+        """MC_CamTableSelect: compute ``table``'s first ``Length`` points into its own
+        profile slot (running cams keep the profile they started on) and return the new
+        CamTableID."""
+        t = self.table(table)
+        prof = self.calculate(table, 0, t.length, 0.0, 0.0, table, replace_in_use=True)
+        self.last_id += 1
+        self.selections[self.last_id] = Selection(
+            prof, table, bool(periodic), bool(master_absolute), bool(slave_absolute)
+        )
+        while len(self.selections) > MAX_SELECTIONS:
+            del self.selections[next(iter(self.selections))]
+        return self.last_id
+
+    def selection(self, cam_table_id: int) -> Selection:
+        """The selection of ``cam_table_id`` (MotionError 13 when there is none)."""
+        sel = self.selections.get(cam_table_id)
+        if sel is None:
+            raise MotionError(
+                ErrorCode.PARAMETER_OUT_OF_RANGE,
+                f"no cam table selected as CamTableID {cam_table_id} (MC_CamTableSelect first)",
+            )
+        return sel

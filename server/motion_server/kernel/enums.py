@@ -55,6 +55,7 @@ class MotionStatusBit(IntEnum):
     TIME_CAM_PENDING = 11
     GEARING_LOCK = 12
     POSITION_CAM_LOCK = 13
+    TIME_CAM_LOCK = 14
     #: MDS direct control (not simulated: always clear); MGS clears them (the seed's table)
     DIRECT_VELOCITY_CONTROL = 19
     DIRECT_TORQUE_CONTROL = 20
@@ -79,6 +80,9 @@ class ProcessKind(IntEnum):
     STOP = 4
     #: an active homing sequence (MAH, MC_Home): the PLCopen Homing state
     HOME = 5
+    #: a cam on a master's position (MAPC, MC_CamIn) or on time (MATC)
+    POSITION_CAM = 6
+    TIME_CAM = 7
 
 
 class ProcessState(IntEnum):

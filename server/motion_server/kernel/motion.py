@@ -155,6 +155,12 @@ class Motion:
         """Abort matching processes, fold them into ``base``; return their velocity and
         acceleration so that a successor can inherit them."""
         self.settle(ax)
+        if ax.preloaded_cams:
+            for p in ax.preloaded_cams:
+                if kinds is None or p.kind in kinds:
+                    p.abort(reason)
+            ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
+            ax.motion_changed()
         v = a = 0.0
         keep: list[Process] = []
         for p in ax.processes:
@@ -310,6 +316,13 @@ class Motion:
                     self.internal_errors.append((ax.name, repr(p), exc))
                 if p.state is _ERROR and p.velocity != 0.0:
                     failed_moving.append(p)
+                elif p.state is not active:
+                    succ = p.successor
+                    if succ is not None and succ.state is active:
+                        # a cam's Pending successor takes over where it ended, stepped in
+                        # this same cycle (appended: this loop reaches it)
+                        p.successor = None
+                        procs.append(succ)
         for p in failed_moving:
             # a process that fails while moving hands its velocity to a stop ramp at the
             # axis maximum deceleration: an error never makes a velocity step

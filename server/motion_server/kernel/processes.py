@@ -50,6 +50,9 @@ class Process:
     #: ``Axis.plcopen_state``) while it stayed active: a gear locked. Composition marks
     #: the axis for the status arrays, then clears it
     status_changed: bool = False
+    #: a process that takes over, seamlessly, when this one ends (a cam's Pending
+    #: successor, :mod:`.cams`): composition starts it in the step this one ends
+    successor: Process | None = None
 
     def __init__(self, owner: Any = None) -> None:
         self.owner = owner

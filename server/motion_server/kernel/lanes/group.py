@@ -15,12 +15,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ..axis import Axis
+from ..cams import CamProcess
 from ..enums import MasterReference
 from ..gearing import GearProcess
 from ..group import MotionGroup
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from .base import Compose, Lane, LevelledLane
+from .cams import CamLane
 from .gears import CatchUpLane, FractionLane, GearLane, gear_source
 from .ramps import CruiseLane, ProfileLane, StopLane
 
@@ -34,7 +36,12 @@ class GroupLanes:
         self.profiles = ProfileLane(self)
         self.stops = StopLane(self)
         self.followers: dict[MasterReference, tuple[LevelledLane, ...]] = {
-            src: (GearLane(self, src), FractionLane(self, src), CatchUpLane(self, src))
+            src: (
+                GearLane(self, src),
+                FractionLane(self, src),
+                CatchUpLane(self, src),
+                CamLane(self, src),
+            )
             for src in (MasterReference.COMMAND, MasterReference.ACTUAL)
         }
         self.all: tuple[Lane, ...] = (
@@ -72,6 +79,19 @@ class GroupLanes:
                 self.stops.admit(p, ax)
         elif kind is GearProcess:
             self._offer_follower(p, ax)
+        elif kind is CamProcess:
+            self._offer_cam(p, ax)
+
+    def _offer_cam(self, p: Process, ax: Axis) -> None:
+        assert isinstance(p, CamProcess)
+        if p.index is None or not CamLane.accepts(p):
+            return
+        if p.source == MasterReference.COMMAND and not self._master_settled(p.index):
+            return  # its master is composed in Python: so must it be
+        for follower in self.followers[p.source]:
+            if isinstance(follower, CamLane):
+                follower.admit(p, ax)
+                return
 
     def _offer_follower(self, p: Process, ax: Axis) -> None:
         assert isinstance(p, GearProcess)

@@ -1,0 +1,388 @@
+"""Electronic camming: the cam process behind MAPC, MATC and MC_CamIn.
+
+A :class:`CamProcess` moves its slave along a :class:`~.cam_profile.CamProfile` f as a
+function of a *cam coordinate* x, which advances with a master's position (a position
+cam) or with time (a time cam):
+
+    x = CamLock + (m - m_lock) / MasterScaling        (position cam, m the master's
+                                                        unwound position)
+    x = CamLock + (t - t_lock) / TimeScaling           (time cam, t = cycles x period)
+    displacement = origin + scale x (F(x) - f(CamLock))
+
+``scale`` is the signed slave scaling (Direction x SlaveScaling), ``origin`` the
+displacement at the lock (0 for Logix's incremental cams). Like a locked gear, x is
+computed from the absolute master displacement since the lock, never from a running sum,
+so nothing drifts. What happens when x leaves the profile's range [start, end] is the
+execution mode (:class:`CamMode`):
+
+- **Once**: the cam completes; the slave stays at f(end) (or f(start) when the master ran
+  backwards out of the range) and the process is done.
+- **Continuous** (PLCopen periodic): the profile repeats; every pass adds f(end) -
+  f(start) to the slave: F(x) = f(x - k L) + k (f(end) - f(start)), k = floor((x - start)
+  / L).
+- **Persistent** (PLCopen non-periodic): outside the range the slave holds at the end
+  value (F(x) = f(clamped x)), unlocked; when the master comes back into the range the cam
+  drives the slave again.
+
+A cam may wait for its master to pass a lock position first (:class:`LockDirection`, the
+Logix Forward only / Reverse only / Bi-directional schedules, valid in any turn of a
+rotary master), and may follow one master direction only (:class:`MasterDirection`, the
+slip clutch: the master's travel counts only while it goes beyond the furthest point it
+reached in the allowed direction, so that the slave stays where it was while the master
+goes back and resumes in phase once the master has returned).
+
+A cam may have a *successor* (the Logix Pending schedule): it takes over, seamlessly, when
+this cam completes (Once) or passes the end or the start of its profile (Continuous),
+locked at the master position (or time) of that boundary, on the same master.
+
+``passes`` counts the times the profile's end (or its start, running backwards) was
+reached: PLCopen EndOfProfile pulses on each change.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+from typing import Any
+
+from .cam_profile import CamProfile
+from .enums import AbortReason, MasterReference, ProcessKind, ProcessState
+from .errors import ErrorCode, MotionError
+from .processes import Process
+from .state import StepContext
+
+# read every cycle, as module constants (see .enums)
+_ACTIVE = ProcessState.ACTIVE
+
+
+class CamMode(IntEnum):
+    """Logix Execution Mode (once 0, continuous 1, persistent 2)."""
+
+    ONCE = 0
+    CONTINUOUS = 1
+    PERSISTENT = 2
+
+
+class LockDirection(IntEnum):
+    """When a cam locks: at once, or when the master passes the master lock position
+    forward, in reverse, or either way (the Logix Execution Schedule without Pending)."""
+
+    IMMEDIATE = 0
+    FORWARD = 1
+    REVERSE = 2
+    BIDIRECTIONAL = 3
+
+
+class MasterDirection(IntEnum):
+    """Logix Master Direction: which master travel drives the slave (0 both)."""
+
+    BIDIRECTIONAL = 0
+    FORWARD_ONLY = 1
+    REVERSE_ONLY = 2
+
+
+class CamPhase(IntEnum):
+    WAITING = 0  # for the master to pass the master lock position
+    LOCKED = 1
+
+
+#: largest |scaling| accepted (PLCopen vendors refuse beyond +-2^31, Beckhoff 44037/38)
+MAX_SCALING = 2.0**31
+
+
+def judge_scaling(name: str, value: float) -> float:
+    """A scaling must be finite, non-zero and within +-2^31 (MotionError 13 naming it)."""
+    v = float(value)
+    if not (math.isfinite(v) and v != 0.0 and abs(v) <= MAX_SCALING):
+        raise MotionError(
+            ErrorCode.PARAMETER_OUT_OF_RANGE,
+            f"{name} {value!r} must be finite, non-zero and within +-2^31",
+        )
+    return v
+
+
+class CamProcess(Process):
+    """One cam on a slave (see the module docstring).
+
+    ``master`` is the master's array index and ``source`` its reference (None: a time
+    cam). ``master_scaling`` is master units (or seconds) per cam unit. ``master_lock``
+    and ``lock`` give the lock condition; ``rollover`` is the master's (0: linear).
+    """
+
+    def __init__(
+        self,
+        ctx: StepContext,
+        profile: CamProfile,
+        mode: CamMode,
+        scale: float,
+        master_scaling: float,
+        cam_lock: float,
+        *,
+        master: int | None = None,
+        source: MasterReference = MasterReference.COMMAND,
+        master_number: int = 0,
+        lock: LockDirection = LockDirection.IMMEDIATE,
+        master_lock: float = 0.0,
+        rollover: float = 0.0,
+        direction: MasterDirection = MasterDirection.BIDIRECTIONAL,
+        origin: float = 0.0,
+        owner: Any = None,
+    ) -> None:
+        super().__init__(owner)
+        if not profile.start <= cam_lock <= profile.end:
+            raise MotionError(
+                ErrorCode.PARAMETER_OUT_OF_RANGE,
+                f"cam lock position {cam_lock:g} is outside the profile's master range "
+                f"[{profile.start:g}, {profile.end:g}]",
+            )
+        self.kind = ProcessKind.POSITION_CAM if master is not None else ProcessKind.TIME_CAM
+        self.profile = profile
+        self.mode = CamMode(mode)
+        self.scale = float(scale)
+        self.master_scaling = float(master_scaling)
+        self.cam_lock = float(cam_lock)
+        self.f0 = profile.value(self.cam_lock)
+        self.origin = float(origin)
+        self.index = master
+        self.masters = (master_number,) if master is not None else ()
+        self.source = source
+        self.lock_direction = LockDirection(lock)
+        self.master_lock = float(master_lock)
+        self.rollover = float(rollover)
+        self.master_direction = MasterDirection(direction)
+        self.phase = CamPhase.WAITING
+        #: the master position (or time) of the lock, the furthest point reached (slip
+        #: clutch) and the master position of the previous cycle
+        self.m0 = 0.0
+        self.m_eff = 0.0
+        self.m_prev = 0.0
+        self.v_prev = 0.0
+        #: cycles since the time cam's clock started (a time cam's t = cycles x dt)
+        self.cycles = 0
+        #: the cam coordinate and its period index of the last step
+        self.x = self.cam_lock
+        self.k = 0
+        #: inside the profile's range (Persistent: False while it holds at an end)
+        self.in_range = True
+        #: master moving the way that drives the slave (slip clutch)
+        self.engaged = True
+        self.passes = 0
+        self.successor: CamProcess | None = None
+        m = 0.0
+        if self.index is not None:
+            pos, vel, _ = ctx.master_arrays(source)
+            m = pos.item(self.index)
+            self.v_prev = vel.item(self.index)
+        self.m_prev = m
+        if self.lock_direction == LockDirection.IMMEDIATE:
+            self._lock(m)
+
+    @property
+    def locked(self) -> bool:
+        """PositionCamLockStatus / TimeCamLockStatus: locked, inside the range and
+        driven by the master."""
+        return self.phase == CamPhase.LOCKED and self.in_range and self.engaged
+
+    def _lock(self, m0: float) -> None:
+        self.phase = CamPhase.LOCKED
+        self.m0 = m0
+        self.m_eff = m0
+        self.x = self.cam_lock
+        prof = self.profile
+        self.k = math.floor((self.cam_lock - prof.start) / prof.length)
+        self.offer_pending = True
+        self.status_changed = True
+
+    def follow(self, predecessor: CamProcess, m_boundary: float) -> None:
+        """Take over from ``predecessor`` (Pending) at its boundary ``m_boundary``: same
+        master and reference, locked there; the clock of a time cam goes on."""
+        self.index = predecessor.index
+        self.masters = predecessor.masters
+        self.source = predecessor.source
+        self.cycles = predecessor.cycles
+        self.v_prev = predecessor.v_prev
+        self.lock_direction = LockDirection.IMMEDIATE
+        self._lock(m_boundary)
+        self.status_changed = True
+
+    # -- stepping -------------------------------------------------------------------------
+    def step(self, ctx: StepContext, dt: float) -> None:
+        if self.index is None:
+            self.cycles += 1
+            m = self.cycles * dt
+            v_m = 1.0
+            a_m = 0.0
+        else:
+            pos, vel, acc = ctx.master_arrays(self.source)
+            i = self.index
+            m = pos.item(i)
+            v_m = vel.item(i)
+            if acc is not None:
+                a_m = acc.item(i)
+            else:
+                a_m = (v_m - self.v_prev) / dt
+            self.v_prev = v_m
+        if self.phase == CamPhase.WAITING:
+            crossed = self._crossing(self.m_prev, m)
+            self.m_prev = m
+            if crossed is None:
+                self.position = self.origin
+                self.velocity = 0.0
+                self.acceleration = 0.0
+                return
+            self._lock(crossed)
+        self.m_prev = m
+        self._locked_step(m, v_m, a_m)
+
+    def _crossing(self, m1: float, m2: float) -> float | None:
+        """The master lock position passed going from ``m1`` to ``m2`` in an allowed
+        direction (on a rotary master: in any turn), or None."""
+        lock = self.lock_direction
+        target = self.master_lock
+        r = self.rollover
+        if lock in (LockDirection.FORWARD, LockDirection.BIDIRECTIONAL) and m2 > m1:
+            if r > 0.0:
+                j1 = math.floor((m1 - target) / r)
+                j2 = math.floor((m2 - target) / r)
+                if j2 > j1:
+                    return target + j2 * r
+            elif m1 < target <= m2:
+                return target
+        if lock in (LockDirection.REVERSE, LockDirection.BIDIRECTIONAL) and m2 < m1:
+            if r > 0.0:
+                j1 = math.ceil((m1 - target) / r)
+                j2 = math.ceil((m2 - target) / r)
+                if j2 < j1:
+                    return target + j2 * r
+            elif m2 <= target < m1:
+                return target
+        return None
+
+    def _locked_step(self, m: float, v_m: float, a_m: float) -> None:
+        engaged = True
+        direction = self.master_direction
+        if direction == MasterDirection.FORWARD_ONLY:
+            if m >= self.m_eff:
+                self.m_eff = m
+            else:
+                engaged = False
+        elif direction == MasterDirection.REVERSE_ONLY:
+            if m <= self.m_eff:
+                self.m_eff = m
+            else:
+                engaged = False
+        else:
+            self.m_eff = m
+        if engaged != self.engaged:
+            self.engaged = engaged
+            self.status_changed = True
+        prof = self.profile
+        ms = self.master_scaling
+        x = self.cam_lock + (self.m_eff - self.m0) / ms
+        self.x = x
+        mode = self.mode
+        if mode == CamMode.CONTINUOUS:
+            k = math.floor((x - prof.start) / prof.length)
+            c = x - k * prof.length
+            if k != self.k:
+                self.passes += 1
+                if self.successor is not None:
+                    self._hand_over(prof.start + max(k, self.k) * prof.length)
+                    return
+                self.k = k
+            f, f1, f2 = prof.evaluate(c)
+            self.position = self.origin + self.scale * ((f + k * prof.rise) - self.f0)
+        else:
+            inside = prof.start <= x <= prof.end
+            if not inside:
+                edge = prof.end if x > prof.end else prof.start
+                if self.in_range:
+                    self.passes += 1
+                if mode == CamMode.ONCE:
+                    if self.successor is not None:
+                        self._hand_over(edge)
+                        return
+                    self.position = self.origin + self.scale * (prof.value(edge) - self.f0)
+                    self.velocity = 0.0
+                    self.acceleration = 0.0
+                    self.in_range = False
+                    self.finish()
+                    return
+                if self.in_range:
+                    self.in_range = False
+                    self.status_changed = True
+                self.position = self.origin + self.scale * (prof.value(edge) - self.f0)
+                self.velocity = 0.0
+                self.acceleration = 0.0
+                return
+            if not self.in_range:
+                self.in_range = True
+                self.status_changed = True
+            f, f1, f2 = prof.evaluate(x)
+            self.position = self.origin + self.scale * (f - self.f0)
+        if not engaged:
+            self.velocity = 0.0
+            self.acceleration = 0.0
+            return
+        r = v_m / ms
+        self.velocity = self.scale * f1 * r
+        self.acceleration = self.scale * (f2 * r * r + f1 * (a_m / ms))
+
+    def _hand_over(self, x_boundary: float) -> None:
+        """This cam reached the boundary ``x_boundary`` (a raw cam coordinate) with a
+        successor waiting: this one stops there, the successor locks there."""
+        prof = self.profile
+        succ = self.successor
+        assert succ is not None
+        if self.mode == CamMode.CONTINUOUS:
+            k = math.floor((x_boundary - prof.start) / prof.length)
+            f = prof.value(x_boundary - k * prof.length) + k * prof.rise
+        else:
+            f = prof.value(x_boundary)
+        self.position = self.origin + self.scale * (f - self.f0)
+        self.velocity = 0.0
+        self.acceleration = 0.0
+        m_boundary = self.m0 + (x_boundary - self.cam_lock) * self.master_scaling
+        succ.follow(self, m_boundary)
+        if self.mode == CamMode.ONCE:
+            self.finish()
+        else:
+            self.state = ProcessState.ABORTED
+            self.abort_reason = AbortReason.SUPERSEDED
+
+    # -- ends and coordinates ---------------------------------------------------------------
+    def abort(self, reason: AbortReason) -> None:
+        super().abort(reason)
+        succ = self.successor
+        if succ is not None and succ.state == _ACTIVE:
+            succ.abort(reason)
+
+    def fail(self, code: int) -> None:
+        super().fail(code)
+        succ = self.successor
+        if succ is not None and succ.state == _ACTIVE:
+            succ.abort(AbortReason.SUPERSEDED)
+
+    def master_shifted(self, index: int, d: float) -> None:
+        """The master's coordinates moved by ``d``: the cam goes on as before (a lock
+        position not reached yet keeps the reference it was given in, as Logix's does)."""
+        if self.index != index:
+            return
+        self.m0 += d
+        self.m_eff += d
+        self.m_prev += d
+        if self.phase == CamPhase.WAITING:
+            self.master_lock += d
+
+    @property
+    def reached(self) -> bool:
+        """In sync: a buffered PLCopen successor may start."""
+        return self.locked or super().reached
+
+
+def active_cam(slave: Any, kind: ProcessKind = ProcessKind.POSITION_CAM) -> CamProcess | None:
+    """The slave's active cam of ``kind``, if any."""
+    for p in slave.processes:
+        if p.active and p.kind == kind and isinstance(p, CamProcess):
+            return p
+    return None

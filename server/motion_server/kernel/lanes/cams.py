@@ -1,0 +1,183 @@
+"""Cam lanes: locked position cams on one master (MAPC, MC_CamIn), stepped as arrays.
+
+A member is a :class:`~..cams.CamProcess` locked on a master read through the lane's
+``source``, following both master directions, with no Pending successor, inside its
+profile's range (Once, Persistent) or repeating it (Continuous). The lane repeats
+``CamProcess._locked_step``'s operations in the same order; the profile is evaluated once
+per distinct profile of a level (:meth:`CamProfile.evaluate_many
+<..cam_profile.CamProfile.evaluate_many>`), so 256 slaves on one table cost one search.
+A Continuous cam passing its profile's end stays in the lane (the pass is counted); a Once
+or Persistent cam leaving the range is an event: it is moved out and stepped in Python.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..axis import Axis
+from ..cam_profile import CamProfile
+from ..cams import CamMode, CamPhase, CamProcess, MasterDirection
+from ..enums import MasterReference, ProcessKind
+from ..processes import Process
+from ..state import AxisArrays
+from .base import Compose, LaneOwner, LevelledLane
+
+_CONTINUOUS = float(CamMode.CONTINUOUS)
+
+
+class CamLane(LevelledLane):
+    """Locked position cams on one master (see the module docstring)."""
+
+    FIELDS = (
+        "base",
+        "origin",
+        "scale",
+        "ms",
+        "cam_lock",
+        "f0",
+        "m0",
+        "start",
+        "end",
+        "length",
+        "rise",
+        "mode",
+        "k",
+        "passes",
+        "v_prev",
+        "m_last",
+        "x",
+        "pos",
+        "vel",
+        "acc",
+    )
+    DTYPES: ClassVar[dict[str, Any]] = {"passes": np.int64}
+
+    def __init__(self, owner: LaneOwner, source: MasterReference) -> None:
+        super().__init__(owner, source)
+        #: per level: (profile, rows of the level's arrays) for each distinct profile
+        self.by_profile: list[list[tuple[CamProfile, slice | np.ndarray]]] = []
+
+    @staticmethod
+    def accepts(p: Process) -> bool:
+        return (
+            type(p) is CamProcess
+            and p.kind == ProcessKind.POSITION_CAM
+            and p.index is not None
+            and p.phase == CamPhase.LOCKED
+            and p.master_direction == MasterDirection.BIDIRECTIONAL
+            and p.successor is None
+            and p.in_range
+            and p.engaged
+        )
+
+    @staticmethod
+    def master_index(p: Process) -> int:
+        assert isinstance(p, CamProcess) and p.index is not None
+        return p.index
+
+    def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
+        assert isinstance(p, CamProcess)
+        prof = p.profile
+        return (
+            ax.base,
+            p.origin,
+            p.scale,
+            p.master_scaling,
+            p.cam_lock,
+            p.f0,
+            p.m0,
+            prof.start,
+            prof.end,
+            prof.length,
+            prof.rise,
+            float(p.mode),
+            float(p.k),
+            p.passes,
+            p.v_prev,
+            p.m_prev,
+            p.x,
+            p.position,
+            p.velocity,
+            p.acceleration,
+        )
+
+    def _store(self, p: Process, k: int) -> None:
+        assert isinstance(p, CamProcess)
+        a = self.arrays
+        p.position = float(a["pos"][k])
+        p.velocity = float(a["vel"][k])
+        p.acceleration = float(a["acc"][k])
+        p.v_prev = float(a["v_prev"][k])
+        p.k = int(a["k"][k])
+        p.passes = int(a["passes"][k])
+        p.x = float(a["x"][k])
+        p.m_prev = p.m_eff = float(a["m_last"][k])
+
+    def order(self, levels: list[int]) -> None:
+        super().order(levels)
+        self.by_profile = []
+        for sl in self.levels:
+            groups: dict[int, tuple[CamProfile, list[int]]] = {}
+            for row in range(sl.start, sl.stop):
+                p = self.members[row]
+                assert isinstance(p, CamProcess)
+                groups.setdefault(id(p.profile), (p.profile, []))[1].append(row - sl.start)
+            parts: list[tuple[CamProfile, slice | np.ndarray]] = []
+            for prof, rows in groups.values():
+                if len(groups) == 1:
+                    parts.append((prof, slice(None)))
+                else:
+                    parts.append((prof, np.array(rows, dtype=np.intp)))
+            self.by_profile.append(parts)
+
+    def step(self, s: AxisArrays, lv: int, dt: float, compose: Compose) -> None:
+        a = self.arrays
+        level = self.levels[lv]
+        mi = self.masters[lv]
+        m_arr, v_arr, a_arr = s.master_arrays(self.source)
+        m = m_arr[mi]
+        v = v_arr[mi]
+        # CamProcess._locked_step: x from the master's displacement since the lock
+        x = a["cam_lock"][level] + (m - a["m0"][level]) / a["ms"][level]
+        cont = a["mode"][level] == _CONTINUOUS
+        start = a["start"][level]
+        length = a["length"][level]
+        # events first (nothing written yet): a Once or Persistent cam leaving its range
+        leaving = ~cont & ((x < start) | (x > a["end"][level]))
+        movers: list[Axis] = []
+        if leaving.any():
+            movers = self.move_out(np.flatnonzero(leaving) + (level.start or 0))
+        if a_arr is not None:
+            am = a_arr[mi]
+        else:
+            am = (v - a["v_prev"][level]) / dt
+        a["v_prev"][level] = v
+        a["m_last"][level] = m
+        a["x"][level] = x
+        k = np.where(cont, np.floor((x - start) / length), 0.0)
+        passed = cont & (k != a["k"][level])
+        if passed.any():
+            a["passes"][level] += passed
+            a["k"][level] = k
+        c = np.where(cont, x - k * length, x)
+        f = np.empty_like(c)
+        f1 = np.empty_like(c)
+        f2 = np.empty_like(c)
+        for prof, rows in self.by_profile[lv]:
+            f[rows], f1[rows], f2[rows] = prof.evaluate_many(c[rows])
+        scale = a["scale"][level]
+        ms = a["ms"][level]
+        fk = np.where(cont, f + k * a["rise"][level], f)
+        pos = a["origin"][level] + scale * (fk - a["f0"][level])
+        r = v / ms
+        vel = scale * f1 * r
+        acc = scale * (f2 * r * r + f1 * (am / ms))
+        a["pos"][level], a["vel"][level], a["acc"][level] = pos, vel, acc
+        si = self.slaves[lv]
+        s.cmd_pos[si] = a["base"][level] + pos
+        s.cmd_vel[si] = vel
+        s.cmd_acc[si] = acc
+        for ax in movers:
+            compose(ax)
