@@ -138,8 +138,7 @@ def test_numpy_evaluation_is_bit_identical_to_python(n: int, data: st.DataObject
     slopes = data.draw(st.tuples(st.floats(-5.0, 5.0), st.floats(-5.0, 5.0)))
     p = compute_profile(xs, ys, types, *slopes)
     probe = np.array(
-        data.draw(st.lists(st.floats(xs[0] - 10.0, xs[-1] + 10.0), min_size=1, max_size=30))
-        + xs
+        data.draw(st.lists(st.floats(xs[0] - 10.0, xs[-1] + 10.0), min_size=1, max_size=30)) + xs
     )
     many = p.evaluate_many(probe)
     for j, x in enumerate(probe):

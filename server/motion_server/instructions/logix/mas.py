@@ -14,7 +14,7 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import ClassVar
 
-from ...kernel import AxisType, ErrorCode, MotionError, ProcessKind
+from ...kernel import AbortReason, AxisType, ErrorCode, MotionError, ProcessKind
 from ..base import Gate, gate
 from ..dynamics import AccelUnits, JerkUnits, rate
 from ..dynamics import jerk as jerk_of
@@ -49,6 +49,8 @@ STOP_KINDS: dict[StopType, tuple[ProcessKind, ...] | None] = {
     StopType.MOVE: (ProcessKind.MOVE,),
     StopType.GEAR: (ProcessKind.GEAR,),
     StopType.HOME: (ProcessKind.HOME,),
+    StopType.POSITION_CAM: (ProcessKind.POSITION_CAM,),
+    StopType.TIME_CAM: (ProcessKind.TIME_CAM,),
 }
 
 
@@ -97,6 +99,9 @@ class MAS(ProcessInstruction):
         else:
             moving = [p for k in kinds for p in ax.active(k)]
         if not ax.servo_on or not moving:
+            if ax.preloaded_cams:
+                # a Pending cam preloaded while no cam ran ends with the stop of its kind
+                self.ctl.motion.retire(ax, kinds, AbortReason.STOPPED)
             # nothing of that kind is moving (or no process of that kind exists here):
             # the stop is complete at once
             self.set_bits(DN=True, PC=True)

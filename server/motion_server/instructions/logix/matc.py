@@ -1,0 +1,122 @@
+"""MATC, Motion Axis Time Cam: the axis follows a cam profile of time.
+
+``MATC(Axis, MotionControl, Direction, CamProfile, DistanceScaling, TimeScaling,
+ExecutionMode, ExecutionSchedule)`` (MOTION-RM002): the profile's master values are
+seconds,
+
+    axis = axis at start + D x DistanceScaling x (f(x) - f(start)),
+    x = start + t / TimeScaling
+
+with t the time since the cam started, counted in whole periods (exact, no sum): a
+larger TimeScaling runs slower, a larger DistanceScaling goes further. Execution Mode
+Once (completes at the profile's end: PC) or Continuous (repeats, each pass adding its
+rise); Persistent is for position cams (ERR 13). Execution Schedule Immediate, or Pending
+(takes over when the running time cam completes or passes the end of its profile, with
+no jump; preloaded when none runs). Direction as MAPC. Time cams superimpose on the
+axis's other motion.
+
+Status: DN and IP in the scan of execution; IP until completed (PC), superseded by a
+Pending cam, stopped (MAS All or Time Cam, MGS), merged, shut down or faulted; SEGMENT.
+MotionStatus TimeCamStatus while in process, TimeCamLockStatus (bit 14) while it drives
+the axis, TimeCamPendingStatus while a Pending time cam waits. The Master Driven mode
+(an MDAC on the axis) is not modelled: MATC always runs on time.
+
+Errors: 23 an Immediate MATC on an axis already time camming; 30 / 32 the profile is
+being calculated / not calculated; 13 a scaling that is zero, not finite or beyond
++-2^31, a schedule other than Immediate or Pending, Persistent mode, a profile that does
+not exist (EXERR names the operand); 8 a feedback-only axis; 5, 7, 20 the power state.
+"""
+
+from __future__ import annotations
+
+from ...kernel import ProcessKind
+from ...kernel.cams import CamMode, CamProcess, active_cam
+from ...kernel.errors import ErrorCode, MotionError
+from ...kernel.processes import Process
+from ..cam_common import ExecutionSchedule, calculated_profile, queue_pending, take_preloaded
+from ..operands import AXIS
+from ..registry import register
+from ..schema import Operand, TagType
+from .mag import GearDirection, resolve_direction
+from .mapc import CamInstruction, scaling
+from .mccp import CAM_PROFILE
+
+
+@register
+class MATC(CamInstruction):
+    TYPE = "MATC"
+    DESCRIPTION = "Motion Axis Time Cam: the axis follows a cam profile of time"
+    MOTION_CONTROL_INDEX = 1
+    OPERANDS = (
+        AXIS,
+        Operand(
+            "Direction",
+            TagType.DINT,
+            GearDirection.SAME,
+            enum=GearDirection,
+            description="0 same, 1 opposite, 2 reverse, 3 unchanged",
+        ),
+        CAM_PROFILE,
+        Operand("DistanceScaling", TagType.REAL, 1.0, description="scales the distance"),
+        Operand("TimeScaling", TagType.REAL, 1.0, description="scales the time (s per unit)"),
+        Operand(
+            "ExecutionMode",
+            TagType.DINT,
+            CamMode.ONCE,
+            enum=CamMode,
+            description="0 once, 1 continuous",
+        ),
+        Operand(
+            "ExecutionSchedule",
+            TagType.DINT,
+            ExecutionSchedule.IMMEDIATE,
+            enum=ExecutionSchedule,
+            description="0 immediate, 1 pending",
+        ),
+    )
+
+    def execute(self) -> None:
+        ctl = self.ctl
+        ax = self.axis()
+        ctl.require_motion(ax)
+        mode = CamMode(int(self.op["ExecutionMode"]))
+        if mode == CamMode.PERSISTENT:
+            raise self.out_of_range("ExecutionMode", "a time cam runs Once or Continuous")
+        schedule = ExecutionSchedule(int(self.op["ExecutionSchedule"]))
+        if schedule not in (ExecutionSchedule.IMMEDIATE, ExecutionSchedule.PENDING):
+            raise self.out_of_range("ExecutionSchedule", "a time cam is Immediate or Pending")
+        number = int(self.op["CamProfile"])
+        if number not in ctl.cams.slots:
+            raise self.out_of_range("CamProfile", f"cam profile {number} does not exist")
+        profile = calculated_profile(ctl, number)
+        ds = scaling(self, "DistanceScaling")
+        ts = scaling(self, "TimeScaling")
+        if ts < 0.0:
+            raise self.out_of_range("TimeScaling", "time runs forward: TimeScaling must be > 0")
+        pending = schedule == ExecutionSchedule.PENDING
+        if not pending and active_cam(ax, ProcessKind.TIME_CAM) is not None:
+            raise MotionError(
+                ErrorCode.ILLEGAL_DYNAMIC_CHANGE,
+                f"{ax.name} is time camming: use the Pending schedule or stop the cam",
+            )
+        direction = resolve_direction(GearDirection(int(self.op["Direction"])), ax.cam_direction)
+
+        def build() -> CamProcess:
+            return CamProcess(ctl, profile, mode, direction * ds, ts, profile.start, owner=self)
+
+        if pending:
+            proc = build()
+            queue_pending(ctl, ax, proc)
+        else:
+
+            def make(v: float, a: float) -> Process:
+                p = build()
+                p.successor = take_preloaded(ax, ProcessKind.TIME_CAM)
+                return p
+
+            started = ctl.start(ax, make, replace=())
+            assert isinstance(started, CamProcess)
+            proc = started
+        ax.cam_direction = direction
+        ctl.cams.register(number, proc)
+        self.started(proc)
