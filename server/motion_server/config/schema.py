@@ -664,7 +664,7 @@ class SiteMap(_Model):
         out = []
         for c, number in zip(self.cams, self.cam_numbers(), strict=True):
             points = tuple((_real(m), _real(s), t) for m, s, t in c.points)
-            out.append(CamTableConfig(number, c.name, c.size, points, c.length or 0))
+            out.append(CamTableConfig(number, c.name, c.size, points, c.length or len(points)))
         return out
 
     def instances(self) -> list[InstanceSection]:
