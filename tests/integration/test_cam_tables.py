@@ -258,3 +258,29 @@ async def test_a_viewer_may_not_write_a_table(
         [code] = await write_value(rt, client, "Cams.Cam1.Master[0]", 9.0, f)
         assert code.name == "BadUserAccessDenied"
     assert table.master == before
+
+
+async def test_a_subscriber_of_an_array_view_sees_an_element_write(
+    rt: Runtime, operator: Client, modbus: AsyncModbusTcpClient
+) -> None:
+    assert rt.opcua is not None
+    ns = rt.opcua.namespace_index
+    seen: asyncio.Queue[list[float]] = asyncio.Queue()
+
+    class Handler:
+        def datachange_notification(self, node: Any, val: Any, data: Any) -> None:
+            seen.put_nowait(val)
+
+    sub = await operator.create_subscription(50, Handler())
+    await sub.subscribe_data_change(operator.get_node(ua.NodeId("Cams.Cam1.SlaveValues", ns)))
+    first = await asyncio.wait_for(seen.get(), 5.0)  # the initial value
+    assert first == list(rt.ctl.cams.tables[1].slave)
+    # Cam1.Slave[3] (B+10+6·3 = 30028) over Modbus: the view follows
+    assert not (await modbus.write_registers(30028, regs("f", 7.5))).isError()
+    await step(rt, modbus, 1)
+    while True:
+        value = await asyncio.wait_for(seen.get(), 5.0)
+        if value[3] == 7.5:
+            break
+    assert value == [*first[:3], 7.5]
+    await sub.delete()
