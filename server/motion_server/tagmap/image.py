@@ -305,6 +305,8 @@ class TagImage:
         self._requested = 0
         self._get: dict[str, Getter] = {}
         self._set: dict[str, Setter] = {}
+        #: cam table name -> number (made when the first cam tag is bound)
+        self._cam_numbers: dict[str, int] | None = None
         for tag in tagmap:
             self._bind(tag)
         self._slots = self._build_slots()
@@ -496,7 +498,9 @@ class TagImage:
         write lands there when the scan applies it, at the start of a cycle);
         ProfileStatus is read from the profile slot of the same number."""
         store = self.system.ctl.cams
-        number = next(n for n, t in store.tables.items() if t.name == tag.owner)
+        if self._cam_numbers is None:
+            self._cam_numbers = {t.name: n for n, t in store.tables.items()}
+        number = self._cam_numbers[tag.owner]
         table, slot = store.tables[number], store.slots[number]
         element = cam_element_of(tag.field)
         if element is None:
