@@ -90,17 +90,19 @@ class ArrayViews:
 
     def __init__(self, image: ImageView) -> None:
         self.image = image
+        #: the views by node id (empty until :meth:`serve`)
         self.by_node: dict[str, ServedView] = {}
-        for cam in cam_tables(image.map):
-            for v in cam.views:
-                slots = np.array([image.slot(t) for t in v.tags], dtype=np.intp)
-                self.by_node[v.node_id] = ServedView(v, slots, VARIANT_TYPES[v.type])
 
     def serve(
         self, nodes: dict[Any, Any], ns: int, current: Callable[[], tuple[np.ndarray, datetime]]
     ) -> None:
         """Answer reads of every view's Value from ``current()`` (the snapshot and time
         of the Read being answered)."""
+        image = self.image
+        for cam in cam_tables(image.map):
+            for v in cam.views:
+                slots = np.array([image.slot(t) for t in v.tags], dtype=np.intp)
+                self.by_node[v.node_id] = ServedView(v, slots, VARIANT_TYPES[v.type])
         values, _ = current()
         for node_id, sv in self.by_node.items():
             node = nodes.get(ua.NodeId(node_id, ns))
