@@ -14,6 +14,7 @@ import pytest
 from motion_server import config
 from motion_server.config import SiteMapError
 from motion_server.instructions.schema import TagType
+from motion_server.safety.roles import Role, RoleRegisters, required_role
 from motion_server.tagmap import Access, build_tagmap
 from motion_server.tagmap.image import TagImage
 
@@ -163,3 +164,12 @@ def test_each_bad_field_is_named_with_its_line(text: str, field: str, message: s
     # cams.toml:<line>: the line of the entry (the HEAD takes 7 lines)
     file, line = hit[0].split(":")[:2]
     assert file == "cams.toml" and int(line) > 7
+
+
+def test_operators_write_the_points_viewers_do_not() -> None:
+    tm = build_tagmap(parse('[[cams]]\nname = "A"\ncapacity = 2\n'))
+    registers = RoleRegisters(tm)
+    # Length and element 0 (30006..30013): the whole writable part but for element 1
+    assert registers.write_refused(Role.OPERATOR, 30006, 8) is None
+    assert registers.write_refused(Role.VIEWER, 30006, 8) == "role viewer may not write"
+    assert all(required_role(t) == Role.OPERATOR for t in tm.owned_by("A") if t.writable)
