@@ -25,6 +25,7 @@ from motion_server import config
 from motion_server.kernel import AxisFault, ProgrammedStopMode
 from motion_server.safety.watchdog import WATCHDOG_FAULT
 from motion_server.tagmap import TagMap, TagType, build_tagmap, export, to_dict
+from motion_server.tagmap.cams import cam_tables, scada_name
 from motion_server.tagmap.image import StandaloneHost, TagImage, is_static
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -70,9 +71,12 @@ def test_kepware_csv_has_the_heading_record_and_addresses_of_the_driver(demo: Ta
     rows = list(csv.reader(io.StringIO(export(demo, "kepware"))))
     assert rows[0] == KEPWARE_HEADING
     by_name = {r[0]: dict(zip(KEPWARE_HEADING, r, strict=True)) for r in rows[1:]}
-    assert set(by_name) == {t.name for t in demo}
+    # a cam element's brackets become an underscore (Cam1.Master[3] -> Cam1.Master_3)
+    assert set(by_name) == {f"{t.owner}.{scada_name(t.field)}" for t in demo}
+    assert not any("[" in name or "]" in name for name in by_name)
+    assert by_name["Cam1.Master_3"]["Address"] == f"4{demo.tag('Cam1.Master[3]').address + 1:05d}"
     for tag in demo:
-        row = by_name[tag.name]
+        row = by_name[f"{tag.owner}.{scada_name(tag.field)}"]
         m = re.fullmatch(r"4(\d{5})(?:\.(\d{1,2}))?", row["Address"])
         assert m is not None, row
         assert int(m.group(1)) == tag.address + 1  # 400001 is register 0
@@ -104,13 +108,23 @@ def test_ignition_json_is_a_tag_tree_of_opc_tags(demo: TagMap) -> None:
     root = json.loads(export(demo, "ignition"))
     assert (root["name"], root["tagType"]) == ("motion-server-demo", "Folder")
     tags = _atomic(root)
-    assert len(tags) == len(demo)
+    # every tag, and the three array views of each cam table
+    cams = cam_tables(demo)
+    assert len(tags) == len(demo) + 3 * len(cams)
     by_path = {t["opcItemPath"]: t for _, t in tags}
+    for cam in cams:
+        for view in cam.views:
+            rec = by_path[f"nsu=urn:motion-server:demo;s={view.node_id}"]
+            assert rec["dataType"] == (
+                "Int4Array" if view.field == "SegmentType" else "Float4Array"
+            )
+            assert rec["readOnly"] is False
     for tag in demo:
         rec = by_path[f"nsu=urn:motion-server:demo;s={tag.node_id}"]
         assert rec["tagType"] == "AtomicTag" and rec["valueSource"] == "opc"
         assert rec["opcServer"] == "motion-server"
-        assert rec["name"] == tag.field
+        assert rec["name"] == scada_name(tag.field)
+        assert "[" not in rec["name"]
         assert rec["dataType"] in IGNITION_TYPES
         assert rec["readOnly"] is (not tag.writable)
         if "engLow" in rec:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ipaddress
 import re
+import struct
 import typing
 from collections.abc import Mapping, Sequence
 from enum import Enum
@@ -25,6 +26,7 @@ from typing import Annotated, Any, Literal, Protocol
 from pydantic import (
     AfterValidator,
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     PrivateAttr,
@@ -43,6 +45,7 @@ from ..kernel import (
     GroupConfig,
     ProgrammedStopMode,
 )
+from ..kernel.cam_tables import MAX_CAM_POINTS, CamTableConfig
 from ..kernel.config import MAX_PERIOD, MIN_PERIOD
 from ..kernel.enums import HomeDirection, HomeMode, HomeSequence
 from ..safety.passwords import parse_hash
@@ -256,6 +259,52 @@ class InstanceSection(_Model):
         return value
 
 
+#: the DINT range (a cam point's segment type)
+DINT_MIN, DINT_MAX = -(2**31), 2**31 - 1
+
+
+def _cam_point(value: Any) -> Any:
+    """A point is written ``[master, slave, segment_type]``: say so when it is not."""
+    if not isinstance(value, list | tuple) or len(value) != 3:
+        raise ValueError(
+            f"{value!r} is not a point: write [master, slave, segment_type] "
+            "(two numbers and an integer)"
+        )
+    return value
+
+
+CamPoint = Annotated[
+    tuple[
+        Annotated[float, Field(strict=True), _within(-REAL_MAX, REAL_MAX)],
+        Annotated[float, Field(strict=True), _within(-REAL_MAX, REAL_MAX)],
+        Annotated[int, Field(strict=True, ge=DINT_MIN, le=DINT_MAX)],
+    ],
+    BeforeValidator(_cam_point),
+]
+
+
+class CamSection(_Model):
+    """A cam table (``[[cams]]``): the Logix CAM array a client writes as tags, and its
+    CAM_PROFILE. ``number`` defaults to the table's place in the list (1-based);
+    ``capacity`` (points, 2..1000) to the number of initial ``points`` (at least 2);
+    ``length`` (the points MC_CamTableSelect uses) to the number of initial points.
+    ``points``: ``[master, slave, segment_type]`` triples; the segment type is any
+    integer (MCCP judges it: 0 linear, 1 cubic)."""
+
+    name: str = Field(pattern=NAME_RE)
+    number: Annotated[int, Field(ge=1, le=65535)] | None = None
+    capacity: Annotated[int, Field(ge=2, le=MAX_CAM_POINTS)] | None = None
+    length: Annotated[int, Field(ge=2, le=MAX_CAM_POINTS)] | None = None
+    points: Annotated[list[CamPoint], Field(max_length=MAX_CAM_POINTS)] = Field(
+        default_factory=list
+    )
+
+    @property
+    def size(self) -> int:
+        """The capacity, given or by default."""
+        return self.capacity if self.capacity is not None else max(2, len(self.points))
+
+
 class InstructionsSection(_Model):
     every_type: bool = False
     instances: list[InstanceSection] = Field(default_factory=list)
@@ -426,6 +475,9 @@ class ModbusSection(_Model):
     #: unset: 3000 when the axis blocks end there (up to 40 axes at the default axis_base),
     #: else the first multiple of 1000 after every other block
     axis_config_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] | None = None
+    #: cam table blocks (``[[cams]]``): unset: 30000 when every other block ends there,
+    #: else the first multiple of 1000 after them (see ``motion_server.tagmap.layout``)
+    cam_base: Annotated[int, Field(ge=100, le=65000, multiple_of=2)] | None = None
     #: float32 (REAL) copies of the LREAL axis values, for panels that cannot read LREAL
     real_mirrors: bool = False
     access: ModbusAccessSection = ModbusAccessSection()
@@ -550,6 +602,7 @@ class SiteMap(_Model):
     modbus: ModbusSection = ModbusSection()
     opcua: OpcUaSection = OpcUaSection()
     watchdogs: list[WatchdogSection] = Field(default_factory=list)
+    cams: list[CamSection] = Field(default_factory=list)
     audit: AuditSection = AuditSection()
     retain: RetainSection = RetainSection()
     #: directory of the audit log and the retain file (relative: to the working directory)
@@ -601,6 +654,19 @@ class SiteMap(_Model):
             for g, number in zip(self.groups, self.group_numbers(), strict=True)
         ]
 
+    def cam_numbers(self) -> list[int]:
+        """Every cam table's number: its own, else its place in ``[[cams]]`` (1-based)."""
+        return [c.number or i + 1 for i, c in enumerate(self.cams)]
+
+    def cam_configs(self) -> list[CamTableConfig]:
+        """The kernel's cam tables. The points are Logix REALs: the initial values are
+        rounded to float32, as a client's write of the tag would be."""
+        out = []
+        for c, number in zip(self.cams, self.cam_numbers(), strict=True):
+            points = tuple((_real(m), _real(s), t) for m, s, t in c.points)
+            out.append(CamTableConfig(number, c.name, c.size, points, c.length or len(points)))
+        return out
+
     def instances(self) -> list[InstanceSection]:
         """Declared instances, then ``<TYPE>_1`` for every type when ``every_type``."""
         out = list(self.instructions.instances)
@@ -617,7 +683,7 @@ class SiteMap(_Model):
         :func:`motion_server.config.assembly.assemble` is what ``run`` and ``check`` use:
         it builds this and everything around it, and names file and line on failure."""
         try:
-            ctl = Controller(self.axis_configs(), self.group_configs())
+            ctl = Controller(self.axis_configs(), self.group_configs(), cams=self.cam_configs())
         except ConfigError as exc:  # the cross-field checks of problems() catch these first
             raise SiteMapError(f"{self.source}: {exc}") from exc
         system = MotionSystem(ctl)
@@ -671,7 +737,29 @@ class SiteMap(_Model):
         for name in self.retain.axes:
             if name not in known:
                 out.append((("retain", "axes"), f"unknown axis {name!r}"))
+        out += duplicates([c.name for c in self.cams], ("cams",), "name")
+        out += number_clashes(
+            [c.name for c in self.cams], [c.number for c in self.cams], "cams", "cam table"
+        )
+        for ci, c in enumerate(self.cams):
+            out += [(("cams", ci, *loc), msg) for loc, msg in _cam_problems(c)]
         return out
+
+
+def _real(value: float) -> float:
+    """``value`` rounded to the nearest float32 (a Logix REAL)."""
+    return float(struct.unpack("<f", struct.pack("<f", value))[0])
+
+
+def _cam_problems(c: CamSection) -> list[Problem]:
+    """A capacity or length the initial points do not fit."""
+    out: list[Problem] = []
+    n = len(c.points)
+    if c.capacity is not None and n > c.capacity:
+        out.append((("capacity",), f"cam table {c.name}: {n} points do not fit {c.capacity}"))
+    if c.length is not None and c.length > c.size:
+        out.append((("length",), f"cam table {c.name}: {c.length} exceeds its capacity {c.size}"))
+    return out
 
 
 def _ramp_problems(a: AxisSection) -> list[Problem]:

@@ -33,6 +33,10 @@ the rising edge of ``Execute`` in that cycle. Each item of a Write gets its own 
   value, a position beyond the kernel's range);
 - ``BadResourceUnavailable``: the scan takes no writes (it is gone).
 
+The cam tables' array views (``Cams.<name>.MasterValues``, ``SlaveValues``,
+``SegmentTypes``) are read from the element tags' slots and written as one judged batch
+of them (:mod:`.opcua_arrays`, which lists their status codes).
+
 A write to ``Clock.Step`` (manual clock) is answered once its cycles ran and their values
 are published, so a client that reads after it sees the new cycle.
 
@@ -120,6 +124,7 @@ from ..tagmap.nodeset import enum_text
 from . import opcua_notify
 from .certificates import self_signed
 from .comm_faults import CommFaults
+from .opcua_arrays import ArrayViews, RangeError
 from .opcua_identity import identify
 from .opcua_limits import OperationLimits, OperationScreen, QuotaSession, publish_capabilities
 from .opcua_space import VARIANT_TYPES, build_space
@@ -228,6 +233,8 @@ class OpcUaFrontend:
         #: the snapshot and time of the Read request being answered
         self._pinned: tuple[np.ndarray, datetime] | None = None
         self._by_node: dict[str, _Published] = {}
+        #: the cam tables' array views (``Cams.<name>.MasterValues`` ...)
+        self.arrays = ArrayViews(image)
         self._by_owner: dict[str, list[_Published]] = {}
         #: the values last published, one per image slot; which slots are analog
         self._last = np.zeros(0)
@@ -462,11 +469,14 @@ class OpcUaFrontend:
         results: list[ua.StatusCode] = []
         for wv in params.NodesToWrite:
             nid = wv.NodeId
-            pub = (
-                self._by_node.get(nid.Identifier)
-                if nid.NamespaceIndex == self.namespace_index and isinstance(nid.Identifier, str)
-                else None
-            )
+            ours = nid.NamespaceIndex == self.namespace_index and isinstance(nid.Identifier, str)
+            if ours and nid.Identifier in self.arrays.by_node:
+                code = await self._write_array(wv, user)
+                if not code.is_good():
+                    self._refused(code, node=nid.Identifier)
+                results.append(code)
+                continue
+            pub = self._by_node.get(nid.Identifier) if ours else None
             if pub is None:  # another namespace, or a property: asyncua's own rules
                 single = ua.WriteParameters(NodesToWrite=[wv])
                 codes = await self._standard_write(single, user=user)
@@ -533,6 +543,49 @@ class OpcUaFrontend:
             self._follow(tag.owner, ticket)
         return ua.StatusCode()
 
+    async def _write_array(self, wv: ua.WriteValue, user: User) -> ua.StatusCode:
+        """A write of a cam table's array view: one judged batch of its element tags
+        (:mod:`.opcua_arrays`)."""
+        if wv.AttributeId != ua.AttributeIds.Value:
+            return ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
+        try:
+            updates = self.arrays.updates(wv)
+        except RangeError as exc:
+            return ua.StatusCode(exc.code)
+        internal = user.role == UserRole.Admin and user.name is None
+        if not internal:
+            role = self.directory.role_of(user)
+            if role is None or any(role < required_role(t) for t, _ in updates):
+                log.info(
+                    "OPC UA: write of %s by %s refused (role)",
+                    wv.NodeId.Identifier,
+                    user.name or "anonymous",
+                )
+                return ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
+        try:
+            ticket = self.image.write_many(updates)
+        except ReadOnlyError:
+            return ua.StatusCode(ua.StatusCodes.BadNotWritable)
+        except BadValueError as exc:
+            log.info("OPC UA: write of %s refused: %s", wv.NodeId.Identifier, exc)
+            return ua.StatusCode(ua.StatusCodes.BadOutOfRange)
+        except ScanUnavailable as exc:
+            log.warning("OPC UA: write of %s: %s", wv.NodeId.Identifier, exc)
+            return ua.StatusCode(ua.StatusCodes.BadResourceUnavailable)
+        except Exception:  # never let one item take the request (or the server) down
+            log.exception("OPC UA: write of %s failed", wv.NodeId.Identifier)
+            return ua.StatusCode(ua.StatusCodes.BadInternalError)
+        self.writes += 1
+        if ticket.waits:
+            try:
+                await outcome(ticket)
+            except ScanUnavailable:
+                return ua.StatusCode(ua.StatusCodes.BadResourceUnavailable)
+            except WriteRefused as exc:
+                log.info("OPC UA: write of %s: %s", wv.NodeId.Identifier, exc)
+                return ua.StatusCode(ua.StatusCodes.BadInvalidState)
+        return ua.StatusCode()
+
     def _follow(self, owner: str, ticket: Ticket) -> None:
         """Publish ``owner``'s tags once the cycle that took the write is in the image
         (clock running: the scan acknowledges a write with the cycle it ran in)."""
@@ -587,6 +640,7 @@ class OpcUaFrontend:
             self._by_owner.setdefault(tag.owner, []).append(pub)
         self._published.sort(key=lambda p: p.slot)
         self._last = values.copy()
+        self.arrays.serve(nodes, ns, self._snapshot)
         self._analog = np.array([p.is_float for p in self._published], dtype=bool)
         self._all_served = all(p.served for p in self._published)
 
@@ -610,9 +664,32 @@ class OpcUaFrontend:
         self._pinned = (self.image.values(), _now())
         try:
             results: list[ua.DataValue] = self._standard_read(params)
+            if self.arrays.by_node:
+                self._read_ranges(params, results)
         finally:
             self._pinned = None
         return results
+
+    def _read_ranges(self, params: ua.ReadParameters, results: list[ua.DataValue]) -> None:
+        """The array views read with an IndexRange: their slice (asyncua's Read gives a
+        value callback's whole value)."""
+        assert self._pinned is not None
+        values, now = self._pinned
+        for k, rv in enumerate(params.NodesToRead):
+            nid = rv.NodeId
+            if (
+                rv.IndexRange
+                and rv.AttributeId == ua.AttributeIds.Value
+                and nid.NamespaceIndex == self.namespace_index
+                and nid.Identifier in self.arrays.by_node
+                and k < len(results)
+            ):
+                results[k] = self.arrays.read_range(nid.Identifier, rv.IndexRange, values, now)
+
+    def _snapshot(self) -> tuple[np.ndarray, datetime]:
+        """The values a Read shows (those the Read being answered took) and its time."""
+        pinned = self._pinned
+        return pinned if pinned is not None else (self.image.values(), _now())
 
     def _current(self, pub: _Published) -> tuple[Any, datetime]:
         """``pub``'s value as a Read shows it: from the newest snapshot (or the one the
@@ -668,6 +745,10 @@ class OpcUaFrontend:
         if pub.text_node is not None:
             await self._server.write_attribute_value(pub.text_node, _text(pub, value))
 
+    @staticmethod
+    def _notify_failed(node: str) -> None:
+        log.exception("OPC UA: data-change callback of %s failed", node)
+
     async def publish(self) -> int:
         """Push the values that changed since they were last published; returns how many."""
         async with self._lock:
@@ -706,6 +787,8 @@ class OpcUaFrontend:
             else:
                 await self._write_slow(pub, typed(k, float(values[k])), now)
             await slices.after_update()
+        if len(changed) and self.arrays.by_node:
+            await self.arrays.notify(values, now, self._notify_failed)
         self.updates += len(changed)
         self.passes += 1
         return len(changed)

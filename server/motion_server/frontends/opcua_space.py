@@ -153,12 +153,17 @@ def _add_item(spec: NodeSpec, ns: int, image: ImageView, nid: Any) -> ua.AddNode
     attrs.DataType = ua.NodeId(spec.data_type)
     attrs.ValueRank = spec.value_rank
     if spec.value_rank == 1:
-        attrs.ArrayDimensions = [0]
+        view = spec.view
+        size = len(view.tags) if view is not None and spec.modelling_rule is None else 0
+        attrs.ArrayDimensions = [size]
     level = ACCESS_READ_WRITE if spec.writable else ACCESS_READ
     attrs.AccessLevel = level
     attrs.UserAccessLevel = level
     if spec.modelling_rule is not None and spec.kind == NodeKind.VARIABLE:
         attrs.Value = ua.Variant()  # an instance declaration: no value of its own
+    elif spec.view is not None:
+        vt = VARIANT_TYPES[spec.view.type]
+        attrs.Value = ua.Variant([variant(t, image.read(t)).Value for t in spec.view.tags], vt)
     elif spec.tag is not None:
         attrs.Value = variant(spec.tag, image.read(spec.tag))
     elif spec.browse_name == "ValueAsText" and spec.modelling_rule is None:

@@ -7,7 +7,10 @@ and every instruction instance's operand values. Triggers: an ``Execute`` is res
 it was *and* as already seen, so a trigger that was high makes no rising edge after the
 restart (nothing re-fires); level triggers (MC_Power ``Enable``) are not restored, so a
 restart never switches a drive on by itself. Power states, faults and motion are not
-retained: every axis starts in Axis Ready, at rest.
+retained: every axis starts in Axis Ready, at rest. The cam tables' points and ``Length``
+are retained like operands; their profiles are not (a real controller keeps its
+CAM_PROFILE arrays, but they are what MCCP computed from the points: every ProfileStatus
+starts at 0 and the program computes them again, see docs/semantics.md).
 
 The file (JSON) carries a format tag, the site name and a SHA-256 of its payload. It is
 written atomically (a temporary file in the same directory, flushed and fsynced, then
@@ -82,7 +85,18 @@ def snapshot(site: SiteMap, system: MotionSystem) -> dict[str, Any]:
         }
         for name, inst in system.instances.items()
     }
-    return {"site": site.site.name, "cycle": ctl.tick, "axes": axes, "operands": operands}
+    payload = {"site": site.site.name, "cycle": ctl.tick, "axes": axes, "operands": operands}
+    if ctl.cams.tables:
+        payload["cams"] = {
+            t.name: {
+                "length": t.length,
+                "master": list(t.master),
+                "slave": list(t.slave),
+                "segment": list(t.segment),
+            }
+            for t in ctl.cams.tables.values()
+        }
+    return payload
 
 
 def _digest(payload: dict[str, Any]) -> str:
@@ -172,8 +186,8 @@ def _number(value: Any) -> bool:
 def _shape_problem(payload: dict[str, Any]) -> str | None:
     """Why a payload does not have the shape :func:`snapshot` writes (None: it does)."""
     keys = {"site", "cycle", "axes", "operands"}
-    if set(payload) != keys:
-        return f"payload keys {sorted(payload)}, expected {sorted(keys)}"
+    if set(payload) - {"cams"} != keys:
+        return f"payload keys {sorted(payload)}, expected {sorted(keys)} (and cams)"
     if not isinstance(payload["site"], str):
         return "site: not a string"
     cycle = payload["cycle"]
@@ -200,6 +214,38 @@ def _shape_problem(payload: dict[str, Any]) -> str | None:
         for key, value in values.items():
             if not (isinstance(value, bool) or _number(value)):
                 return f"operands.{name}.{key}: {value!r} is not a finite number or boolean"
+    return _cams_problem(payload.get("cams", {}))
+
+
+#: a cam table's retained entry
+_CAM_KEYS = {"length", "master", "slave", "segment"}
+_DINT = (-(2**31), 2**31 - 1)
+#: the largest Logix REAL: a cam point is one
+_REAL_MAX = 3.4028234663852886e38
+
+
+def _dint(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and _DINT[0] <= value <= _DINT[1]
+
+
+def _cams_problem(cams: Any) -> str | None:
+    """Why the ``cams`` entry is not what :func:`snapshot` writes (None: it is)."""
+    if not isinstance(cams, dict):
+        return "cams: not a table"
+    for name, entry in cams.items():
+        if not isinstance(entry, dict) or set(entry) != _CAM_KEYS:
+            return f"cams.{name}: expected {', '.join(sorted(_CAM_KEYS))}"
+        if not _dint(entry["length"]):
+            return f"cams.{name}.length: {entry['length']!r} is not a DINT"
+        for key in ("master", "slave", "segment"):
+            values = entry[key]
+            if not isinstance(values, list):
+                return f"cams.{name}.{key}: not a list"
+            for k, v in enumerate(values):
+                ok = _dint(v) if key == "segment" else _number(v) and abs(v) <= _REAL_MAX
+                if not ok:
+                    kind = "a DINT" if key == "segment" else "a finite REAL"
+                    return f"cams.{name}.{key}[{k}]: {v!r} is not {kind}"
     return None
 
 
@@ -239,6 +285,19 @@ def restore(system: MotionSystem, payload: dict[str, Any], path: Path | str = ""
             inst.inputs[key] = value
         if inst.TRIGGER == "Execute":
             inst._last_trigger = bool(inst.inputs["Execute"])  # high: already seen
+    tables = {t.name: t for t in ctl.cams.tables.values()}
+    for name, entry in payload.get("cams", {}).items():
+        table = tables.get(name)
+        if table is None:
+            notes.append(f"cam table {name} is no longer configured")
+            continue
+        n = min(table.capacity, len(entry["master"]), len(entry["slave"]), len(entry["segment"]))
+        if n < table.capacity or n < len(entry["master"]):
+            notes.append(f"cam table {name}: {n} of its {table.capacity} elements restored")
+        table.master[:n] = [float(v) for v in entry["master"][:n]]
+        table.slave[:n] = [float(v) for v in entry["slave"][:n]]
+        table.segment[:n] = [int(v) for v in entry["segment"][:n]]
+        table.length = int(entry["length"])
     return notes
 
 

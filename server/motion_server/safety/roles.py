@@ -2,7 +2,7 @@
 
 - ``viewer``: reads only;
 - ``operator``: also the writable tags outside ``Clock`` (instruction operands and
-  triggers, hand-wheel inputs, the Safety tags);
+  triggers, hand-wheel inputs, the Safety tags, the cam tables' points and Length);
 - ``admin``: also the ``Clock`` tags (mode, step).
 
 OPC UA users get theirs from ``[[opcua.users]]``; Modbus/TCP Security clients from their

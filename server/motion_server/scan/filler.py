@@ -11,9 +11,9 @@ What changes how often decides how a slot is filled:
 - group states, diagnostics, the clock and the watchdogs: every cycle, value by value;
 - instruction outputs: only of the instances whose outputs changed in the cycle (their
   output dictionaries note it: :class:`~motion_server.instructions.base.Outputs`);
-- writable tags (operands, triggers, hand-wheel inputs, clock commands): when written
-  (:meth:`ImageFiller.refresh`), and in :meth:`ImageFiller.fill_all`; the fault injection
-  bits also when the kernel ends a cause itself (an overtravel left behind).
+- writable tags (operands, triggers, cam points, hand-wheel inputs, clock commands): when
+  written (:meth:`ImageFiller.refresh`), and in :meth:`ImageFiller.fill_all`; the fault
+  injection bits also when the kernel ends a cause itself (an overtravel left behind).
 """
 
 from __future__ import annotations
@@ -34,6 +34,9 @@ from ..tagmap.image import (
 )
 from ..tagmap.model import Folder, Tag
 
+#: folders whose writable tags change only when a client writes them (a cam table of
+#: 1,000 points is 3,000 values nobody else changes)
+_WRITTEN_ONLY = frozenset({Folder.INSTRUCTIONS, Folder.CAMS})
 _POSITIONS = frozenset({"ActualPosition", "CommandPosition"})
 #: axis fields filled for every axis at once
 _VECTORS = frozenset({*AXIS_ARRAYS, *AXIS_STATUS, *AXIS_FAULT_WORDS})
@@ -58,7 +61,7 @@ class ImageFiller:
         for slot, tag in enumerate(layout.tags):
             get = image.getter(tag.name)
             self._all.append((slot, get))
-            if is_static(tag) or (tag.writable and tag.folder == Folder.INSTRUCTIONS):
+            if is_static(tag) or (tag.writable and tag.folder in _WRITTEN_ONLY):
                 continue
             if tag.field in INJECT_CAUSES and tag.folder == Folder.AXES:
                 index = ctl.axis(tag.owner).index

@@ -116,6 +116,8 @@ def site_digest(site: SiteMap, layout: ImageLayout) -> str:
         "layout": layout.fingerprint,
         "retain_axes": list(site.retain.axes),
     }
+    if site.cams:  # the initial points (a site without cams keeps its digest)
+        shape["cams"] = [repr(c) for c in site.cam_configs()]
     text = json.dumps(shape, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 

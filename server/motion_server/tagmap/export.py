@@ -14,6 +14,7 @@ from typing import Any
 
 from ..kernel.errors import ERROR_TEXT
 from .bits import bits_text, packed_words, word_bits
+from .cams import CAM_ELEMENT_WORDS, CAM_HEADER_WORDS, CamInfo, cam_tables
 from .model import MAP_FORMAT, Block, Tag, TagMap
 
 FORMATS = ("json", "csv", "md", "nodeset", "kepware", "ignition")
@@ -63,9 +64,32 @@ def tag_record(tag: Tag) -> dict[str, Any]:
     return rec
 
 
+def cam_record(cam: CamInfo) -> dict[str, Any]:
+    """A cam table: where its elements are (element k's Master at ``first_element`` +
+    ``element_stride``·k, Slave 2 and SegmentType 4 registers after it) and its OPC UA
+    array views."""
+    return {
+        "name": cam.name,
+        "capacity": cam.capacity,
+        "modbus": {
+            "base": cam.base,
+            "first_element": cam.base + CAM_HEADER_WORDS,
+            "element_stride": CAM_ELEMENT_WORDS,
+            "fields": {"Master": 0, "Slave": 2, "SegmentType": 4},
+        },
+        "opcua": {
+            "node_id": cam.node_id,
+            "arrays": {
+                v.name: {"node_id": v.node_id, "type": v.type.value, "length": len(v.tags)}
+                for v in cam.views
+            },
+        },
+    }
+
+
 def to_dict(tagmap: TagMap) -> dict[str, Any]:
     """The JSON contract as a Python object."""
-    return {
+    out = {
         "format": MAP_FORMAT,
         "site": tagmap.site,
         "modbus": {
@@ -91,6 +115,10 @@ def to_dict(tagmap: TagMap) -> dict[str, Any]:
             for w in packed_words(tagmap)
         ],
     }
+    cams = cam_tables(tagmap)
+    if cams:
+        out["cams"] = [cam_record(c) for c in cams]
+    return out
 
 
 def to_json(tagmap: TagMap) -> str:
@@ -218,6 +246,18 @@ def to_markdown(tagmap: TagMap) -> str:
         f"- OPC UA namespace `{tagmap.namespace_uri}`; node ids are `Folder.Owner.Field`.",
         "",
     ]
+    cams = cam_tables(tagmap)
+    if cams:
+        lines += [
+            "- Cam tables: element k (0-based) of the table at base B: `Master[k]` at "
+            f"B+{CAM_HEADER_WORDS}+{CAM_ELEMENT_WORDS}·k, `Slave[k]` at "
+            f"B+{CAM_HEADER_WORDS + 2}+{CAM_ELEMENT_WORDS}·k, `SegmentType[k]` at "
+            f"B+{CAM_HEADER_WORDS + 4}+{CAM_ELEMENT_WORDS}·k; "
+            + "; ".join(f"`{c.name}` B = {c.base}, {c.capacity} elements" for c in cams)
+            + ". OPC UA also shows each table's `MasterValues`, `SlaveValues` and "
+            "`SegmentTypes` arrays.",
+            "",
+        ]
     for block in tagmap.blocks:
         lines += _md_block(tagmap, block)
     return "\n".join(lines).rstrip("\n") + "\n"

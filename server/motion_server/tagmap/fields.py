@@ -226,6 +226,60 @@ WATCHDOG_FIELDS: tuple[FieldSpec, ...] = (
     ),
 )
 
+#: the header of a cam table's block (``[[cams]]``), before its elements
+CAM_HEADER: tuple[FieldSpec, ...] = (
+    FieldSpec(
+        "ProfileStatus",
+        TagType.DINT,
+        description="CAM_PROFILE Status: 0 not calculated, 1 being calculated, 2 calculated, "
+        "n = calculated and in use by n - 2 cams",
+    ),
+    FieldSpec("Capacity", TagType.DINT, description="elements the table holds"),
+    FieldSpec(
+        "Number",
+        TagType.DINT,
+        description="cam table number (what the cam instructions' table and profile operands hold)",
+    ),
+    FieldSpec(
+        "Length",
+        TagType.DINT,
+        writable=True,
+        description="elements MC_CamTableSelect uses (from element 0)",
+    ),
+)
+#: the fields of one cam element (the Logix CAM: REAL, REAL, DINT), in register order
+CAM_ELEMENT_FIELDS = ("Master", "Slave", "SegmentType")
+
+
+def cam_element(field: str, k: int) -> FieldSpec:
+    """``<cam>.<field>[k]``: one value of element ``k`` (0-based) of a cam table."""
+    if field == "SegmentType":
+        return FieldSpec(
+            f"SegmentType[{k}]",
+            TagType.DINT,
+            writable=True,
+            description=f"element {k}: segment to the next element, 0 linear, 1 cubic",
+        )
+    what = "master (x)" if field == "Master" else "slave (y)"
+    return FieldSpec(
+        f"{field}[{k}]", TagType.REAL, writable=True, description=f"element {k}: {what} value"
+    )
+
+
+def cam_fields(capacity: int) -> tuple[FieldSpec, ...]:
+    """Every field of a cam table of ``capacity`` elements, in register order."""
+    elements = (cam_element(f, k) for k in range(capacity) for f in CAM_ELEMENT_FIELDS)
+    return (*CAM_HEADER, *elements)
+
+
+def cam_element_of(field: str) -> tuple[str, int] | None:
+    """(``Master``, 3) for ``Master[3]``; None for a header field."""
+    name, sep, rest = field.partition("[")
+    if not sep or name not in CAM_ELEMENT_FIELDS:
+        return None
+    return name, int(rest.rstrip("]"))
+
+
 UNITS_SUFFIX: dict[Quantity, str] = {
     Quantity.POSITION: "",
     Quantity.VELOCITY: "/s",

@@ -29,7 +29,7 @@ from .axis_config import CONFIG_GETTERS, MIRRORS
 from .axis_faults import FAULT_GETTERS, INJECT_CAUSES
 from .codec import Value, encoder
 from .errors import AddressError, ReadOnlyError, TagAccessError
-from .fields import ClockMode
+from .fields import ClockMode, cam_element_of
 from .judge import Judge
 from .model import Folder, Tag, TagMap, UnknownTagError
 from .registers import RegisterWrites
@@ -241,6 +241,7 @@ STATIC_FIELDS: dict[Folder, frozenset[str]] = {
     Folder.DIAGNOSTICS: frozenset(
         {"VersionMajor", "VersionMinor", "VersionPatch", "AxisCount", "GroupCount"}
     ),
+    Folder.CAMS: frozenset({"Capacity", "Number"}),
 }
 
 
@@ -304,6 +305,8 @@ class TagImage:
         self._requested = 0
         self._get: dict[str, Getter] = {}
         self._set: dict[str, Setter] = {}
+        #: cam table name -> number (made when the first cam tag is bound)
+        self._cam_numbers: dict[str, int] | None = None
         for tag in tagmap:
             self._bind(tag)
         self._slots = self._build_slots()
@@ -437,6 +440,7 @@ class TagImage:
             Folder.DIAGNOSTICS: self._bind_diagnostics,
             Folder.CLOCK: self._bind_clock,
             Folder.SAFETY: self._bind_safety,
+            Folder.CAMS: self._bind_cam,
         }
         try:
             binders[tag.folder](tag)
@@ -488,6 +492,45 @@ class TagImage:
         self._get[tag.name] = lambda: get(ax)
         if tag.field == "FeedbackInput":
             self._set[tag.name] = lambda value: ctl.set_feedback_input(ax, float(value))
+
+    def _bind_cam(self, tag: Tag) -> None:
+        """A cam table's tags: its points and Length are the kernel table's lists (a
+        write lands there when the scan applies it, at the start of a cycle);
+        ProfileStatus is read from the profile slot of the same number."""
+        store = self.system.ctl.cams
+        if self._cam_numbers is None:
+            self._cam_numbers = {t.name: n for n, t in store.tables.items()}
+        number = self._cam_numbers[tag.owner]
+        table, slot = store.tables[number], store.slots[number]
+        element = cam_element_of(tag.field)
+        if element is None:
+            if tag.field == "ProfileStatus":
+                self._get[tag.name] = lambda: slot.status
+            elif tag.field == "Capacity":
+                self._get[tag.name] = lambda: table.capacity
+            elif tag.field == "Number":
+                self._get[tag.name] = lambda: number
+            elif tag.field == "Length":
+                self._get[tag.name] = lambda: table.length
+
+                def set_length(value: Value) -> None:
+                    table.length = int(value)
+
+                self._set[tag.name] = set_length
+            else:
+                raise KeyError(tag.field)
+            return
+        name, k = element
+        values: list[Any] = {"Master": table.master, "Slave": table.slave}.get(name, table.segment)
+        if not 0 <= k < len(values):
+            raise KeyError(tag.field)
+        convert: Callable[[Value], Any] = int if name == "SegmentType" else float
+        self._get[tag.name] = lambda: values[k]
+
+        def set_value(value: Value) -> None:
+            values[k] = convert(value)
+
+        self._set[tag.name] = set_value
 
     def _bind_group(self, tag: Tag) -> None:
         g = self.system.ctl.group(tag.owner)

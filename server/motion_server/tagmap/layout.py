@@ -18,7 +18,18 @@ instructions   ``[modbus] instruction_    5000 + 100·k (k-th declared instance)
 every_type     ``[modbus] every_type_     20000 + 100·(code − 1): ``<TYPE>_1`` at a block
                base``                     fixed by the type's stable code
                                           (``instructions.registry.TYPE_CODES``)
+cam tables     ``[modbus] cam_base``      30000, each table after the one before it
+                                          at the next multiple of 100 (k-th
+                                          ``[[cams]]`` entry); unset and some other
+                                          block past 30000: the first multiple of
+                                          1000 after every other block
 =============  =========================  ========================================
+
+A cam table's block (base ``B``): read-only ``ProfileStatus`` DINT at B, ``Capacity``
+DINT at B+2 and ``Number`` DINT at B+4; then the writable ``Length`` DINT at B+6 and
+element k (0-based): ``Master[k]`` REAL at B+8+6·k, ``Slave[k]`` REAL at B+10+6·k,
+``SegmentType[k]`` DINT at B+12+6·k (the Logix CAM element: REAL, REAL, DINT). The block
+spans 8+6·capacity registers, rounded up to a multiple of 100.
 
 An instance's ``modbus_base`` in the site map overrides its default base (it must be
 even); a block larger than its stride takes the next multiple of the stride and moves the
@@ -58,6 +69,7 @@ from .fields import (
     MARKER,
     WATCHDOG_FIELDS,
     FieldSpec,
+    cam_fields,
     clock_fields,
     group_member,
     units_of,
@@ -78,6 +90,9 @@ GROUP_STRIDE = 20
 AXIS_STRIDE = 50
 WATCHDOG_STRIDE = 20
 INSTRUCTION_STRIDE = 100
+#: the cam tables' blocks: at 30000 unless some other block passes it
+CAM_BASE = 30000
+CAM_STRIDE = 100
 #: owner names the server uses itself
 RESERVED_OWNERS = ("Clock", "Diagnostics")
 
@@ -501,6 +516,18 @@ def plan_tagmap(site: SiteMap) -> tuple[TagMap, Problems]:
                 inst.name, Folder.INSTRUCTIONS, base, INSTRUCTION_STRIDE, items, cls.TYPE
             )
             base = add(block, where)
+    if site.cams:
+        last = max(b.end for b, _ in blocks)
+        base = CAM_BASE if last <= CAM_BASE else -(-last // 1000) * 1000
+        if mb.cam_base is not None:
+            base = mb.cam_base
+        for ci, (cam, capacity) in enumerate(
+            zip(site.cams, (c.size for c in site.cams), strict=True)
+        ):
+            items = _spec_items(cam_fields(capacity))
+            block = _place(cam.name, Folder.CAMS, base, CAM_STRIDE, items)
+            given = ci == 0 and mb.cam_base is not None
+            base = add(block, ("modbus", "cam_base") if given else ("cams", ci))
     if config_base is None and site.axes:
         last = max(b.end for b, _ in blocks)
         place_configuration(-(-last // 1000) * 1000)
@@ -548,8 +575,8 @@ def _overlaps(blocks: list[tuple[Block, tuple[int | str, ...]]]) -> Problems:
 
 
 def _owner_clashes(site: SiteMap) -> Problems:
-    """Tag names are ``Owner.Field``: group, axis, instance (declared or every_type) and
-    watchdog names must differ, else their tags would merge into one owner's."""
+    """Tag names are ``Owner.Field``: group, axis, instance (declared or every_type),
+    watchdog and cam table names must differ, else their tags would merge into one owner's."""
     out: Problems = []
     seen: dict[str, str] = {name: "the server" for name in RESERVED_OWNERS}
     owners: list[tuple[str, tuple[int | str, ...], str]] = [
@@ -569,6 +596,7 @@ def _owner_clashes(site: SiteMap) -> Problems:
         for i, inst in enumerate(site.instances())
     ]
     owners += [(w.name, ("watchdogs", i, "name"), "watchdog") for i, w in enumerate(site.watchdogs)]
+    owners += [(c.name, ("cams", i, "name"), "cam table") for i, c in enumerate(site.cams)]
     for name, where, what in owners:
         if name in seen and seen[name] != what:
             out.append((where, f"{what} name {name!r} is already used by {seen[name]}"))

@@ -35,6 +35,8 @@ class Folder(StrEnum):
     AXES = "Axes"
     INSTRUCTIONS = "Instructions"
     SAFETY = "Safety"
+    #: cam tables (``[[cams]]``): the Logix CAM arrays and their CAM_PROFILE Status
+    CAMS = "Cams"
 
 
 class RegisterAccess(IntEnum):

@@ -13,14 +13,19 @@ Types (string NodeIds under ``Types.``):
   ``HasInputVar``, its status outputs with ``HasOutputVar`` (ModellingRule Mandatory);
 - ``MotionAxisType`` and ``MotionGroupType`` (subtypes of BaseObjectType) with the axis and
   group fields as components (Mandatory where every axis or group has the field,
-  Optional otherwise: a hand wheel's ``FeedbackInput``, a group's ``Member<k>``).
+  Optional otherwise: a hand wheel's ``FeedbackInput``, a group's ``Member<k>``);
+- ``CamTableType`` (a subtype of BaseObjectType): ``ProfileStatus``, ``Capacity``,
+  ``Number``, ``Length`` and the array views ``MasterValues``, ``SlaveValues``,
+  ``SegmentTypes`` (one-dimensional arrays, capacity long), all Mandatory; a table's
+  element variables (``Master[k]`` ...) are components of the table only, as their number
+  is the table's capacity.
 
 Instances: the folders ``Clock``, ``Diagnostics``, ``Groups``, ``Axes``, ``Instructions``,
-``Safety`` under the Objects folder; one object per axis, group, watchdog and instruction
-instance, typed by its ObjectType; one variable per tag (NodeId = ``tag.node_id``, e.g.
-``Instructions.MAG_1.Ratio``), referenced from an instruction instance with
-``HasInputVar``/``HasOutputVar`` as its type declares it, from other objects with
-``HasComponent``. An instruction instance also keeps two folders, ``InputVariables`` and
+``Safety``, ``Cams`` under the Objects folder; one object per axis, group, watchdog, cam
+table and instruction instance, typed by its ObjectType; one variable per tag (NodeId =
+``tag.node_id``, e.g. ``Instructions.MAG_1.Ratio``), referenced from an instruction
+instance with ``HasInputVar``/``HasOutputVar`` as its type declares it, from other objects
+with ``HasComponent``. An instruction instance also keeps two folders, ``InputVariables`` and
 ``OutputVariables``, that organize the same variables for clients that do not follow the
 PLCopen reference types.
 
@@ -45,6 +50,7 @@ from enum import IntEnum
 from typing import Any
 
 from ..instructions.schema import Quantity, TagType
+from .cams import ArrayView, cam_tables
 from .companion import CTRL_FUNCTION_BLOCK_TYPE, HAS_INPUT_VAR, HAS_OUTPUT_VAR, PLCOPEN_URI
 from .model import Folder, Tag, TagMap
 from .units import RATIO_UNIT, UNECE_NAMESPACE, unit_of
@@ -122,6 +128,7 @@ ANALOG_QUANTITIES = frozenset(
 TYPES = "Types"
 AXIS_TYPE = f"{TYPES}.MotionAxisType"
 GROUP_TYPE = f"{TYPES}.MotionGroupType"
+CAM_TABLE_TYPE = f"{TYPES}.CamTableType"
 
 
 class NodeKind(IntEnum):
@@ -171,10 +178,16 @@ class NodeSpec:
     description: str = ""
     organizes: tuple[str, ...] = field(default=())
     modelling_rule: Ext | None = None
+    #: a cam table's array view (an array variable served from its element tags)
+    view: ArrayView | None = None
 
     @property
     def writable(self) -> bool:
-        return self.tag is not None and self.tag.writable and self.modelling_rule is None
+        if self.modelling_rule is not None:
+            return False
+        if self.view is not None:
+            return self.view.writable
+        return self.tag is not None and self.tag.writable
 
 
 def unit_id(units: str) -> int:
@@ -224,6 +237,8 @@ def type_of(folder: Folder, tags: list[Tag]) -> str | Ext:
         return AXIS_TYPE
     if folder == Folder.GROUPS:
         return GROUP_TYPE
+    if folder == Folder.CAMS:
+        return CAM_TABLE_TYPE
     return ns0(Ns0.BASE_OBJECT_TYPE)
 
 
@@ -239,7 +254,7 @@ def node_plan(tagmap: TagMap) -> list[NodeSpec]:
     owners: dict[str, list[Tag]] = {}
     for tag in tagmap:
         owners.setdefault(parent_of(tag), []).append(tag)
-    out = _types(owners)
+    out = _types(owners, {c.name: c.views for c in cam_tables(tagmap)})
     for folder in Folder:
         out.append(
             NodeSpec(
@@ -286,11 +301,33 @@ def node_plan(tagmap: TagMap) -> list[NodeSpec]:
         for tag in tags:
             ref = ns0(Ns0.ORGANIZES) if "." not in parent else var_reference(tag)
             out += _variable(tag, tag.node_id, parent, ref)
+    for cam in cam_tables(tagmap):
+        out += [array_variable(v, v.node_id, cam.node_id) for v in cam.views]
     return out
 
 
-def _types(owners: dict[str, list[Tag]]) -> list[NodeSpec]:
-    """The ObjectTypes and their instance declarations."""
+def array_variable(view: ArrayView, node_id: str, parent: str, rule: Ext | None = None) -> NodeSpec:
+    """The node of a cam table's array view (or, with ``rule``, its declaration)."""
+    return NodeSpec(
+        node_id,
+        parent,
+        view.name,
+        NodeKind.VARIABLE,
+        ns0(Ns0.HAS_COMPONENT),
+        ns0(Ns0.BASE_DATA_VARIABLE_TYPE),
+        data_type=DATA_TYPES[view.type],
+        value_rank=1,
+        description=view.description,
+        modelling_rule=rule,
+        view=view,
+    )
+
+
+def _types(
+    owners: dict[str, list[Tag]], cam_views: dict[str, tuple[ArrayView, ...]]
+) -> list[NodeSpec]:
+    """The ObjectTypes and their instance declarations (``cam_views``: the array views
+    of every cam table, by name)."""
     by_type: dict[str, tuple[Ext, list[list[Tag]]]] = {}
     for tags in owners.values():
         folder = tags[0].folder
@@ -299,6 +336,11 @@ def _types(owners: dict[str, list[Tag]]) -> list[NodeSpec]:
         elif folder in (Folder.AXES, Folder.GROUPS):
             type_id = AXIS_TYPE if folder == Folder.AXES else GROUP_TYPE
             supertype = ns0(Ns0.BASE_OBJECT_TYPE)
+        elif folder == Folder.CAMS:
+            # the header and the array views: the element variables depend on the
+            # capacity, so each table carries its own (components the type does not declare)
+            type_id, supertype = CAM_TABLE_TYPE, ns0(Ns0.BASE_OBJECT_TYPE)
+            tags = [t for t in tags if "[" not in t.field]
         else:
             continue
         by_type.setdefault(type_id, (supertype, []))[1].append(tags)
@@ -309,6 +351,8 @@ def _types(owners: dict[str, list[Tag]]) -> list[NodeSpec]:
         desc = (
             f"{instruction} instruction (OPC 30000 function block)"
             if instruction
+            else "a cam table (Logix CAM array) and its CAM_PROFILE Status"
+            if type_id == CAM_TABLE_TYPE
             else f"a motion {'axis' if type_id == AXIS_TYPE else 'group'}"
         )
         out.append(
@@ -333,6 +377,10 @@ def _types(owners: dict[str, list[Tag]]) -> list[NodeSpec]:
             out += _variable(
                 tag, f"{type_id}.{fname}", type_id, var_reference(tag), ns0(rule), declaration=True
             )
+        if type_id == CAM_TABLE_TYPE:
+            views = cam_views[instances[0][0].owner]
+            mandatory = ns0(Ns0.MANDATORY)
+            out += [array_variable(v, f"{type_id}.{v.name}", type_id, mandatory) for v in views]
     return out
 
 

@@ -183,6 +183,8 @@ def _xml_node(
         attrs += f' DataType="{_DATA_TYPE_NAME[spec.data_type]}"'
         if spec.value_rank != -1:
             attrs += f' ValueRank="{spec.value_rank}"'
+        if spec.view is not None and spec.modelling_rule is None:
+            attrs += f' ArrayDimensions="{len(spec.view.tags)}"'
         level = ACCESS_READ_WRITE if spec.writable else ACCESS_READ
         attrs += f' AccessLevel="{level}" UserAccessLevel="{level}"'
     out = [f"  <{element} {attrs}>", f"    <DisplayName>{name}</DisplayName>"]
@@ -218,6 +220,14 @@ def _xml_node(
 
 
 def _value(spec: NodeSpec, values: dict[str, Any], texts: dict[str, str]) -> str | None:
+    if spec.kind == NodeKind.VARIABLE and spec.view is not None:
+        if spec.modelling_rule is not None or not values:
+            return None
+        kind = _XML_VALUE[spec.view.type]
+        items = "".join(
+            f"<uax:{kind}>{_scalar(values[t.name], t.type)}</uax:{kind}>" for t in spec.view.tags
+        )
+        return f"<uax:ListOf{kind}>{items}</uax:ListOf{kind}>"
     if spec.kind == NodeKind.VARIABLE:
         if spec.tag is None or spec.modelling_rule is not None or spec.tag.name not in values:
             return None

@@ -8,10 +8,11 @@ Scaled High, Scaled Data Type, Clamp Low, Clamp High, Eng Units, Description). A
 are Modbus holding-register references ``4xxxxx`` (1-based: ``400001`` is register 0, the
 driver's default zero-based addressing), BOOLs ``4xxxxx.bb`` (bit ``bb`` of the register,
 0 = least significant). Tag names keep their dot (``MAJ_1.Speed``), which the import turns
-into a tag group per owner. Word order is a property of the Modbus device in KEPServerEX,
-not of a tag: for ``word_order = "big"`` (the default) turn off "First word low in 32-bit
-data types" and "First DWord low in 64-bit data types"; for ``"little"`` turn both on
-(docs/hmi.md).
+into a tag group per owner (a cam element's brackets become an underscore:
+``Cam1.Master_3`` for ``Cam1.Master[3]``). Word order is a property of the Modbus device
+in KEPServerEX, not of a tag: for ``word_order = "big"`` (the default) turn off "First
+word low in 32-bit data types" and "First DWord low in 64-bit data types"; for
+``"little"`` turn both on (docs/hmi.md).
 
 ``motion-server map --format ignition``: a tag tree for Ignition 8.1's Tag Browser import
 (or ``system.tag.importTags``/``system.tag.configure``): a folder for the site, one per
@@ -19,7 +20,9 @@ OPC UA folder and owner, an OPC tag (``tagType`` AtomicTag, ``valueSource`` opc)
 pointing at our node (``opcItemPath`` ``nsu=<site namespace URI>;s=<node id>``: the
 namespace by URI, which does not depend on the server's namespace index), with its data
 type (Int1, Int2, Int4, Int8, Float4, Float8, Boolean), engineering units and range,
-read-only flag and documentation (enumerations and bit layouts included). ``opcServer`` is
+read-only flag and documentation (enumerations and bit layouts included); a cam table
+also gets its array views (``MasterValues`` Float4Array, ``SlaveValues``,
+``SegmentTypes`` Int4Array) and its element tags are named ``Master_3``. ``opcServer`` is
 the name of the OPC UA connection in the gateway: ``motion-server`` (rename the connection
 or edit the file).
 """
@@ -33,6 +36,7 @@ from typing import Any
 
 from ..instructions.schema import TagType
 from .bits import bits_text, word_bits
+from .cams import ArrayView, cam_tables, scada_name
 from .model import Folder, Tag, TagMap
 from .nodeset import engineering_units, is_analog
 
@@ -112,7 +116,7 @@ def to_kepware(tagmap: TagMap) -> str:
     for t in tagmap:
         w.writerow(
             [
-                t.name,
+                f"{t.owner}.{scada_name(t.field)}",
                 modbus_address(t),
                 KEPWARE_TYPES[t.type],
                 1,
@@ -136,7 +140,7 @@ def to_kepware(tagmap: TagMap) -> str:
 def ignition_tag(tag: Tag, namespace_uri: str) -> dict[str, Any]:
     """One Ignition OPC tag."""
     rec: dict[str, Any] = {
-        "name": tag.field,
+        "name": scada_name(tag.field),
         "tagType": "AtomicTag",
         "valueSource": "opc",
         "opcServer": IGNITION_OPC_SERVER,
@@ -154,6 +158,25 @@ def ignition_tag(tag: Tag, namespace_uri: str) -> dict[str, Any]:
     if tag.eu_range is not None and is_analog(tag):
         rec["engLow"], rec["engHigh"] = tag.eu_range
     return rec
+
+
+#: Ignition array data types of the cam tables' array views
+IGNITION_ARRAY_TYPES = {TagType.REAL: "Float4Array", TagType.DINT: "Int4Array"}
+
+
+def ignition_array(view: ArrayView, namespace_uri: str) -> dict[str, Any]:
+    """One Ignition OPC tag of a cam table's array view (``MasterValues`` ...)."""
+    return {
+        "name": view.name,
+        "tagType": "AtomicTag",
+        "valueSource": "opc",
+        "opcServer": IGNITION_OPC_SERVER,
+        "opcItemPath": f"nsu={namespace_uri};s={view.node_id}",
+        "dataType": IGNITION_ARRAY_TYPES[view.type],
+        "readOnly": False,
+        "documentation": view.description,
+        "tooltip": view.description,
+    }
 
 
 def to_ignition_dict(tagmap: TagMap) -> dict[str, Any]:
@@ -183,6 +206,11 @@ def to_ignition_dict(tagmap: TagMap) -> dict[str, Any]:
                 owners[tag.owner] = owner
                 node["tags"].append(owner)
             owner["tags"].append(ignition_tag(tag, tagmap.namespace_uri))
+        if folder == Folder.CAMS:
+            for cam in cam_tables(tagmap):
+                owners[cam.name]["tags"] += [
+                    ignition_array(v, tagmap.namespace_uri) for v in cam.views
+                ]
     return root
 
 
