@@ -30,8 +30,9 @@ default, ``kernel/lanes/``) and with every axis composed in Python
 After each pair it prints whether the two agree: the commanded positions at the end
 (``numpy.array_equal``) and the commanded position, velocity and acceleration of every
 axis after every measured step (a digest taken outside the timed part); the script exits
-with status 1 when they do not. For ``cam`` it prints how many cams were in a lane after
-the first measured step and after the last.
+with status 1 when they do not. For ``cam`` it prints how many cams were in a lane (the
+lanes admit a process when it starts; they take it over at the next step) after the
+command, after the first measured step and after the last.
 
     python bench/kernel_scale.py [--sizes 32 256 1024] [--cases steady stop ... cam]
 """
@@ -177,8 +178,8 @@ class Run:
     """One case at one size, lanes on or off: the CPU seconds of each step after the
     command and of the command, the controller after the run, a digest of the commanded
     position, velocity and acceleration of every axis after every step (outside the timed
-    part), and for cams how many were in a lane after the first step and after the last
-    (of how many)."""
+    part), and for cams how many were in a lane (of how many) after the command, after the
+    first step and after the last."""
 
     def __init__(self, case: str, n_axes: int, lanes: bool) -> None:
         setup, command, steps = CASES[case]
@@ -188,6 +189,7 @@ class Run:
         c0 = time.thread_time()
         command(ctl)
         self.command_cpu = time.thread_time() - c0
+        self.laned_command = cams_in_lanes(ctl)
         self.cpu: list[float] = []
         trace = hashlib.blake2b()
         for _ in range(steps):
@@ -239,8 +241,11 @@ def main() -> None:
                 f"{same}, commands identical after every step: {every}"
             )
             if fast.laned_last[1]:
-                (first, total), (last, _) = fast.laned_first, fast.laned_last
-                line += f"; cams in lanes {first}/{total} after the first step, {last} at the end"
+                (cmd, total), (first, _) = fast.laned_command, fast.laned_first
+                line += (
+                    f"; cams in lanes {cmd}/{total} after the command, {first} after the first "
+                    f"step, {fast.laned_last[0]} at the end"
+                )
             print(line)
             if not (same and every):
                 raise SystemExit(f"{case} {n}: lanes and reference differ")
