@@ -1,9 +1,9 @@
-"""Kernel step cost for 32, 256 and 1024 axes: the steady state and the worst cases.
+"""Kernel step cost for 32, 256 and 1024 axes: the steady state, the worst cases and cams.
 
-Every case starts from N/2 virtual masters and N/2 servo slaves geared to them (real
-ratio 0.5 on the master's command position, clutch disabled: what MAG builds), every
-slave's drive simulated, one group at a 1 ms coarse update period, decelerations and
-accelerations of 1,000 mm/s² where a case ramps:
+Every case starts from N/2 virtual masters and N/2 servo slaves, every slave's drive
+simulated, one group at a 1 ms coarse update period, decelerations and accelerations of
+1,000 mm/s² where a case ramps. In all but ``cam`` the slaves are geared to the masters
+(real ratio 0.5 on the master's command position, clutch disabled: what MAG builds):
 
 - ``steady``: masters jogging at 100 mm/s, slaves locked (2000 steps);
 - ``stop``: from ``steady``, MGS Fast Stop: every axis ramps to rest (100 steps);
@@ -12,27 +12,41 @@ accelerations of 1,000 mm/s² where a case ramps:
 - ``clutch``: masters jogging at 100 mm/s; MAG with the clutch enabled on every slave: the
   slaves catch up at 1,000 mm/s² from rest, then lock (60 steps);
 - ``s-curve``: ``accel`` with a jerk limit of 20,000 mm/s³: ruckig plans each master's
-  ramp, in Python (what it costs per axis; no lane).
+  ramp, in Python (what it costs per axis; no lane);
+- ``cam``: masters jogging at 100 mm/s; MAPC on every slave as the instruction builds it
+  (a :class:`~motion_server.kernel.cams.CamProcess`: Continuous, Immediate, on the
+  master's command position) over one cubic table of 9 points over 0..360 (a dwell, a rise
+  of 10 mm, a dwell), master scaling 0.1 mm per cam unit: a pass is 36 mm of master, 360
+  ms, so the 2000 steps measured hold five passes and more.
 
 The commands go to the kernel directly (the processes the instructions build); the
 benchmark prints, per step of ``Controller.step``, the CPU time of the stepping thread
 (the cost on one core, which other processes on a shared machine do not inflate): mean,
 p99 and max over the case's steps, and the CPU share of the 1 ms period (target: 256
-axes under 25 % in every case); then the CPU time of the command itself, once. Each case
-runs twice in the same process, side by side: with the fast lanes (the default,
-``kernel/lanes/``) and with every axis composed in Python (``Controller(lanes=False)``,
-the reference the lanes are tested against bit for bit).
+axes under 25 % in every case but ``s-curve``); then the CPU time of the command itself,
+once. Each case runs twice in the same process, side by side: with the fast lanes (the
+default, ``kernel/lanes/``) and with every axis composed in Python
+(``Controller(lanes=False)``, the reference the lanes are tested against bit for bit).
+After each pair it prints whether the two agree: the commanded positions at the end
+(``numpy.array_equal``) and the commanded position, velocity and acceleration of every
+axis after every measured step (a digest taken outside the timed part); the script exits
+with status 1 when they do not. For ``cam`` it prints how many cams were in a lane (the
+lanes admit a process when it starts; they take it over at the next step) after the
+command, after the first measured step and after the last.
 
-    python bench/kernel_scale.py [--sizes 32 256 1024] [--cases steady stop ...]
+    python bench/kernel_scale.py [--sizes 32 256 1024] [--cases steady stop ... cam]
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import statistics
 import time
 from collections.abc import Callable
+
+import numpy as np
 
 from motion_server.kernel import (
     AxisConfig,
@@ -44,6 +58,9 @@ from motion_server.kernel import (
     ProcessKind,
     ProgrammedStopMode,
 )
+from motion_server.kernel.axis import Axis
+from motion_server.kernel.cam_profile import CamProfile, SegmentType, compute_profile
+from motion_server.kernel.cams import CamMode, CamProcess, LockDirection
 from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference, RateRamp
 
 PERIOD = 0.001
@@ -97,6 +114,51 @@ def gear(ctl: Controller, clutch: bool) -> None:
         ctl.start(slave, make, replace=(ProcessKind.GEAR,))
 
 
+#: the cam table: 9 points over 0..360, a dwell (0..90), a rise of 10 (90..270), a dwell
+CAM_MASTERS = (0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0, 360.0)
+CAM_SLAVES = (0.0, 0.0, 0.0, 2.0, 5.0, 8.0, 10.0, 10.0, 10.0)
+#: master mm per cam unit: one pass of 360 units is 36 mm of master, 360 ms at 100 mm/s
+CAM_MASTER_SCALING = 0.1
+
+
+def cam_profile() -> CamProfile:
+    """The table as MCCP computes it: every segment cubic, start and end slope 0."""
+    return compute_profile(CAM_MASTERS, CAM_SLAVES, [SegmentType.CUBIC] * len(CAM_MASTERS))
+
+
+def cam(ctl: Controller) -> None:
+    """MAPC on every slave as the instruction builds it: Continuous, Immediate, on its
+    master's command position, slave scaling 1, cam lock position 0."""
+    half = len(ctl.axes) // 2
+    profile = cam_profile()
+    for k in range(half):
+        slave = ctl.axes[half + k]
+        master = ctl.axes[k]
+
+        def make(v: float, a: float, master: Axis = master) -> CamProcess:
+            return CamProcess(
+                ctl,
+                profile,
+                CamMode.CONTINUOUS,
+                1.0,
+                CAM_MASTER_SCALING,
+                0.0,
+                master=master.index,
+                source=MasterReference.COMMAND,
+                master_number=master.number,
+                lock=LockDirection.IMMEDIATE,
+                rollover=master.config.rollover,
+            )
+
+        ctl.start(slave, make, replace=())
+
+
+def cams_in_lanes(ctl: Controller) -> tuple[int, int]:
+    """(cam processes in a lane, cam processes)."""
+    cams = [p for ax in ctl.axes for p in ax.processes if isinstance(p, CamProcess)]
+    return sum(p.lane is not None for p in cams), len(cams)
+
+
 def stop(ctl: Controller) -> None:
     ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
 
@@ -108,24 +170,39 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "accel": (lambda c: gear(c, False), jog, 100),
     "clutch": (jog, lambda c: gear(c, True), 60),
     "s-curve": (lambda c: gear(c, False), lambda c: jog(c, JERK), 100),
+    "cam": (jog, cam, 2000),
 }
 
 
-def measure(case: str, n_axes: int, lanes: bool) -> tuple[list[float], float]:
-    """CPU seconds of each step after the command, and of the command."""
-    setup, command, steps = CASES[case]
-    ctl = controller(n_axes, lanes)
-    setup(ctl)
-    ctl.run(150)  # jogs at speed, gears locked
-    c0 = time.thread_time()
-    command(ctl)
-    command_cpu = time.thread_time() - c0
-    cpu = []
-    for _ in range(steps):
+class Run:
+    """One case at one size, lanes on or off: the CPU seconds of each step after the
+    command and of the command, the controller after the run, a digest of the commanded
+    position, velocity and acceleration of every axis after every step (outside the timed
+    part), and for cams how many were in a lane (of how many) after the command, after the
+    first step and after the last."""
+
+    def __init__(self, case: str, n_axes: int, lanes: bool) -> None:
+        setup, command, steps = CASES[case]
+        ctl = controller(n_axes, lanes)
+        setup(ctl)
+        ctl.run(150)  # jogs at speed, gears locked
         c0 = time.thread_time()
-        ctl.step()
-        cpu.append(time.thread_time() - c0)
-    return cpu, command_cpu
+        command(ctl)
+        self.command_cpu = time.thread_time() - c0
+        self.laned_command = cams_in_lanes(ctl)
+        self.cpu: list[float] = []
+        trace = hashlib.blake2b()
+        for _ in range(steps):
+            c0 = time.thread_time()
+            ctl.step()
+            self.cpu.append(time.thread_time() - c0)
+            for arr in (ctl.cmd_pos, ctl.cmd_vel, ctl.cmd_acc):
+                trace.update(arr.tobytes())
+            if len(self.cpu) == 1:
+                self.laned_first = cams_in_lanes(ctl)
+        self.laned_last = cams_in_lanes(ctl)
+        self.trace = trace.digest()
+        self.ctl = ctl
 
 
 def main() -> None:
@@ -140,12 +217,11 @@ def main() -> None:
     )
     for case in args.cases:
         for n in args.sizes:
-            means = {}
+            runs = {}
             for lanes in (False, True):
-                cpu, command_cpu = measure(case, n, lanes)
-                mean = statistics.fmean(cpu)
-                means[lanes] = mean
-                ordered = sorted(cpu)
+                run = runs[lanes] = Run(case, n, lanes)
+                mean = statistics.fmean(run.cpu)
+                ordered = sorted(run.cpu)
                 p99 = ordered[int(0.99 * (len(ordered) - 1))]
                 share = mean / PERIOD
                 mark = ""
@@ -154,9 +230,25 @@ def main() -> None:
                 print(
                     f"{case:>8} {n:>5} {'on' if lanes else 'off':>5} {mean * 1e6:>11.1f} "
                     f"{p99 * 1e6:>8.1f} {ordered[-1] * 1e6:>8.1f} {share:>12.1%} "
-                    f"{command_cpu * 1e6:>10.0f}{mark}"
+                    f"{run.command_cpu * 1e6:>10.0f}{mark}"
                 )
-            print(f"{'':>14} lanes: {means[True] / means[False]:.2f} of the reference")
+            ref, fast = runs[False], runs[True]
+            ratio = statistics.fmean(fast.cpu) / statistics.fmean(ref.cpu)
+            same = np.array_equal(fast.ctl.cmd_pos, ref.ctl.cmd_pos)
+            every = fast.trace == ref.trace
+            line = (
+                f"{'':>14} lanes: {ratio:.2f} of the reference; cmd_pos identical at the end: "
+                f"{same}, commands identical after every step: {every}"
+            )
+            if fast.laned_last[1]:
+                (cmd, total), (first, _) = fast.laned_command, fast.laned_first
+                line += (
+                    f"; cams in lanes {cmd}/{total} after the command, {first} after the first "
+                    f"step, {fast.laned_last[0]} at the end"
+                )
+            print(line)
+            if not (same and every):
+                raise SystemExit(f"{case} {n}: lanes and reference differ")
     print(f"load average {os.getloadavg()[0]:.2f}")
 
 
