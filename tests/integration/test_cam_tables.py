@@ -23,7 +23,6 @@ from asyncua import Client, ua
 from pymodbus.client import AsyncModbusTcpClient
 
 from motion_server import config
-from motion_server.kernel.cam_tables import ProfileUser
 from motion_server.runtime import Runtime
 from tests.opcua_support import USERS, running, secure_client, user_hashes
 
@@ -152,7 +151,7 @@ async def test_profile_status_counts_the_cams_that_use_the_profile(
     await step(rt, modbus, 1)
     assert (await modbus.read_holding_registers(status, count=2)).registers == regs("i", 2)
 
-    class Cam(ProfileUser):
+    class Cam:  # what a running cam shows its profile slot (cam_tables.ProfileUser)
         def __init__(self) -> None:
             self.profile = profile
             self.active = True
