@@ -48,6 +48,9 @@ class Axis:
         self.name = config.name
         self.type = config.type
         self._state = AxisState.AXIS_READY
+        #: the PowerEvent (as int) that last changed the power state, -1 before any
+        #: (:mod:`.power`; MC_Power re-enables after a reset, not after a disable)
+        self.power_event = -1
         self._homed = False
         self._stop_latch: object | None = None
         self._after_stop = AfterStop.NOTHING
