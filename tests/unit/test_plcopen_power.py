@@ -5,9 +5,9 @@ another instruction (MSF, an MGS Fast Disable) is not undone."""
 
 from __future__ import annotations
 
-from motion_server.instructions import Instruction, MotionSystem
 import pytest
 
+from motion_server.instructions import Instruction, MotionSystem
 from motion_server.kernel import (
     AxisConfig,
     AxisFault,

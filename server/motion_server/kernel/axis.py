@@ -42,7 +42,11 @@ _HOMING = 1 << MotionStatusBit.HOMING
 class Axis:
     def __init__(self, arrays: AxisArrays, config: AxisConfig, index: int) -> None:
         self._s = arrays
+        #: the configuration commands are judged against: the site map's, with the
+        #: application maxima a program may lower (:mod:`.appl_limits`)
         self.config = config
+        #: the site map's configuration, as loaded (the system maxima)
+        self.system_config = config
         self.index = index
         self.number = config.number
         self.name = config.name
