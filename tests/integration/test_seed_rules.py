@@ -187,13 +187,18 @@ async def test_gear_in_pos_immediate_synchronizes_a_slave_beyond_its_sync_positi
 
     The master M1 jogs at 100 mm/s far before its start point (MasterSyncPosition 100,
     MasterStartDistance 10); the slave S stands at 0, already 30 mm beyond its
-    SlaveSyncPosition -30. The lock-on starts in the scan the block executes, the slave
-    moves backwards, and it is at -30 with the master's velocity (ratio 1:1) exactly when
-    the master reaches 100."""
+    SlaveSyncPosition -30. Immediate: in sync in the scan the block executes, the slave
+    placed on -30 + (master - 100) x 1, about -126: backwards from 0, then following the
+    master at its 100 mm/s (ratio 1:1)."""
     mc = motion_client
     await power(mc, M1, S)
     await jog(mc, "JogM1", M1, 100.0)
     await mc.step(4)  # at speed: 100 mm/s from 0.01 s on
+    # the block reads the master's actual position, sampled as the cycle begins: the
+    # position the previous cycle published
+    seen = await mc.read("M1.ActualPosition")
+    assert seen < 90.0 - 50.0  # far before its start point
+    assert await mc.read("S.CommandPosition") == 0.0
     await execute(
         mc,
         "MC_GearInPos_1",
@@ -207,25 +212,24 @@ async def test_gear_in_pos_immediate_synchronizes_a_slave_beyond_its_sync_positi
         MasterStartDistance=10.0,
         BufferMode=0,
     )
-    status = await mc.read_many(["MC_GearInPos_1.Error", "MC_GearInPos_1.StartSync"])
-    assert status == {"MC_GearInPos_1.Error": False, "MC_GearInPos_1.StartSync": True}
-    assert await mc.read("M1.CommandPosition") < 90.0 - 50.0  # far before its start point
-    # the block reads the master's actual position, sampled as the cycle begins: the
-    # position the previous cycle published
-    velocities = []
-    seen = await mc.read("M1.ActualPosition")
-    while seen < 100.0:
-        assert await mc.read("MC_GearInPos_1.InSync") is False
-        velocities.append(await mc.read("S.CommandVelocity"))
-        await mc.step(1)
-        seen, before = await mc.read("M1.ActualPosition"), seen
-    assert min(velocities) < -10.0, "the slave moves backwards"
-    await mc.step(1)  # the cycle that reads the master at or past 100
-    assert await mc.read("MC_GearInPos_1.InSync") is True
+    status = await mc.read_many(
+        ["MC_GearInPos_1.Error", "MC_GearInPos_1.StartSync", "MC_GearInPos_1.InSync"]
+    )
+    assert status == {
+        "MC_GearInPos_1.Error": False,
+        "MC_GearInPos_1.StartSync": True,
+        "MC_GearInPos_1.InSync": True,
+    }
     s = await mc.read("S.CommandPosition")
     assert s == pytest.approx(-30.0 + (seen - 100.0), abs=1e-9)
-    assert before < 100.0 <= seen
-    assert await mc.read("S.CommandVelocity") == pytest.approx(100.0, abs=1e-6)
+    assert s < -100.0, "the slave moved backwards"
+    for _ in range(10):
+        seen = await mc.read("M1.ActualPosition")
+        await mc.step(1)
+        assert await mc.read("MC_GearInPos_1.InSync") is True
+        s = await mc.read("S.CommandPosition")
+        assert s == pytest.approx(-30.0 + (seen - 100.0), abs=1e-9)
+        assert await mc.read("S.CommandVelocity") == pytest.approx(100.0, abs=1e-6)
 
 
 # -- MDAC -----------------------------------------------------------------------------------
