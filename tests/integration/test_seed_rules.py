@@ -320,3 +320,25 @@ async def test_mdac_five_percent_rule_is_judged_from_programmed_values(
     assert await mc.read("MDAC_2.AC") is True
     await mc.step(1)
     assert await mc.read("S.CommandVelocity") == pytest.approx(5.0, abs=1e-6)
+
+
+async def test_a_master_driven_rate_no_planner_can_follow_is_err_13(
+    motion_client: MotionClient,
+) -> None:
+    """A master-driven MAJ at 1.0 mm per master mm with AccelRate 1e-30 mm per master mm²
+    would need 1.0 / 1e-30 = 1e30 mm of master travel to reach its speed: refused as an operand
+    (ERR 13, EXERR naming AccelRate: Axis 0, Motion Control 1, Direction 2, Speed 3,
+    SpeedUnits 4, AccelRate 5), not as an internal error (ERR 1005), and S stays at rest."""
+    mc = motion_client
+    await power(mc, M1, S)
+    await jog(mc, "JogM1", M1, 100.0)
+    await execute(mc, "MDAC_1", SlaveAxis=S, MasterAxis=M1, MotionType=0, MasterReference=1)
+    await execute(mc, "MAJ_1", Axis=S, Direction=0, Speed=1.0, **master_units(AccelRate=1e-30))
+    assert await mc.read_many(["MAJ_1.ER", "MAJ_1.ERR", "MAJ_1.EXERR", "MAJ_1.IP"]) == {
+        "MAJ_1.ER": True,
+        "MAJ_1.ERR": 13,
+        "MAJ_1.EXERR": 5,
+        "MAJ_1.IP": False,
+    }
+    await mc.step(10)
+    assert await mc.read("S.CommandVelocity") == 0.0
