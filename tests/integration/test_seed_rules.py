@@ -342,3 +342,75 @@ async def test_a_master_driven_rate_no_planner_can_follow_is_err_13(
     }
     await mc.step(10)
     assert await mc.read("S.CommandVelocity") == 0.0
+
+
+# -- PLCopen Part 1 -------------------------------------------------------------------------
+async def test_mc_power_held_enable_re_enables_the_axis_after_a_reset(
+    motion_client: MotionClient,
+) -> None:
+    """PLCopen Part 1, MC_Power: "As long as 'Enable' is true, power is being enabled";
+    "If the MC_Power FB is called with the 'Enable' = true while being in 'Disabled', the
+    axis state changes to 'Standstill'". Enable stays TRUE throughout: a drive fault
+    takes the servo to ErrorStop (Status FALSE, ErrorID 20); once the cause is gone and
+    MC_Reset ran, the axis is back in StandStill (PLCopenState 2) with Status TRUE."""
+    mc = motion_client
+    await mc.write("MC_Power_1.Axis", SERVO)
+    await mc.write("MC_Power_1.Enable", True)
+    await mc.step(1)
+    assert await mc.read_many(["MC_Power_1.Status", "Servo.PLCopenState"]) == {
+        "MC_Power_1.Status": True,
+        "Servo.PLCopenState": 2,
+    }
+    await mc.write("Servo.InjectDriveFault", True)
+    await mc.step(1)
+    assert await mc.read_many(
+        ["MC_Power_1.Status", "MC_Power_1.Error", "MC_Power_1.ErrorID", "Servo.PLCopenState"]
+    ) == {
+        "MC_Power_1.Status": False,
+        "MC_Power_1.Error": True,
+        "MC_Power_1.ErrorID": 20,
+        "Servo.PLCopenState": 3,
+    }
+    await mc.write("Servo.InjectDriveFault", False)
+    await execute(mc, "MC_Reset_1", Axis=SERVO)
+    assert await mc.read("MC_Reset_1.Done") is True
+    await mc.step(1)  # MC_Power_1 is scanned before MC_Reset_1: its next scan enables
+    assert await mc.read_many(
+        ["MC_Power_1.Status", "MC_Power_1.Error", "MC_Power_1.Enable", "Servo.PLCopenState"]
+    ) == {
+        "MC_Power_1.Status": True,
+        "MC_Power_1.Error": False,
+        "MC_Power_1.Enable": True,
+        "Servo.PLCopenState": 2,
+    }
+
+
+async def test_max_velocity_appl_is_writable_and_judges_the_next_command(
+    motion_client: MotionClient,
+) -> None:
+    """PLCopen Part 1's parameter table: "9 MaxVelocityAppl REAL B R/W". Written to 100
+    on S (System maximum 1000 mm/s), it reads back 100 while 8 MaxVelocitySystem stays
+    1000, and an MC_MoveVelocity at 150 mm/s on S is refused (ErrorID 13)."""
+    mc = motion_client
+    await power(mc, S)
+    await execute(mc, "MC_WriteParameter_1", Axis=S, ParameterNumber=9, Value=100.0)
+    assert await mc.read_many(["MC_WriteParameter_1.Done", "MC_WriteParameter_1.Error"]) == {
+        "MC_WriteParameter_1.Done": True,
+        "MC_WriteParameter_1.Error": False,
+    }
+    for number, value in ((9, 100.0), (8, 1000.0)):
+        await mc.write_many(
+            {"MC_ReadParameter_1.Axis": S, "MC_ReadParameter_1.ParameterNumber": number}
+        )
+        await mc.write("MC_ReadParameter_1.Enable", True)
+        await mc.step(1)
+        assert await mc.read("MC_ReadParameter_1.Valid") is True
+        assert await mc.read("MC_ReadParameter_1.Value") == value
+    await execute(
+        mc, "MC_MoveVelocity_1", Axis=S, Velocity=150.0, Acceleration=1000.0, Deceleration=1000.0
+    )
+    assert await mc.read_many(["MC_MoveVelocity_1.Error", "MC_MoveVelocity_1.ErrorID"]) == {
+        "MC_MoveVelocity_1.Error": True,
+        "MC_MoveVelocity_1.ErrorID": 13,
+    }
+    assert await mc.read("S.CommandVelocity") == 0.0
