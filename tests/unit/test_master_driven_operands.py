@@ -18,7 +18,8 @@ from __future__ import annotations
 import pytest
 
 from motion_server.instructions import LogixInstruction, MotionSystem
-from motion_server.kernel import ErrorCode
+from motion_server.kernel import ErrorCode, Limits, MotionError
+from motion_server.kernel.master_driven import MasterProfile
 
 from ..support import trigger
 from .test_mdac import MASTER_UNITS, logix, md_dynamics, mdac, setup
@@ -86,3 +87,22 @@ def test_master_driven_operands_within_range_are_accepted(
     assert system.internal_errors == []
     assert not inst.bit("ER") and (inst.bit("IP") or inst.bit("PC"))
     assert system.ctl.axis(3).command_position > 0.0
+
+
+@pytest.mark.parametrize(
+    ("limits", "ratio", "velocity", "position"),
+    [
+        (Limits(0.5, 1e-30, 0.05), 0.0, 0.5, None),  # 5e29 master units to reach 0.5
+        (Limits(1e-30, 0.05, 0.05), 0.0, None, 10.0),  # 1e31 master units to cover 10
+        (Limits(0.5, 0.05, 1e-30), 0.5, 0.0, None),  # 5e29 master units to stop
+        (Limits(0.5, 0.05, 0.05, 1e-30), 0.0, 0.5, None),  # 5e28 to build up 0.05
+    ],
+)
+def test_a_kernel_plan_beyond_the_planner_is_a_motion_error_not_a_ruckig_one(
+    limits: Limits, ratio: float, velocity: float | None, position: float | None
+) -> None:
+    """A master-driven profile planned inside the kernel (a change of master re-plans
+    from the ratio the slave inherits) is refused with ERR 13 before ruckig raises."""
+    with pytest.raises(MotionError) as info:
+        MasterProfile(limits, ratio, velocity, position)
+    assert info.value.code == ErrorCode.PARAMETER_OUT_OF_RANGE

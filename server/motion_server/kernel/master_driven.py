@@ -89,6 +89,10 @@ def master_speed(ctx: StepContext, master: Axis, reference: MasterReference) -> 
 #: offline planner loses its precision and raises near 1e12; 1e9 mm of master travel is
 #: more than eleven days of a master at 1 m/s
 MAX_MASTER_TRAVEL = 1e9
+#: the bound a profile planned inside the kernel (a change of master, a re-plan) is held
+#: to: wider than the operands' bound, so that motion judged at its start is not refused
+#: later for a ratio it inherits, yet short of where ruckig raises
+PLANNER_TRAVEL = 1e11
 
 
 class Dynamic(StrEnum):
@@ -110,10 +114,14 @@ class MasterProfileError(MotionError):
 
 
 def judge_master_profile(
-    limits: Limits, ratio: float, velocity: float | None, position: float | None
+    limits: Limits,
+    ratio: float,
+    velocity: float | None,
+    position: float | None,
+    bound: float = MAX_MASTER_TRAVEL,
 ) -> None:
     """Refuse, before ruckig sees them, dynamics whose profile would take more than
-    :data:`MAX_MASTER_TRAVEL` of master travel (ruckig raises on such inputs: an
+    ``bound`` of master travel (ruckig raises on such inputs: an
     AccelRate of 1e-30 per master unit², a move at 1e-30 per master unit). The travel is
     bounded from above by a feasible profile: brake from the current ``ratio``, then ramp
     (and cruise) to the target; the largest share names the quantity at fault."""
@@ -143,13 +151,13 @@ def judge_master_profile(
     if not limits.trapezoidal:
         terms[Dynamic.JERK] = 4.0 * max(acc, dec) / limits.jerk
     total = sum(terms.values())
-    if math.isfinite(total) and total <= MAX_MASTER_TRAVEL:
+    if math.isfinite(total) and total <= bound:
         return
     worst = max(terms, key=lambda q: terms[q])
     raise MasterProfileError(
         worst,
         f"the {worst.value} makes the master-driven profile take {total:g} master units "
-        f"(at most {MAX_MASTER_TRAVEL:g})",
+        f"(at most {bound:g})",
     )
 
 
@@ -167,7 +175,7 @@ class MasterProfile:
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "distance must be finite")
         if velocity is not None and not math.isfinite(velocity):
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "speed must be finite")
-        judge_master_profile(limits, ratio, velocity, position)
+        judge_master_profile(limits, ratio, velocity, position, PLANNER_TRAVEL)
         inp = ruckig.InputParameter(1)
         inp.current_position = [0.0]
         inp.current_velocity = [float(ratio)]
