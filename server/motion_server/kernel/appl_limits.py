@@ -9,9 +9,10 @@ system ones) by :func:`set_application_limit`.
 
 A new limit applies to what is commanded from then on: motion already running keeps the
 profile it was planned with (it was judged against the limits in force when it started),
-as a Logix axis applies a new Maximum Speed to the next motion instruction. A stop or
-halt issued later, a Motion Change Dynamics, an override change or a buffered command
-that starts later is judged against the new limits.
+as a Logix axis applies a new Maximum Speed to the next motion instruction. A command
+issued later is judged against the new limits (a stop or halt, a Motion Change Dynamics;
+a buffered command is judged at its edge, not when it starts); an override change
+re-plans running motion with its programmed dynamics, as before.
 """
 
 from __future__ import annotations
