@@ -7,7 +7,8 @@ A; every axis has a maximum velocity of 1000 mm/s. First principles:
 - an AccelRate of 1e-30 mm per master mm² needs 0.5 / 1e-30 = 5e29 mm of master travel
   to reach 0.5 mm per master mm: beyond the 1e9 a master-driven profile may take;
 - a DecelRate of 1e-30 would take as long to stop the jog again;
-- a move of 10 mm at 1e-30 mm per master mm needs 1e31 mm of master travel;
+- a move of 10 mm at 1e-30 mm per master mm needs 1e31 mm of master travel, and one of
+  1e12 mm at 1.0 needs 1e12 (the distance is at fault there, not the speed);
 - a Speed of 1.5 mm per master mm would drive the slave at 1500 mm/s with A at its
   1000 mm/s maximum, beyond the slave's 1000: refused; 1.0 reaches exactly 1000: allowed;
 - an AccelRate of 1e-6 reaches 0.5 after 5e5 mm of master travel: long but plannable.
@@ -34,12 +35,12 @@ def exerr(inst: LogixInstruction, operand: str) -> int:
 def master_driven(
     type_name: str, speed: float, **extra: float
 ) -> tuple[MotionSystem, LogixInstruction]:
-    """A master-driven MAJ or MAM (10 mm incremental) on the slave, 50 cycles on."""
+    """A master-driven MAJ or MAM (10 mm incremental unless ``extra`` says otherwise) on
+    the slave, 50 cycles on."""
     system = setup()
     mdac(system, "MDAC_1", master=1)
-    ops: dict[str, float] = {"Axis": 3, **md_dynamics(speed), **extra}
-    if type_name == "MAM":
-        ops.update(MoveType=1, Position=10.0)
+    move = {"MoveType": 1, "Position": 10.0} if type_name == "MAM" else {}
+    ops: dict[str, float] = {"Axis": 3, **md_dynamics(speed), **move, **extra}
     inst = logix(system.add(type_name, "MD", ops))
     trigger(system, inst)
     system.cycle(50)
@@ -53,6 +54,7 @@ def master_driven(
         ("MAJ", 0.5, {"DecelRate": 1e-30}, "DecelRate"),
         ("MAM", 0.5, {"AccelRate": 1e-30}, "AccelRate"),
         ("MAM", 1e-30, {}, "Speed"),
+        ("MAM", 1.0, {"Position": 1e12}, "Position"),
         ("MAJ", 1e30, {}, "Speed"),
         ("MAJ", 1.5, {}, "Speed"),
         ("MAM", 1.5, {}, "Speed"),

@@ -99,6 +99,7 @@ class Dynamic(StrEnum):
     """The quantity of a master-driven profile that makes it unplannable."""
 
     SPEED = "speed"
+    DISTANCE = "distance"
     ACCELERATION = "acceleration"
     DECELERATION = "deceleration"
     JERK = "jerk"
@@ -146,7 +147,10 @@ def judge_master_profile(
         if way * rate <= v * v:
             terms[slow] += 2.0 * math.sqrt(way / rate)
         else:
-            terms[Dynamic.SPEED] = way / v
+            # a way longer than any profile may travel is the distance's fault, else the
+            # speed's (too slow to cover it)
+            cruise = Dynamic.DISTANCE if abs(position) > bound else Dynamic.SPEED
+            terms[cruise] = way / v
             terms[slow] += v / rate
     if not limits.trapezoidal:
         terms[Dynamic.JERK] = 4.0 * max(acc, dec) / limits.jerk

@@ -41,6 +41,7 @@ OPERAND_OF: dict[Dynamic, str] = {
     Dynamic.SPEED: "Speed",
     Dynamic.ACCELERATION: "AccelRate",
     Dynamic.DECELERATION: "DecelRate",
+    Dynamic.DISTANCE: "Position",
 }
 #: relative resolution of the Speed x master maximum comparison (REAL operands)
 SPEED_TOLERANCE = 1e-6
