@@ -187,13 +187,18 @@ async def test_gear_in_pos_immediate_synchronizes_a_slave_beyond_its_sync_positi
 
     The master M1 jogs at 100 mm/s far before its start point (MasterSyncPosition 100,
     MasterStartDistance 10); the slave S stands at 0, already 30 mm beyond its
-    SlaveSyncPosition -30. The lock-on starts in the scan the block executes, the slave
-    moves backwards, and it is at -30 with the master's velocity (ratio 1:1) exactly when
-    the master reaches 100."""
+    SlaveSyncPosition -30. Immediate: in sync in the scan the block executes, the slave
+    placed on -30 + (master - 100) x 1, about -126: backwards from 0, then following the
+    master at its 100 mm/s (ratio 1:1)."""
     mc = motion_client
     await power(mc, M1, S)
     await jog(mc, "JogM1", M1, 100.0)
     await mc.step(4)  # at speed: 100 mm/s from 0.01 s on
+    # the block reads the master's actual position, sampled as the cycle begins: the
+    # position the previous cycle published
+    seen = await mc.read("M1.ActualPosition")
+    assert seen < 90.0 - 50.0  # far before its start point
+    assert await mc.read("S.CommandPosition") == 0.0
     await execute(
         mc,
         "MC_GearInPos_1",
@@ -207,25 +212,24 @@ async def test_gear_in_pos_immediate_synchronizes_a_slave_beyond_its_sync_positi
         MasterStartDistance=10.0,
         BufferMode=0,
     )
-    status = await mc.read_many(["MC_GearInPos_1.Error", "MC_GearInPos_1.StartSync"])
-    assert status == {"MC_GearInPos_1.Error": False, "MC_GearInPos_1.StartSync": True}
-    assert await mc.read("M1.CommandPosition") < 90.0 - 50.0  # far before its start point
-    # the block reads the master's actual position, sampled as the cycle begins: the
-    # position the previous cycle published
-    velocities = []
-    seen = await mc.read("M1.ActualPosition")
-    while seen < 100.0:
-        assert await mc.read("MC_GearInPos_1.InSync") is False
-        velocities.append(await mc.read("S.CommandVelocity"))
-        await mc.step(1)
-        seen, before = await mc.read("M1.ActualPosition"), seen
-    assert min(velocities) < -10.0, "the slave moves backwards"
-    await mc.step(1)  # the cycle that reads the master at or past 100
-    assert await mc.read("MC_GearInPos_1.InSync") is True
+    status = await mc.read_many(
+        ["MC_GearInPos_1.Error", "MC_GearInPos_1.StartSync", "MC_GearInPos_1.InSync"]
+    )
+    assert status == {
+        "MC_GearInPos_1.Error": False,
+        "MC_GearInPos_1.StartSync": True,
+        "MC_GearInPos_1.InSync": True,
+    }
     s = await mc.read("S.CommandPosition")
     assert s == pytest.approx(-30.0 + (seen - 100.0), abs=1e-9)
-    assert before < 100.0 <= seen
-    assert await mc.read("S.CommandVelocity") == pytest.approx(100.0, abs=1e-6)
+    assert s < -100.0, "the slave moved backwards"
+    for _ in range(10):
+        seen = await mc.read("M1.ActualPosition")
+        await mc.step(1)
+        assert await mc.read("MC_GearInPos_1.InSync") is True
+        s = await mc.read("S.CommandPosition")
+        assert s == pytest.approx(-30.0 + (seen - 100.0), abs=1e-9)
+        assert await mc.read("S.CommandVelocity") == pytest.approx(100.0, abs=1e-6)
 
 
 # -- MDAC -----------------------------------------------------------------------------------
@@ -316,3 +320,97 @@ async def test_mdac_five_percent_rule_is_judged_from_programmed_values(
     assert await mc.read("MDAC_2.AC") is True
     await mc.step(1)
     assert await mc.read("S.CommandVelocity") == pytest.approx(5.0, abs=1e-6)
+
+
+async def test_a_master_driven_rate_no_planner_can_follow_is_err_13(
+    motion_client: MotionClient,
+) -> None:
+    """A master-driven MAJ at 1.0 mm per master mm with AccelRate 1e-30 mm per master mm²
+    would need 1.0 / 1e-30 = 1e30 mm of master travel to reach its speed: refused as an operand
+    (ERR 13, EXERR naming AccelRate: Axis 0, Motion Control 1, Direction 2, Speed 3,
+    SpeedUnits 4, AccelRate 5), not as an internal error (ERR 1005), and S stays at rest."""
+    mc = motion_client
+    await power(mc, M1, S)
+    await jog(mc, "JogM1", M1, 100.0)
+    await execute(mc, "MDAC_1", SlaveAxis=S, MasterAxis=M1, MotionType=0, MasterReference=1)
+    await execute(mc, "MAJ_1", Axis=S, Direction=0, Speed=1.0, **master_units(AccelRate=1e-30))
+    assert await mc.read_many(["MAJ_1.ER", "MAJ_1.ERR", "MAJ_1.EXERR", "MAJ_1.IP"]) == {
+        "MAJ_1.ER": True,
+        "MAJ_1.ERR": 13,
+        "MAJ_1.EXERR": 5,
+        "MAJ_1.IP": False,
+    }
+    await mc.step(10)
+    assert await mc.read("S.CommandVelocity") == 0.0
+
+
+# -- PLCopen Part 1 -------------------------------------------------------------------------
+async def test_mc_power_held_enable_re_enables_the_axis_after_a_reset(
+    motion_client: MotionClient,
+) -> None:
+    """PLCopen Part 1, MC_Power: "As long as 'Enable' is true, power is being enabled";
+    "If the MC_Power FB is called with the 'Enable' = true while being in 'Disabled', the
+    axis state changes to 'Standstill'". Enable stays TRUE throughout: a drive fault
+    takes the servo to ErrorStop (Status FALSE, ErrorID 20); once the cause is gone and
+    MC_Reset ran, the axis is back in StandStill (PLCopenState 2) with Status TRUE."""
+    mc = motion_client
+    await mc.write("MC_Power_1.Axis", SERVO)
+    await mc.write("MC_Power_1.Enable", True)
+    await mc.step(1)
+    assert await mc.read_many(["MC_Power_1.Status", "Servo.PLCopenState"]) == {
+        "MC_Power_1.Status": True,
+        "Servo.PLCopenState": 2,
+    }
+    await mc.write("Servo.InjectDriveFault", True)
+    await mc.step(1)
+    assert await mc.read_many(
+        ["MC_Power_1.Status", "MC_Power_1.Error", "MC_Power_1.ErrorID", "Servo.PLCopenState"]
+    ) == {
+        "MC_Power_1.Status": False,
+        "MC_Power_1.Error": True,
+        "MC_Power_1.ErrorID": 20,
+        "Servo.PLCopenState": 3,
+    }
+    await mc.write("Servo.InjectDriveFault", False)
+    await execute(mc, "MC_Reset_1", Axis=SERVO)
+    assert await mc.read("MC_Reset_1.Done") is True
+    await mc.step(1)  # MC_Power_1 is scanned before MC_Reset_1: its next scan enables
+    assert await mc.read_many(
+        ["MC_Power_1.Status", "MC_Power_1.Error", "MC_Power_1.Enable", "Servo.PLCopenState"]
+    ) == {
+        "MC_Power_1.Status": True,
+        "MC_Power_1.Error": False,
+        "MC_Power_1.Enable": True,
+        "Servo.PLCopenState": 2,
+    }
+
+
+async def test_max_velocity_appl_is_writable_and_judges_the_next_command(
+    motion_client: MotionClient,
+) -> None:
+    """PLCopen Part 1's parameter table: "9 MaxVelocityAppl REAL B R/W". Written to 100
+    on S (System maximum 1000 mm/s), it reads back 100 while 8 MaxVelocitySystem stays
+    1000, and an MC_MoveVelocity at 150 mm/s on S is refused (ErrorID 13)."""
+    mc = motion_client
+    await power(mc, S)
+    await execute(mc, "MC_WriteParameter_1", Axis=S, ParameterNumber=9, Value=100.0)
+    assert await mc.read_many(["MC_WriteParameter_1.Done", "MC_WriteParameter_1.Error"]) == {
+        "MC_WriteParameter_1.Done": True,
+        "MC_WriteParameter_1.Error": False,
+    }
+    for number, value in ((9, 100.0), (8, 1000.0)):
+        await mc.write_many(
+            {"MC_ReadParameter_1.Axis": S, "MC_ReadParameter_1.ParameterNumber": number}
+        )
+        await mc.write("MC_ReadParameter_1.Enable", True)
+        await mc.step(1)
+        assert await mc.read("MC_ReadParameter_1.Valid") is True
+        assert await mc.read("MC_ReadParameter_1.Value") == value
+    await execute(
+        mc, "MC_MoveVelocity_1", Axis=S, Velocity=150.0, Acceleration=1000.0, Deceleration=1000.0
+    )
+    assert await mc.read_many(["MC_MoveVelocity_1.Error", "MC_MoveVelocity_1.ErrorID"]) == {
+        "MC_MoveVelocity_1.Error": True,
+        "MC_MoveVelocity_1.ErrorID": 13,
+    }
+    assert await mc.read("S.CommandVelocity") == 0.0

@@ -170,8 +170,9 @@ def test_plcopen_move_at_the_maxima_runs_and_a_group_stop_takes_v_over_d() -> No
 
 
 # -- a group stop from beyond the Maximum Speed -------------------------------------------
-def two_axes() -> MotionSystem:
-    """Axis 1 (master) and axis 2, both as in :func:`powered`, in one group."""
+def two_axes(jog: bool = True) -> MotionSystem:
+    """Axis 1 (master) and axis 2, both as in :func:`powered`, in one group; the master
+    jogs to V (``jog``) from the scan that returns."""
     cfg = {"max_velocity": V, "max_acceleration": D, "max_deceleration": D}
     system = make_system(
         AxisConfig(1, "Axis1", AxisType.VIRTUAL, **cfg),  # type: ignore[arg-type]
@@ -181,7 +182,8 @@ def two_axes() -> MotionSystem:
     for n in (1, 2):
         trigger(system, system.add("MSO", f"MSO_{n}", {"Axis": n}))
     maj = system.add("MAJ", "JOG_1", {"Axis": 1, "Speed": V, "AccelRate": D, "DecelRate": D})
-    trigger(system, maj)
+    if jog:
+        trigger(system, maj)
     return system
 
 
@@ -225,15 +227,20 @@ def test_superimposed_motion_beyond_maximum_speed_stops_within_v_over_d() -> Non
 
 
 def test_plcopen_gear_in_beyond_maximum_speed_stops_within_v_over_d() -> None:
-    system = two_axes()
+    """MC_GearIn 500:1 engaged on a master at rest (in gear at once: nothing to catch up,
+    and its catch-up dynamics within the slave's maxima, as docs/semantics.md requires),
+    then the master jogs to V: the slave runs at 5e5 mm/s, and a group stop still ends
+    within V / D."""
+    system = two_axes(jog=False)
     gear = system.add(
         "MC_GearIn",
         "MC_GearIn_1",
         {"Master": 1, "Slave": 2, "RatioNumerator": 500, "RatioDenominator": 1,
-         "Acceleration": 1e9, "Deceleration": 1e9},
+         "Acceleration": D, "Deceleration": D},
     )  # fmt: skip
     trigger(system, gear)
     assert not bit(gear, "Error")
+    trigger(system, system["JOG_1"])
     system.cycle(60)
     assert bit(gear, "InGear")
     assert system.ctl.axis(2).command_velocity == pytest.approx(5e5, rel=1e-12)

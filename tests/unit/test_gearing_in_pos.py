@@ -282,12 +282,19 @@ def test_short_start_distance_warns(caplog: pytest.LogCaptureFixture) -> None:
     r.check_arrival(k, 0.0, 0.0, 2.0)  # it still arrives
 
 
-def test_immediate_mode_starts_the_lock_on_inside_the_start_distance() -> None:
+def test_immediate_mode_inside_the_start_distance_is_in_sync_at_once() -> None:
+    """The seed, SyncMode 1: "If either the master or slave axis are beyond their
+    respective sync start positions, the slave axis will immediately synchronize". The
+    master, about -50 and jogging at 50 mm/s, is inside its 100 mm start distance before
+    0: in sync in the scan the block starts, the slave's command on 0 + 2 x (master - 0),
+    every cycle from then on. The slave was at -30, ahead of about -100: it moves
+    backwards."""
     s = system()
     move_to(s, 1, -50.0)
     move_to(s, 2, -30.0)
     jog(s, 50.0)
     s.cycle(5)
+    m_seen = master(s)
     g = gear_in_pos(
         s,
         RatioNumerator=2,
@@ -297,10 +304,16 @@ def test_immediate_mode_starts_the_lock_on_inside_the_start_distance() -> None:
         SyncMode=1,
         MasterStartDistance=100.0,
     )
-    assert g.outputs["StartSync"] and g.outputs["SyncState"] == 1
+    out = g.outputs
+    assert (out["StartSync"], out["InSync"], out["SyncState"]) == (True, True, 2)
+    assert out["RemainingMasterDistance"] == 0.0 and out["Warning"]
+    assert slave(s) == pytest.approx(2.0 * m_seen, abs=1e-9)
     r = Run(s, g)
-    k = r.until_in_sync()
-    r.check_arrival(k, 0.0, 0.0, 2.0)
+    r.cycle(50)
+    for k in range(50):
+        assert r.slave[k] == pytest.approx(2.0 * r.seen[k], abs=1e-9)
+        assert r.slave_v[k] == pytest.approx(2.0 * r.seen_v[k], rel=1e-12)
+    assert all(st == (True, True, 2) for st in r.status)
 
 
 def test_immediate_mode_beyond_the_sync_position_locks_at_once_with_a_warning() -> None:
@@ -319,18 +332,20 @@ def test_immediate_mode_beyond_the_sync_position_locks_at_once_with_a_warning() 
     assert slave(s) == pytest.approx(2.0 * (master(s) - 0.0))
 
 
-def test_immediate_mode_with_the_slave_beyond_its_sync_position_locks_on_at_once() -> None:
+def test_immediate_mode_with_the_slave_beyond_its_sync_position_is_in_sync_at_once() -> None:
     """The seed, SyncMode 1: "If either the master or slave axis are beyond their
     respective sync start positions, the slave axis will immediately synchronize [...] If
     the slave axis is ahead of the master axis at the time of synchronization, the slave
-    axis will move backwards." The master is 100 mm before its start point; the slave,
-    at 0, is 30 mm beyond its sync position -30: the lock-on begins in the first cycle,
-    over the master's whole way to its sync position, and the slave backs up to arrive at
-    -30 with the geared velocity when the master reaches 0."""
+    axis will move backwards." The master is 100 mm before its start point (-10), jogging
+    at 50 mm/s; the slave, at 0, is 30 mm beyond its sync position -30: in sync in the scan
+    the block starts, its command on -30 + (master - 0), about -150, and the servo moves
+    backwards to it, then follows at the master's 50 mm/s."""
     s = system()
     move_to(s, 1, -120.0)
     jog(s, 50.0)
     s.cycle(5)
+    m_seen = master(s)
+    assert m_seen < -110.0  # far before the start point, -10
     g = gear_in_pos(
         s,
         RatioNumerator=1,
@@ -340,14 +355,24 @@ def test_immediate_mode_with_the_slave_beyond_its_sync_position_locks_on_at_once
         SyncMode=1,
         MasterStartDistance=10.0,
     )
-    assert (g.outputs["StartSync"], g.outputs["InSync"], g.outputs["SyncState"]) == (True, False, 1)
-    assert master(s) < -100.0  # far before the start point, -10
+    out = g.outputs
+    assert (out["StartSync"], out["InSync"], out["SyncState"]) == (True, True, 2)
+    assert out["RemainingMasterDistance"] == 0.0 and out["Warning"]
+    assert slave(s) == pytest.approx(-30.0 + m_seen, abs=1e-9)
+    ax = s.ctl.axis(2)
+    assert ax.actual_velocity < 0.0  # the drive moves the slave backwards
     r = Run(s, g)
-    k = r.until_in_sync()
-    start, sync = assert_sequence([(True, False, 1), *r.status])
-    assert start == 0 and sync == k + 1
-    assert min(r.slave_v[:k]) < 0.0 and min(r.slave[:k]) < -30.0  # backwards, then on
-    r.check_arrival(k, 0.0, -30.0, 1.0)
+    backwards = []
+    for _ in range(250):
+        r.cycle()
+        backwards.append(ax.actual_velocity)
+    for k in range(250):
+        assert r.slave[k] == pytest.approx(-30.0 + r.seen[k], abs=1e-9)
+    assert min(backwards) < -50.0  # it ran back, faster than the master runs forward
+    # after 0.5 s the drive (bandwidth 40 Hz) follows at 50 mm/s, lagging by 2v/w
+    assert ax.actual_velocity == pytest.approx(50.0, rel=1e-3)
+    lag = 2.0 * 50.0 / (2.0 * np.pi * 40.0)
+    assert ax.actual_position == pytest.approx(ax.command_position - lag, abs=2 * COUNT)
     # SyncMode 0 refuses the same inputs (the slave must be before its sync position)
     s2 = system()
     move_to(s2, 1, -120.0)

@@ -203,3 +203,89 @@ def test_other_bool_writes_are_refused(number: int) -> None:
     assert out["Error"] and not out["Done"]
     assert out["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
     assert read(system, 6, "ReadBool")["Value"] is True  # unchanged
+
+
+# -- the application limits (PLCopen's table: 9, 13, 15, 17 are R/W, 9 basic) -------------
+@pytest.mark.parametrize(
+    ("number", "system_number", "value"),
+    [(9, 8, 100.0), (13, 12, 500.0), (15, 14, 750.0), (17, 16, 10000.0)],
+)
+def test_an_application_limit_is_written_and_read_back(
+    number: int, system_number: int, value: float
+) -> None:
+    system = rig()
+    before = read(system, system_number)["Value"]
+    out = write(system, number, value)
+    assert out["Done"] and not out["Error"] and out["ErrorID"] == 0
+    assert read(system, number)["Value"] == value
+    assert read(system, system_number)["Value"] == before  # the System limit stays
+
+
+@pytest.mark.parametrize(
+    ("number", "value"),
+    [(9, 250.5), (9, 0.0), (9, -1.0), (9, math.nan), (9, math.inf), (13, 2000.5),
+     (15, 3001.0), (17, 0.0), (17, JERK * 2)],
+)  # fmt: skip
+def test_an_application_limit_beyond_the_system_one_is_refused(number: int, value: float) -> None:
+    system = rig()
+    before = read(system, number)["Value"]
+    out = write(system, number, value)
+    assert out["Error"] and not out["Done"]
+    assert out["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
+    assert read(system, number)["Value"] == before
+
+
+def test_a_lowered_max_velocity_judges_the_next_plcopen_command() -> None:
+    """MC_MoveVelocity at 150 mm/s: accepted under the System 250, refused (ErrorID 13)
+    once MaxVelocityAppl is 100; 100 itself is accepted."""
+    system = rig()
+    vel = system.add(
+        "MC_MoveVelocity",
+        "Vel",
+        {"Axis": 1, "Velocity": 150.0, "Acceleration": 1000.0, "Deceleration": 1000.0},
+    )
+    trigger(system, vel)
+    assert vel.outputs["Busy"] and not vel.outputs["Error"]
+    assert write(system, 9, 100.0)["Done"]
+    vel.inputs["Execute"] = False
+    system.cycle()
+    trigger(system, vel)
+    assert vel.outputs["Error"] and vel.outputs["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
+    vel.inputs["Execute"] = False
+    system.cycle()
+    trigger(system, vel, Velocity=100.0)
+    assert vel.outputs["Busy"] and not vel.outputs["Error"]
+
+
+def test_a_lowered_max_velocity_limits_a_logix_jog() -> None:
+    """Logix limits a time-driven speed to the Maximum Speed: a MAJ at 200 mm/s runs at
+    the written MaxVelocityAppl of 100 mm/s (reached after 100 / 1000 = 0.1 s)."""
+    system = rig()
+    assert write(system, 9, 100.0)["Done"]
+    trigger(system, system["MAJ_1"], Speed=200.0, AccelRate=1000.0, DecelRate=1000.0)
+    system.cycle(200)
+    assert system.ctl.axis(1).command_velocity == pytest.approx(100.0, abs=1e-9)
+
+
+def test_motion_already_running_keeps_its_profile_when_a_limit_is_lowered() -> None:
+    """The documented choice: a jog at 200 mm/s started under the System 250 runs on at
+    200 mm/s after MaxVelocityAppl drops to 100; an MC_Stop asked at 3000 mm/s² once
+    MaxDecelerationAppl is 1000 brakes at 1000 mm/s² (a stop is limited, never refused):
+    at rest after 200 / 1000 = 0.2 s = 100 cycles, not after 34."""
+    system = rig()
+    ax = system.ctl.axis(1)
+    trigger(system, system["MAJ_1"], Speed=200.0, AccelRate=2000.0, DecelRate=2000.0)
+    system.cycle(100)
+    assert ax.command_velocity == pytest.approx(200.0)
+    assert write(system, 9, 100.0)["Done"]
+    assert write(system, 15, 1000.0)["Done"]
+    system.cycle(50)
+    assert ax.command_velocity == pytest.approx(200.0)
+    stop = system.add("MC_Stop", "Stop", {"Axis": 1, "Deceleration": 3000.0})
+    trigger(system, stop)
+    assert stop.outputs["Busy"] and not stop.outputs["Error"]
+    assert ax.command_velocity == pytest.approx(200.0 - 1000.0 * 0.002)
+    system.cycle(98)
+    assert ax.command_velocity == pytest.approx(2.0)
+    system.cycle()
+    assert ax.command_velocity == pytest.approx(0.0, abs=1e-9)

@@ -107,13 +107,11 @@ def test_instructions_error_with_err_7_until_mgsr() -> None:
     assert mgsr.bit("DN") and not mgsr.bit("ER")
     assert [a.state for a in system.ctl.axes] == [AxisState.AXIS_READY] * 3
     system.cycle()
-    # a held Enable does not re-enable by itself: a new rising edge does
-    assert not power.outputs["Status"]
-    power.inputs["Enable"] = False
-    system.cycle()
-    power.inputs["Enable"] = True
-    system.cycle()
-    assert power.outputs["Status"] and not power.outputs["Error"]  # MC_Power enables axis 2
+    # PLCopen: "As long as 'Enable' is true, power is being enabled": the held Enable
+    # enables axis 2 once MGSR brought it back to Axis Ready, and the ERR 7 clears
+    assert power.outputs["Status"] and not power.outputs["Error"]
+    assert power.outputs["ErrorID"] == 0
+    assert system.ctl.axis(2).state == AxisState.SERVO_CONTROL
     mso = logix(system["MSO_x"])
     trigger(system, mso)
     assert mso.bit("DN") and not mso.bit("ER")

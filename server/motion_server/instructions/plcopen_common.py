@@ -87,6 +87,37 @@ class MotionBlock(PLCopenBlock):
                 )
         return limits
 
+    def stop_dynamics(self, ax: Axis) -> tuple[float, float]:
+        """Deceleration and Jerk of a stop or halt (MC_Stop, MC_Halt), limited to the
+        axis's maxima rather than refused: a stop asked steeper than the axis may brake
+        still stops it, at its maximum deceleration (and jerk), as Logix MAS and MGS do.
+        A value that is no valid rate at all (<= 0, NaN) is left for the kernel to judge
+        (ErrorID 13). Jerk 0 stays 0 (trapezoidal), as for every PLCopen motion block."""
+        cfg = ax.config
+        decel = float(self.op["Deceleration"])
+        jerk = float(self.op["Jerk"])
+        if decel > cfg.max_deceleration:
+            decel = cfg.max_deceleration
+        if cfg.max_jerk > 0.0 and jerk > cfg.max_jerk:
+            jerk = cfg.max_jerk
+        return decel, jerk
+
+    def check_gear_dynamics(self, ax: Axis) -> None:
+        """Acceleration, Deceleration and Jerk of a gear's catch-up (MC_GearIn and the
+        other synchronising blocks) within the slave's maxima: beyond one, ErrorID 13 on
+        that operand, as for every motion command (:meth:`limits`)."""
+        cfg = ax.config
+        for name, maximum, what in (
+            ("Acceleration", cfg.max_acceleration, "max_acceleration"),
+            ("Deceleration", cfg.max_deceleration, "max_deceleration"),
+            ("Jerk", cfg.max_jerk or math.inf, "max_jerk"),
+        ):
+            value = float(self.op[name])
+            if value > maximum:
+                raise self.out_of_range(
+                    name, f"{name} {value:g} is beyond the slave's {what} {maximum:g}"
+                )
+
     def begin(self, ax: Axis, make: ProcessFactory) -> None:
         mode = int(self.op.get("BufferMode", BufferMode.ABORTING))
         self.process = None

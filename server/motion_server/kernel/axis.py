@@ -55,12 +55,19 @@ _HOMING = 1 << MotionStatusBit.HOMING
 class Axis:
     def __init__(self, arrays: AxisArrays, config: AxisConfig, index: int) -> None:
         self._s = arrays
+        #: the configuration commands are judged against: the site map's, with the
+        #: application maxima a program may lower (:mod:`.appl_limits`)
         self.config = config
+        #: the site map's configuration, as loaded (the system maxima)
+        self.system_config = config
         self.index = index
         self.number = config.number
         self.name = config.name
         self.type = config.type
         self._state = AxisState.AXIS_READY
+        #: the PowerEvent (as int) that last changed the power state, -1 before any
+        #: (:mod:`.power`; MC_Power re-enables after a reset, not after a disable)
+        self.power_event = -1
         self._homed = False
         self._stop_latch: object | None = None
         self._after_stop = AfterStop.NOTHING

@@ -6,10 +6,7 @@ master's **actual** position (the seed: SlaveCommandPosition = MasterActualPosit
 RatioNumerator / RatioDenominator).
 
 Phases (``sync_state``): WAITING until the master reaches MasterStartDistance before
-MasterSyncPosition (the slave keeps the velocity it had, usually rest), or not at all
-with SyncMode immediate when the master or the slave is already beyond its start (the
-seed: "the slave axis will immediately synchronize"; a slave ahead moves backwards);
-SYNCHRONIZING:
+MasterSyncPosition (the slave keeps the velocity it had, usually rest); SYNCHRONIZING:
 the lock-on, planned in the master-position domain as a quintic slave(m) from the last
 waiting sample to the sync point, with slope (ds/dm) = slave velocity / master velocity at
 the start and = ratio at the end, curvature 0 at both ends; IN_SYNC: slave = slave sync
@@ -17,6 +14,17 @@ position + ratio x (master - master sync position). Because the slave is a funct
 the master's position, it arrives at SlaveSyncPosition with velocity ratio x master
 velocity exactly when the master reaches MasterSyncPosition, whatever the master's speed
 does meanwhile.
+
+SyncMode immediate with the master at or past its start point (MasterStartDistance
+before MasterSyncPosition) or the slave at or beyond SlaveSyncPosition when the block
+starts: no waiting and no lock-on. The seed: "If either the master or slave axis are
+beyond their respective sync start positions, the slave axis will immediately
+synchronize to the master axis [...] If the slave axis is ahead of the master axis at the
+time of synchronization, the slave axis will move backwards." The process is IN_SYNC in
+its first step: the slave's command is placed on SlaveSyncPosition + ratio x (master -
+MasterSyncPosition) and follows it from there (the drive moves the axis there, backwards
+when the slave was ahead), with Warning set (the seed: "slave axis acceleration may be
+excessive").
 
 :func:`plan_sync` judges the inputs as the seed's SyncMode rules say (ErrorID 13 when
 they are inconsistent) and picks the next occurrence of a sync position on rotary axes.
@@ -82,9 +90,9 @@ class SyncPlan:
     denominator: int
     #: the seed's warning rule: MasterStartDistance x |ratio| < the slave sync distance
     excessive: bool
-    #: SyncMode immediate with the slave already at or beyond its sync position: the
-    #: lock-on begins at once, wherever the master is (the slave moves back if ahead)
-    slave_beyond: bool = False
+    #: SyncMode immediate with the master at or past its start point, or the slave at or
+    #: beyond its sync position: in sync at once (the slave moves back if ahead)
+    immediate: bool = False
 
     @property
     def ratio(self) -> float:
@@ -144,7 +152,9 @@ def plan_sync(
         if mode == SyncMode.NORMAL and ds * (s_sync - s0) <= 0.0:
             raise _inconsistent("the slave must be before SlaveSyncPosition")
     excessive = abs(s_sync - s0) > start_distance * abs(numerator / denominator)
-    beyond = mode == SyncMode.IMMEDIATE and ds * (s_sync - s0) <= 0.0
+    slave_beyond = ds * (s_sync - s0) <= 0.0
+    master_beyond = d * (m0 - (m_sync - d * start_distance)) >= 0.0
+    immediate = mode == SyncMode.IMMEDIATE and (slave_beyond or master_beyond)
     return SyncPlan(
         m_sync,
         s_sync,
@@ -154,7 +164,7 @@ def plan_sync(
         int(numerator),
         int(denominator),
         excessive,
-        beyond,
+        immediate,
     )
 
 
@@ -273,6 +283,11 @@ class GearInPosProcess(Process):
         self._m_prev += d
         self._m_a += d
 
+    def _sync_offset(self) -> float:
+        """What the slave's base and its other processes add to this one's position."""
+        slave = self._slave
+        return slave.base + sum(p.position for p in slave.processes if p is not self and p.active)
+
     def _begin_lock_on(self) -> None:
         """Plan slave(m) from the last waiting sample to the sync point."""
         plan = self.plan
@@ -280,8 +295,7 @@ class GearInPosProcess(Process):
         slave = self._slave
         self.sync_state = SyncState.SYNCHRONIZING
         self.start_sync = True
-        offset = slave.base + sum(p.position for p in slave.processes if p is not self and p.active)
-        self._p_sync = plan.slave_sync - offset
+        self._p_sync = plan.slave_sync - self._sync_offset()
         self._m_a, self._p_a = self._m_prev, self.position
         length = plan.master_sync - self._m_a
         if plan.direction * length <= 0.0:
@@ -307,8 +321,16 @@ class GearInPosProcess(Process):
         m = float(self._pos[self._mi])
         vm = float(self._vel[self._mi])
         am = (vm - self._v_prev) / dt
-        if self.sync_state == SyncState.WAITING:
-            if plan.direction * (m - plan.start) < 0.0 and not plan.slave_beyond:
+        if self.sync_state == SyncState.WAITING and plan.immediate:
+            # immediate synchronisation: placed on the geared position at once
+            self.start_sync = True
+            self.warning = True
+            self._p_sync = plan.slave_sync - self._sync_offset()
+            self.sync_state = SyncState.IN_SYNC
+            self.locked = True
+            self.status_changed = True  # GearingLockStatus
+        elif self.sync_state == SyncState.WAITING:
+            if plan.direction * (m - plan.start) < 0.0:
                 self._hold_cycles += 1
                 self.position = self._hold * (self._hold_cycles * dt)
                 self.velocity = self._hold

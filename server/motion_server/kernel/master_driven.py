@@ -36,7 +36,7 @@ Decisions (where the Logix manuals leave it open):
 from __future__ import annotations
 
 import math
-from enum import IntEnum
+from enum import IntEnum, StrEnum
 from typing import Any
 
 import ruckig
@@ -85,6 +85,86 @@ def master_speed(ctx: StepContext, master: Axis, reference: MasterReference) -> 
     return max(ctx.read_master(master.index, link_reference(master, reference))[1], 0.0)
 
 
+#: master travel (master units) a master-driven profile may take, at most: ruckig's
+#: offline planner loses its precision and raises near 1e12; 1e9 mm of master travel is
+#: more than eleven days of a master at 1 m/s
+MAX_MASTER_TRAVEL = 1e9
+#: the bound a profile planned inside the kernel (a change of master, a re-plan) is held
+#: to: wider than the operands' bound, so that motion judged at its start is not refused
+#: later for a ratio it inherits, yet short of where ruckig raises
+PLANNER_TRAVEL = 1e11
+
+
+class Dynamic(StrEnum):
+    """The quantity of a master-driven profile that makes it unplannable."""
+
+    SPEED = "speed"
+    DISTANCE = "distance"
+    ACCELERATION = "acceleration"
+    DECELERATION = "deceleration"
+    JERK = "jerk"
+
+
+class MasterProfileError(MotionError):
+    """A master-driven profile that cannot be planned: ERR 13, with the quantity at fault
+    (the instruction names the operand that gave it)."""
+
+    def __init__(self, quantity: Dynamic, message: str) -> None:
+        self.quantity = quantity
+        super().__init__(ErrorCode.PARAMETER_OUT_OF_RANGE, message)
+
+
+def judge_master_profile(
+    limits: Limits,
+    ratio: float,
+    velocity: float | None,
+    position: float | None,
+    bound: float = MAX_MASTER_TRAVEL,
+) -> None:
+    """Refuse, before ruckig sees them, dynamics whose profile would take more than
+    ``bound`` of master travel (ruckig raises on such inputs: an
+    AccelRate of 1e-30 per master unit², a move at 1e-30 per master unit). The travel is
+    bounded from above by a feasible profile: brake from the current ``ratio``, then ramp
+    (and cruise) to the target; the largest share names the quantity at fault."""
+    limits = limits.validated()
+    acc, dec = limits.acceleration, limits.deceleration
+    terms = dict.fromkeys(Dynamic, 0.0)
+    if position is None:
+        target = float(velocity or 0.0)
+        if ratio * target < 0.0:  # reverse: brake to 0, then ramp up the other way
+            terms[Dynamic.DECELERATION] = abs(ratio) / dec
+            terms[Dynamic.ACCELERATION] = abs(target) / acc
+        elif abs(target) >= abs(ratio):
+            terms[Dynamic.ACCELERATION] = (abs(target) - abs(ratio)) / acc
+        else:
+            terms[Dynamic.DECELERATION] = (abs(ratio) - abs(target)) / dec
+    else:
+        rate = min(acc, dec)
+        slow = Dynamic.ACCELERATION if acc <= dec else Dynamic.DECELERATION
+        terms[Dynamic.DECELERATION] = abs(ratio) / dec
+        way = abs(position) + ratio * ratio / (2.0 * dec)
+        v = limits.velocity
+        if way * rate <= v * v:
+            terms[slow] += 2.0 * math.sqrt(way / rate)
+        else:
+            # a way longer than any profile may travel is the distance's fault, else the
+            # speed's (too slow to cover it)
+            cruise = Dynamic.DISTANCE if abs(position) > bound else Dynamic.SPEED
+            terms[cruise] = way / v
+            terms[slow] += v / rate
+    if not limits.trapezoidal:
+        terms[Dynamic.JERK] = 4.0 * max(acc, dec) / limits.jerk
+    total = sum(terms.values())
+    if math.isfinite(total) and total <= bound:
+        return
+    worst = max(terms, key=lambda q: terms[q])
+    raise MasterProfileError(
+        worst,
+        f"the {worst.value} makes the master-driven profile take {total:g} master units "
+        f"(at most {bound:g})",
+    )
+
+
 class MasterProfile:
     """A ruckig trajectory planned in the master-position domain (offline, sampled at the
     master travel ``s``): positions in slave units, "velocity" a ratio (units per master
@@ -95,6 +175,11 @@ class MasterProfile:
         self, limits: Limits, ratio: float, velocity: float | None, position: float | None
     ) -> None:
         limits = limits.validated()
+        if position is not None and not math.isfinite(position):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "distance must be finite")
+        if velocity is not None and not math.isfinite(velocity):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "speed must be finite")
+        judge_master_profile(limits, ratio, velocity, position, PLANNER_TRAVEL)
         inp = ruckig.InputParameter(1)
         inp.current_position = [0.0]
         inp.current_velocity = [float(ratio)]
@@ -131,7 +216,7 @@ class MasterProfile:
         self._traj = ruckig.Trajectory(1)
         try:
             result = ruckig.Ruckig(1).calculate(inp, self._traj)
-        except RuntimeError as exc:  # pragma: no cover - inputs are validated beforehand
+        except (RuntimeError, ruckig.RuckigError) as exc:  # pragma: no cover - judged above
             raise MotionError(ErrorCode.PROFILE_FAILED, str(exc)) from exc
         if result not in (ruckig.Result.Working, ruckig.Result.Finished):
             raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")

@@ -13,7 +13,9 @@ Leaving Servo Control aborts the axis's processes (no ramp) with the event's rea
 cancels a buffered command, releases a Stopping latch and drops a waiting after-stop
 action; entering it starts the command where the axis is, at rest. A transition to the
 same state does nothing, except a fault on a faulted axis and a shutdown of a shut-down
-one (:data:`REAPPLIED`), which end again whatever was started on the axis since.
+one (:data:`REAPPLIED`), which end again whatever was started on the axis since. The
+event that last changed the state stays on the axis (``Axis.power_event``): MC_Power
+reads it to tell a reset (:data:`RESETS`) from a deliberate disable.
 """
 
 from __future__ import annotations
@@ -99,6 +101,12 @@ TRANSITIONS: dict[tuple[AxisState, PowerEvent], AxisState | ErrorCode] = {
 REAPPLIED = frozenset({(F, E.FAULT), (D, E.SHUTDOWN)})
 del R, S, F, D, E
 
+#: events that bring an axis back to Axis Ready by a reset (MAFR, MC_Reset, MASR, MGSR): an
+#: MC_Power whose Enable is held re-enables the axis after them (PLCopen: "As long as
+#: 'Enable' is true, power is being enabled"), but not after a deliberate disable (MSF, a
+#: stop's disable action, Enable falling on another block)
+RESETS = frozenset({PowerEvent.FAULT_RESET, PowerEvent.SHUTDOWN_RESET})
+
 #: events a feedback-only axis refuses whatever its state (it has no drive)
 NEEDS_DRIVE = frozenset({PowerEvent.SERVO_ON, PowerEvent.MOTION})
 
@@ -150,6 +158,7 @@ class Power:
         """Apply ``event`` (MotionError if the table refuses it)."""
         state = next_state(ax, event)
         if state != ax.state or (state, event) in REAPPLIED:
+            ax.power_event = int(event)
             self._enter(ax, state, ABORT_REASON.get(event, AbortReason.NONE))
 
     def _enter(self, ax: Axis, state: AxisState, reason: AbortReason) -> None:

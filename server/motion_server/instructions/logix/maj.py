@@ -56,6 +56,7 @@ class MAJ(SpeedControlledMotion):
 
         def make_master(link: MasterLink, master: Axis, ratio: float) -> Process:
             target = abs(ratio) if merge_current else speed
+            self.judge_master_driven(ax, master, sign * target, limits, ratio)
             return MasterDrivenJog(
                 self.ctl, master, link.reference, sign * target, limits, ratio, owner=self
             )

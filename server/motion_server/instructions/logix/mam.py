@@ -65,6 +65,7 @@ class MAM(SpeedControlledMotion):
             return MoveProcess(dt, distance, limits, v, a, owner=self, landing=landing)
 
         def make_master(link: MasterLink, master: Axis, ratio: float) -> Process:
+            self.judge_master_driven(ax, master, speed, limits, ratio, distance)
             return MasterDrivenMove(
                 self.ctl, master, link.reference, distance, limits, ratio, owner=self
             )

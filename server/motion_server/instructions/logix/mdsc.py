@@ -5,6 +5,13 @@ Both start their process time-driven (rates per second or % of maximum) or maste
 may switch a pending MDAC reassignment, and is refused when the change of master would
 leave the slave with an idle master (ERR 97) or under 5 % of its speed (ERR 103).
 ``TrackingMaster`` shows while the slave follows its master at the programmed speed.
+
+Master-driven operands are judged before a profile is planned (ERR 13, EXERR naming the
+operand): a Speed that would drive the slave beyond its maximum velocity when its master
+runs at its own (Speed x master MaxVelocity > slave MaxVelocity: refused, not limited as
+a time-driven speed is, since a master-driven speed is the coupling ratio the program
+relies on), and rates or jerks so small (or a move so slow) that the profile would take
+more than ``MAX_MASTER_TRAVEL`` of master travel (ruckig would raise on them).
 """
 
 from __future__ import annotations
@@ -14,15 +21,30 @@ from collections.abc import Callable, Collection
 from typing import ClassVar
 
 from ...kernel import Axis, ErrorCode, Limits, MotionError, ProcessKind
-from ...kernel.master_driven import MasterDrivenProcess
+from ...kernel.master_driven import (
+    Dynamic,
+    MasterDrivenProcess,
+    MasterProfileError,
+    judge_master_profile,
+)
 from ...kernel.mdac_links import MasterFactory
 from ...kernel.processes import Process
 from .. import dynamics
-from ..base import Gate, gate
+from ..base import Gate, OperandError, gate
 from ..dynamics import DriveMode, MergeMode, MergeSpeed, ProfileType
 from ..logix_common import ProcessInstruction
 from ..operands import TRACKING_MASTER
 from ..schema import StatusField
+
+#: the operand that gives each master-driven quantity (jerk: the smaller jerk operand)
+OPERAND_OF: dict[Dynamic, str] = {
+    Dynamic.SPEED: "Speed",
+    Dynamic.ACCELERATION: "AccelRate",
+    Dynamic.DECELERATION: "DecelRate",
+    Dynamic.DISTANCE: "Position",
+}
+#: relative resolution of the Speed x master maximum comparison (REAL operands)
+SPEED_TOLERANCE = 1e-6
 
 
 class SpeedControlledMotion(ProcessInstruction):
@@ -64,6 +86,42 @@ class SpeedControlledMotion(ProcessInstruction):
             speed = abs(ax.command_velocity)
         limits = dynamics.logix_limits(self, ax, max(speed, 0.0))
         return mode, speed, limits
+
+    def judge_master_driven(
+        self,
+        slave: Axis,
+        master: Axis,
+        speed: float,
+        limits: Limits,
+        ratio: float,
+        distance: float | None = None,
+    ) -> None:
+        """Judge a master-driven start against ``master`` (see the module docstring):
+        the profile from the inherited ``ratio`` and, for a jog, its way back to rest."""
+        top = slave.config.max_velocity
+        if abs(speed) * master.config.max_velocity > top * (1.0 + SPEED_TOLERANCE):
+            raise self.out_of_range(
+                "Speed",
+                f"Speed {speed:g} per master unit drives {slave.name} beyond its maximum "
+                f"velocity {top:g} when {master.name} runs at its "
+                f"{master.config.max_velocity:g}",
+            )
+        try:
+            if distance is None:
+                judge_master_profile(limits, ratio, speed, None)
+                judge_master_profile(limits, speed, 0.0, None)  # stopping it later
+            else:
+                judge_master_profile(limits, ratio, None, distance)
+        except MasterProfileError as exc:
+            raise self._operand_of(exc) from None
+
+    def _operand_of(self, exc: MasterProfileError) -> OperandError:
+        if exc.quantity == Dynamic.JERK:
+            accel_jerk = float(self.op["AccelJerk"]) <= float(self.op["DecelJerk"])
+            name = "AccelJerk" if accel_jerk else "DecelJerk"
+        else:
+            name = OPERAND_OF[exc.quantity]
+        return self.out_of_range(name, str(exc))
 
     def launch(
         self,

@@ -2,7 +2,8 @@
 hold them: number, type, how to read it, and for the one that can be written, how.
 
 The numbers are PLCopen's (TwinCAT MC_AxisParameter and CODESYS SM3_Basic use the same
-1-17). What our axes have:
+1-17). What our axes have (PLCopen's R/W column, checked row by row: 1, 8, 10, 11, 12,
+14, 16 are R; 2-7, 9, 13, 15, 17 are R/W, of which only 9 is basic):
 
 - 1 CommandedPosition, 10 ActualVelocity, 11 CommandedVelocity: as the axis tags show
   them after the cycle;
@@ -12,11 +13,18 @@ The numbers are PLCopen's (TwinCAT MC_AxisParameter and CODESYS SM3_Basic use th
   7 MaxPositionLag: that limit (site map ``following_error_limit``), writable
   (MC_WriteParameter): a value >= 0, 0 turning the monitoring off; both effective from
   the next cycle;
-- 8 / 9 MaxVelocity, 12 / 13 MaxAcceleration, 14 / 15 MaxDeceleration, 16 / 17 MaxJerk
-  (0: unlimited): the axis's maxima; an axis here has one limit, so System and Appl read
-  the same value;
+- 8 MaxVelocitySystem, 12 MaxAccelerationSystem, 14 MaxDecelerationSystem, 16
+  MaxJerkSystem (0: unlimited): the site map's maxima, read-only (R in PLCopen's table);
+- 9 MaxVelocityAppl, 13 MaxAccelerationAppl, 15 MaxDecelerationAppl, 17 MaxJerkAppl: the
+  maxima commands are judged against, R/W as in PLCopen's table (9 is "B", basic):
+  the System value at start, writable (MC_WriteParameter) with a value above 0 and at
+  most the System one (jerk 0, unlimited, only when the System jerk is unlimited); a
+  new value applies to commands from then on, motion already running keeps its profile
+  (:mod:`motion_server.kernel.appl_limits`);
 - 4 / 5 EnableLimitPos / EnableLimitNeg (BOOL): FALSE, the simulated axes have no
-  software limits; 2 / 3 SWLimitPos / SWLimitNeg: none to read (ErrorID 13).
+  software limits (extended parameters, which PLCopen lets an implementation leave
+  out); 2 / 3 SWLimitPos / SWLimitNeg: none to read or write (ErrorID 13); writing 4 / 5
+  is refused too (ErrorID 13), as switching on limits that do not exist would mislead.
 
 A number that is not in the table, a BOOL parameter read as a number or the other way
 round, and a write to a read-only parameter are refused with ErrorID 13 naming the
@@ -30,6 +38,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from ...kernel import Axis, Controller, ErrorCode, MotionError
+from ...kernel.appl_limits import Limit, application_limit, set_application_limit, system_limit
 
 
 class MCAxisParameter(IntEnum):
@@ -81,6 +90,17 @@ def _set_lag_watched(ctl: Controller, ax: Axis, value: float) -> None:
     ctl.set_lag_monitoring(ax, bool(value))
 
 
+def _system(limit: Limit) -> Parameter:
+    return Parameter(False, lambda c, a: system_limit(a, limit))
+
+
+def _appl(limit: Limit) -> Parameter:
+    def write(ctl: Controller, ax: Axis, value: float) -> None:
+        set_application_limit(ax, limit, value)
+
+    return Parameter(False, lambda c, a: application_limit(a, limit), write)
+
+
 P = MCAxisParameter
 PARAMETERS: dict[MCAxisParameter, Parameter] = {
     P.COMMANDED_POSITION: Parameter(False, lambda c, a: a.command_position),
@@ -88,16 +108,16 @@ PARAMETERS: dict[MCAxisParameter, Parameter] = {
     P.ENABLE_LIMIT_NEG: Parameter(True, lambda c, a: 0.0),
     P.ENABLE_POS_LAG_MONITORING: Parameter(True, _lag_watched, _set_lag_watched),
     P.MAX_POSITION_LAG: Parameter(False, _fe_limit, _set_fe_limit),
-    P.MAX_VELOCITY_SYSTEM: Parameter(False, lambda c, a: a.config.max_velocity),
-    P.MAX_VELOCITY_APPL: Parameter(False, lambda c, a: a.config.max_velocity),
+    P.MAX_VELOCITY_SYSTEM: _system(Limit.VELOCITY),
+    P.MAX_VELOCITY_APPL: _appl(Limit.VELOCITY),
     P.ACTUAL_VELOCITY: Parameter(False, lambda c, a: a.actual_velocity),
     P.COMMANDED_VELOCITY: Parameter(False, lambda c, a: a.command_velocity),
-    P.MAX_ACCELERATION_SYSTEM: Parameter(False, lambda c, a: a.config.max_acceleration),
-    P.MAX_ACCELERATION_APPL: Parameter(False, lambda c, a: a.config.max_acceleration),
-    P.MAX_DECELERATION_SYSTEM: Parameter(False, lambda c, a: a.config.max_deceleration),
-    P.MAX_DECELERATION_APPL: Parameter(False, lambda c, a: a.config.max_deceleration),
-    P.MAX_JERK_SYSTEM: Parameter(False, lambda c, a: a.config.max_jerk),
-    P.MAX_JERK_APPL: Parameter(False, lambda c, a: a.config.max_jerk),
+    P.MAX_ACCELERATION_SYSTEM: _system(Limit.ACCELERATION),
+    P.MAX_ACCELERATION_APPL: _appl(Limit.ACCELERATION),
+    P.MAX_DECELERATION_SYSTEM: _system(Limit.DECELERATION),
+    P.MAX_DECELERATION_APPL: _appl(Limit.DECELERATION),
+    P.MAX_JERK_SYSTEM: _system(Limit.JERK),
+    P.MAX_JERK_APPL: _appl(Limit.JERK),
 }
 del P
 

@@ -86,6 +86,7 @@ class MC_CombineAxes(MotionBlock):
             )
         dt = self.ctl.dt(slave)
         acc, dec, jerk = (float(self.op[k]) for k in ("Acceleration", "Deceleration", "Jerk"))
+        self.check_gear_dynamics(slave)
         catch_up(dt, acc, dec, jerk)  # judge the dynamics now: a bad value moves nothing
         ctl = self.ctl
 

@@ -84,6 +84,7 @@ class MC_GearIn(MotionBlock):
         term.validated()
         dt = self.ctl.dt(slave)
         acc, dec, jerk = (float(self.op[k]) for k in ("Acceleration", "Deceleration", "Jerk"))
+        self.check_gear_dynamics(slave)
         catch_up(dt, acc, dec, jerk)  # judge the dynamics now: a bad value moves nothing
         ctl = self.ctl
         direction = 1 if num > 0 else -1

@@ -10,7 +10,10 @@ over (CommandAborted). The lock-on is planned in the master-position domain (see
 
 Inputs are judged against the seed's SyncMode rules when the motion starts: inconsistent
 inputs mean no motion, Error, ErrorID 13. Rotary axes (rollover > 0) sync at the next
-occurrence of the sync positions; SyncMode 1 (immediate) needs linear axes.
+occurrence of the sync positions; SyncMode 1 (immediate) needs linear axes, and with the
+master at or past its start point or the slave at or beyond its sync position it is in
+sync in the scan it starts (the slave placed on its geared position, moving backwards
+when it was ahead).
 
 Beyond the seed's outputs: ``SyncState`` (waiting 0, synchronizing 1, in sync 2),
 ``RemainingMasterDistance`` (master travel left to MasterSyncPosition) and ``Warning``

@@ -3,7 +3,8 @@
 Unlike MC_Stop there is no Stopping latch: the axis is in DiscreteMotion while it ramps
 down and in StandStill once at rest, when Done is set. Another motion command may take
 over during the ramp (this block then reports CommandAborted). Refused while the axis is
-Stopping (ErrorID 78), as every motion command is.
+Stopping (ErrorID 78), as every motion command is. A Deceleration or Jerk beyond the
+axis's maximum is limited to it (a halt is never refused for braking too hard).
 """
 
 from __future__ import annotations
@@ -28,8 +29,7 @@ class MC_Halt(MotionBlock):
     def execute(self) -> None:
         ax = self.axis()
         self.check_axis(ax)
-        decel = float(self.op["Deceleration"])
-        jerk = float(self.op["Jerk"])
+        decel, jerk = self.stop_dynamics(ax)
         dt = self.ctl.dt(ax)
 
         def make(v: float, a: float) -> Process:

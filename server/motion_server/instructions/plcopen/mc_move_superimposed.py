@@ -7,12 +7,14 @@ replaces the active one only (which reports CommandAborted), inheriting its velo
 travelling Distance from where it takes over; the underlying motion goes on. An aborting
 motion command, MC_Halt and MC_Stop abort both. Done when the superimposed move has
 covered Distance (the underlying motion may still run). CoveredDistance is the distance
-it has covered so far, held after it ends.
+it has covered so far, held after it ends. MC_HaltSuperimposed ends it (CommandAborted)
+and ramps its velocity to rest; a new MC_MoveSuperimposed replaces that halt as it
+replaces a superimposed move.
 """
 
 from __future__ import annotations
 
-from ...kernel import AbortReason, Axis, MoveProcess
+from ...kernel import AbortReason, Axis, MoveProcess, ProcessKind, StopRamp
 from ...kernel.processes import Process
 from ..base import BlockEvent
 from ..operands import AXIS, plcopen_dynamics
@@ -26,9 +28,18 @@ class SuperimposedMove(MoveProcess):
     lanes (they admit processes by exact class), so the lanes stay bit-identical."""
 
 
-def superimposed_move(ax: Axis) -> SuperimposedMove | None:
+class SuperimposedHalt(StopRamp):
+    """MC_HaltSuperimposed: the superimposed move's own velocity ramped to rest, on top
+    of the underlying motion. A move process, as the superimposed move it replaces (a
+    Logix MAS of type Move stops it; it keeps the axis's state), outside the lanes."""
+
+    kind = ProcessKind.MOVE
+
+
+def superimposed_move(ax: Axis) -> SuperimposedMove | SuperimposedHalt | None:
+    """The axis's active superimposed motion (a move, or the halt of one), if any."""
     for p in ax.processes:
-        if p.active and isinstance(p, SuperimposedMove):
+        if p.active and isinstance(p, SuperimposedMove | SuperimposedHalt):
             return p
     return None
 

@@ -1,17 +1,22 @@
-"""MC_Power: the power stage, switched by the edges of Enable.
+"""MC_Power: the power stage, enabled as long as Enable is high.
 
-A rising edge of Enable switches the axis to Servo Control, a falling edge switches the
-drive off. Between edges the block does not touch the power stage: Logix MSO/MSF, an MGS
-Fast Disable, a shutdown or a fault keep the state they set, instead of being undone by
-this block on the next scan (an axis disabled by a stop never re-enables by itself; raise
-Enable again to re-enable it). Status follows the power stage, Valid when Status holds
-without error. A faulted axis cannot be enabled: Error with ErrorID 20 on the rising
-edge; reset it (MC_Reset) and raise Enable again.
+PLCopen Part 1: "As long as 'Enable' is true, power is being enabled"; "If the MC_Power FB
+is called with the 'Enable' = true while being in 'Disabled', the axis state changes to
+'Standstill'". A rising edge of Enable switches the axis to Servo Control, a falling edge
+switches the drive off. While Enable stays high, an axis that a reset brings back to Axis
+Ready (MC_Reset / MAFR from a fault, MASR / MGSR from a shutdown: ``power.RESETS``) is
+enabled again in the block's next scan, and Error clears. A deliberate disable while
+Enable is high (Logix MSF, an MGS Fast Disable, a programmed stop's disable action) is
+not undone: those are commands of their own, which the block would otherwise reverse on
+the next scan; lower and raise Enable to re-enable after them. Status follows the power
+stage, Valid when Status holds without error. A faulted axis cannot be enabled: Error with
+ErrorID 20 (shut down: 7) until it is reset.
 """
 
 from __future__ import annotations
 
 from ...kernel import AxisState, ErrorCode, MotionError
+from ...kernel.power import RESETS
 from ..base import PLCopenBlock
 from ..operands import AXIS
 from ..registry import register
@@ -21,7 +26,7 @@ from ..schema import Operand, StatusField, TagType
 @register
 class MC_Power(PLCopenBlock):
     TYPE = "MC_Power"
-    DESCRIPTION = "Power stage on/off (switched by the edges of Enable)"
+    DESCRIPTION = "Power stage on/off (enabled while Enable is high)"
     TRIGGER = "Enable"
     FOLLOWS_AXIS_STATE = True
     OPERANDS = (
@@ -55,11 +60,30 @@ class MC_Power(PLCopenBlock):
             except MotionError as exc:
                 self.outputs["Error"] = True
                 self.outputs["ErrorID"] = int(exc.code)
+        elif enable:
+            self._hold()
         self.outputs["Busy"] = enable
         self._status()
 
     def update(self) -> None:
         self._status()
+
+    def _hold(self) -> None:
+        """Enable held high: an axis a reset left in Axis Ready is enabled again."""
+        try:
+            ax = self.axis()
+        except MotionError:
+            return  # the edge reported it; a later write to Axis is a new edge's business
+        if ax.state != AxisState.AXIS_READY or ax.power_event not in RESETS:
+            return
+        try:
+            self.ctl.servo_on(ax)
+        except MotionError as exc:
+            self.outputs["Error"] = True
+            self.outputs["ErrorID"] = int(exc.code)
+            return
+        self.outputs["Error"] = False
+        self.outputs["ErrorID"] = 0
 
     def asleep(self) -> bool:
         # Status follows the axis's power state: the system wakes the block whenever an

@@ -2,7 +2,8 @@
 
 Every other motion on the axis is aborted (its blocks report CommandAborted); motion
 commands are refused while the axis is Stopping. Done is held while Execute is high; the
-axis returns to StandStill once Done is set and Execute is low.
+axis returns to StandStill once Done is set and Execute is low. A Deceleration or Jerk
+beyond the axis's maximum is limited to it: a stop is never refused for braking too hard.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ class MC_Stop(MotionBlock):
     def execute(self) -> None:
         ax = self.axis()
         self.ctl.require_motion(ax)
-        decel = float(self.op["Deceleration"])
-        self.process = self.ctl.stop(ax, None, decel, float(self.op["Jerk"]), owner=self)
+        decel, jerk = self.stop_dynamics(ax)
+        self.process = self.ctl.stop(ax, None, decel, jerk, owner=self)
         ax.stop_latch = self
         self.fire(BlockEvent.START)
         self.active = True

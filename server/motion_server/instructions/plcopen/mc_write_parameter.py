@@ -1,12 +1,14 @@
 """MC_WriteParameter: write a numeric PLCopen axis parameter (Execute-style).
 
 PLCopen Part 1: "modifies the value of a vendor specific parameter". Of the standard
-numeric numbers our axes hold (:mod:`.axis_parameters`) one is writable: 7
+numeric numbers our axes hold (:mod:`.axis_parameters`) these are writable: 7
 MaxPositionLag, the following error limit (>= 0; 0 turns the monitoring off), effective
 from the next cycle and read back by MC_ReadParameter and MC_ReadBoolParameter 6 (the
-BOOL 6 itself is written with MC_WriteBoolParameter). Done in the cycle of the
-rising edge, in any axis state. A read-only or unknown number, or a value out of range,
-is Error with ErrorID 13.
+BOOL 6 itself is written with MC_WriteBoolParameter); 9 MaxVelocityAppl, 13
+MaxAccelerationAppl, 15 MaxDecelerationAppl and 17 MaxJerkAppl, the maxima commands are
+judged against (above 0, at most the System value), for commands from then on. Done in
+the cycle of the rising edge, in any axis state. A read-only or unknown number, or a
+value out of range, is Error with ErrorID 13.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from .axis_parameters import MCAxisParameter, lookup
 @register
 class MC_WriteParameter(PLCopenBlock):
     TYPE = "MC_WriteParameter"
-    DESCRIPTION = "Write a numeric PLCopen axis parameter (7 MaxPositionLag)"
+    DESCRIPTION = "Write a numeric PLCopen axis parameter (7, 9, 13, 15, 17)"
     OPERANDS = (
         AXIS,
         Operand(
@@ -32,7 +34,8 @@ class MC_WriteParameter(PLCopenBlock):
             TagType.DINT,
             int(MCAxisParameter.MAX_POSITION_LAG),
             enum=MCAxisParameter,
-            description="PLCopen parameter number (writable: 7 MaxPositionLag)",
+            description="PLCopen parameter number (writable: 7 MaxPositionLag, 9 / 13 / 15 / 17 "
+            "the Appl maxima)",
         ),
         Operand("Value", TagType.LREAL, 0.0, description="the new value"),
     )

@@ -1,0 +1,72 @@
+"""Application limits: the axis maxima a program may lower at run time (PLCopen
+MaxVelocityAppl, MaxAccelerationAppl, MaxDecelerationAppl, MaxJerkAppl).
+
+An axis has two sets of maxima. The *system* maxima are the site map's
+(``Axis.system_config``, PLCopen MaxVelocitySystem ...) and never change while the server
+runs. The *application* maxima are those every command is judged and limited against
+(``Axis.config``): the system ones at start, lowered (or raised back, never beyond the
+system ones) by :func:`set_application_limit`.
+
+A new limit applies to what is commanded from then on: motion already running keeps the
+profile it was planned with (it was judged against the limits in force when it started),
+as a Logix axis applies a new Maximum Speed to the next motion instruction. A command
+issued later is judged against the new limits (a stop or halt, a Motion Change Dynamics;
+a buffered command is judged at its edge, not when it starts); an override change
+re-plans running motion with its programmed dynamics, as before.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from enum import StrEnum
+
+from .axis import Axis
+from .errors import ErrorCode, MotionError
+
+
+class Limit(StrEnum):
+    """The application limits, by their ``AxisConfig`` field."""
+
+    VELOCITY = "max_velocity"
+    ACCELERATION = "max_acceleration"
+    DECELERATION = "max_deceleration"
+    JERK = "max_jerk"
+
+
+def application_limit(ax: Axis, limit: Limit) -> float:
+    """The limit in force for commands (0 jerk: unlimited)."""
+    return float(getattr(ax.config, limit.value))
+
+
+def system_limit(ax: Axis, limit: Limit) -> float:
+    """The site map's limit (0 jerk: unlimited)."""
+    return float(getattr(ax.system_config, limit.value))
+
+
+def set_application_limit(ax: Axis, limit: Limit, value: float) -> None:
+    """Set an application limit: finite, above 0 and at most the system limit (for jerk,
+    0 means unlimited and is allowed only when the system jerk is unlimited too).
+    MotionError 13 otherwise, and the limit stays as it was."""
+    value = float(value)
+    top = system_limit(ax, limit)
+    unlimited = limit == Limit.JERK and top == 0.0
+    if not math.isfinite(value) or value < 0.0 or (value == 0.0 and not unlimited):
+        raise MotionError(
+            ErrorCode.PARAMETER_OUT_OF_RANGE,
+            f"{limit.value} {value!r} must be finite and above 0",
+        )
+    if not unlimited and value > top:
+        raise MotionError(
+            ErrorCode.PARAMETER_OUT_OF_RANGE,
+            f"{limit.value} {value!r} is above the system limit {top!r} of {ax.name}",
+        )
+    cfg = ax.config
+    if limit == Limit.VELOCITY:
+        ax.config = replace(cfg, max_velocity=value)
+    elif limit == Limit.ACCELERATION:
+        ax.config = replace(cfg, max_acceleration=value)
+    elif limit == Limit.DECELERATION:
+        ax.config = replace(cfg, max_deceleration=value)
+    else:
+        ax.config = replace(cfg, max_jerk=value)
