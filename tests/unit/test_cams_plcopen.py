@@ -214,3 +214,54 @@ def test_a_gear_in_aborts_a_cam() -> None:
     inst = cam_in(s, select(s, 3))
     run(s, s.add("MC_GearIn", "G", {}), Master=6, Slave=2, MasterValueSource=0)
     assert inst.outputs["CommandAborted"]
+
+
+def test_ramp_in_over_the_start_distance_ends_in_sync() -> None:
+    # the line y = x, absolute; the slave at 7; MasterSyncPosition 60, distance 20: idle
+    # to 40, then the quintic q(u) = p1 (10u^3 - 15u^4 + 6u^5) + v1 (-4u^3 + 7u^4 - 3u^5)
+    # from rest to the cam's position 60 (p1 = 53) and slope 1 (v1 = 1 x 20) at 60
+    s = cam_system()
+    park_slave(s, 7.0)
+    inst = cam_in(s, select(s, 3), MasterStartDistance=20.0, MasterSyncPosition=60.0)
+    master_to(s, 30.0)
+    assert slave(s) == 7.0
+    assert inst.outputs["Busy"] and not inst.outputs["Active"] and not inst.outputs["InSync"]
+    master_to(s, 50.0)  # u = 1/2: 53 x 1/2 + 20 x (-5/32) = 23.375
+    assert slave(s) == pytest.approx(7.0 + 23.375, abs=1e-12)
+    assert inst.outputs["Active"] and not inst.outputs["InSync"]
+    master_to(s, 60.0)
+    assert slave(s) == 60.0 and inst.outputs["InSync"]
+    master_to(s, 70.0)
+    assert slave(s) == 70.0
+
+
+def test_ramp_in_arrives_with_the_master_speed() -> None:
+    s = cam_system()
+    park_slave(s, 7.0)
+    inst = cam_in(s, select(s, 3), MasterStartDistance=20.0, MasterSyncPosition=60.0)
+    m = 30.0
+    velocities = []
+    while m < 70.0:
+        m = round(m + STEP, 10)
+        master_to(s, m)
+        velocities.append(s.ctl.axis(2).command_velocity)
+    assert inst.outputs["InSync"]
+    # the slope of the quintic is 0 at the start and 1 at the sync point: from rest to
+    # the master's 100 mm/s
+    assert velocities[0] == 0.0
+    assert velocities[-1] == pytest.approx(100.0, rel=1e-6)
+    # no velocity step: per 2 ms cycle at most the quintic's peak curvature, q''(u) =
+    # p1 (60u - 180u^2 + 120u^3) + v1 (-24u + 84u^2 - 60u^3), over 20 mm at 100 mm/s
+    peak = max(
+        abs(53.0 * (60 * u - 180 * u**2 + 120 * u**3) + 20.0 * (-24 * u + 84 * u**2 - 60 * u**3))
+        for u in (k / 1000 for k in range(1001))
+    )
+    bound = peak / 20.0**2 * 100.0**2 * 0.002
+    steps = [abs(b - a) for a, b in zip(velocities, velocities[1:], strict=False)]
+    assert max(steps) <= bound * 1.01
+
+
+def test_a_sync_position_outside_a_non_periodic_table_is_refused() -> None:
+    s = cam_system()
+    inst = cam_in(s, select(s, 3), MasterStartDistance=20.0, MasterSyncPosition=160.0)
+    assert inst.outputs["Error"] and inst.outputs["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE

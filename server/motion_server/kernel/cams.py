@@ -37,6 +37,12 @@ locked at the master position (or time) of that boundary, on the same master.
 
 ``passes`` counts the times the profile's end (or its start, running backwards) was
 reached: PLCopen EndOfProfile pulses on each change.
+
+A cam may *ramp in* over the cam coordinates [x_start, x_sync) (PLCopen MC_CamIn's
+MasterStartDistance before MasterSyncPosition): the slave stays where it is until x_start,
+then follows a quintic in x from its position at rest to the cam's position, slope and
+curvature at x_sync, where it is in sync; planned in the master's domain (as MC_GearInPos
+locks on), so a master that changes speed meanwhile does not spoil it.
 """
 
 from __future__ import annotations
@@ -48,6 +54,7 @@ from typing import Any
 from .cam_profile import CamProfile
 from .enums import AbortReason, MasterReference, ProcessKind, ProcessState
 from .errors import ErrorCode, MotionError
+from .gear_in_pos import Quintic
 from .processes import Process
 from .state import StepContext
 
@@ -126,6 +133,7 @@ class CamProcess(Process):
         rollover: float = 0.0,
         direction: MasterDirection = MasterDirection.BIDIRECTIONAL,
         origin: float = 0.0,
+        ramp_in: tuple[float, float] | None = None,
         owner: Any = None,
     ) -> None:
         super().__init__(owner)
@@ -168,6 +176,19 @@ class CamProcess(Process):
         self.engaged = True
         self.passes = 0
         self.successor: CamProcess | None = None
+        #: the ramp-in (x_start, x_sync) still ahead, its plan and its length in x
+        self.ramp = ramp_in
+        self.blend: Quintic | None = None
+        if ramp_in is not None:
+            x_start, x_sync = ramp_in
+            span = x_sync - x_start
+            if not span > 0.0:
+                raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "empty ramp-in")
+            f, f1, f2 = self._accumulated(x_sync)
+            target = self.origin + self.scale * (f - self.f0)
+            self.blend = Quintic(
+                0.0, 0.0, target, self.scale * f1 * span, self.scale * f2 * span * span
+            )
         m = 0.0
         if self.index is not None:
             pos, vel, _ = ctx.master_arrays(source)
@@ -179,9 +200,20 @@ class CamProcess(Process):
 
     @property
     def locked(self) -> bool:
-        """PositionCamLockStatus / TimeCamLockStatus: locked, inside the range and
-        driven by the master."""
-        return self.phase == CamPhase.LOCKED and self.in_range and self.engaged
+        """PositionCamLockStatus / TimeCamLockStatus (PLCopen InSync): locked, ramped
+        in, inside the range and driven by the master."""
+        return (
+            self.phase == CamPhase.LOCKED and self.in_range and self.engaged and self.ramp is None
+        )
+
+    def _accumulated(self, x: float) -> tuple[float, float, float]:
+        """F(x), F'(x), F''(x) with a Continuous cam's passes added."""
+        prof = self.profile
+        if self.mode == CamMode.CONTINUOUS:
+            k = math.floor((x - prof.start) / prof.length)
+            f, f1, f2 = prof.evaluate(x - k * prof.length)
+            return f + k * prof.rise, f1, f2
+        return prof.evaluate(x)
 
     def _lock(self, m0: float) -> None:
         self.phase = CamPhase.LOCKED
@@ -280,6 +312,11 @@ class CamProcess(Process):
         ms = self.master_scaling
         x = self.cam_lock + (self.m_eff - self.m0) / ms
         self.x = x
+        if self.ramp is not None:
+            if self._ramp_step(x, v_m, a_m):
+                return
+            # in sync from this cycle: the passes count from here
+            self.k = math.floor((x - prof.start) / prof.length)
         mode = self.mode
         if mode == CamMode.CONTINUOUS:
             k = math.floor((x - prof.start) / prof.length)
@@ -327,6 +364,35 @@ class CamProcess(Process):
         r = v_m / ms
         self.velocity = self.scale * f1 * r
         self.acceleration = self.scale * (f2 * r * r + f1 * (a_m / ms))
+
+    def _ramp_step(self, x: float, v_m: float, a_m: float) -> bool:
+        """One step of the ramp-in; False once x has reached the sync position."""
+        assert self.ramp is not None and self.blend is not None
+        x_start, x_sync = self.ramp
+        if x >= x_sync:
+            self.ramp = None
+            self.blend = None
+            self.status_changed = True
+            self.offer_pending = True
+            return False
+        if x <= x_start:
+            self.position = 0.0
+            self.velocity = 0.0
+            self.acceleration = 0.0
+            return True
+        span = x_sync - x_start
+        q, q1, q2 = self.blend((x - x_start) / span)
+        r = v_m / self.master_scaling
+        self.position = q
+        self.velocity = q1 / span * r
+        self.acceleration = q2 / (span * span) * r * r + q1 / span * (a_m / self.master_scaling)
+        return True
+
+    @property
+    def ramping(self) -> bool:
+        """Between the ramp-in's start and the sync position (PLCopen Active, not InSync)."""
+        ramp = self.ramp
+        return ramp is not None and self.x > ramp[0]
 
     def _hand_over(self, x_boundary: float) -> None:
         """This cam reached the boundary ``x_boundary`` (a raw cam coordinate) with a

@@ -25,15 +25,24 @@ reached (its start, running backwards). Busy and Active until another command ta
 slave over (CommandAborted: MC_CamOut, MC_Stop, an aborting move ...). BufferMode 1 waits
 for the active motion to be done or in sync.
 
-MasterStartDistance and MasterSyncPosition (a distance-based ramp-in) are not modelled:
-MasterStartDistance must be 0 (ErrorID 13). Errors: 13 an unknown CamTableID, a scaling
-that is zero, not finite or beyond +-2^31, a non-periodic coupling whose master lies
-outside the table; 8 a set-value reference to a feedback-only master; 10 a master/slave
+Ramp-in (MasterStartDistance > 0): MasterSyncPosition and MasterStartDistance are in the
+table's master values (CODESYS' ramp_in_dist). The slave stays where it is (Busy, not
+Active) until the cam coordinate reaches MasterSyncPosition - MasterStartDistance, then
+blends in (Active) along a quintic of the master's travel from rest to the cam's
+position, slope and curvature at MasterSyncPosition, where it is InSync. A periodic table
+ramps in to the next occurrence of MasterSyncPosition; a coupling already past the
+start of the ramp blends over what is left; one past MasterSyncPosition of a non-periodic
+table couples at once. The master is expected to advance the cam coordinate forward.
+
+Errors: 13 an unknown CamTableID, a scaling that is zero, not finite or beyond +-2^31, a
+non-periodic coupling whose master lies outside the table, a MasterSyncPosition outside a
+non-periodic table; 8 a set-value reference to a feedback-only master; 10 a master/slave
 loop; 5, 7, 20 the slave's power state, 78 stopping.
 """
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 from typing import Any
 
@@ -82,14 +91,14 @@ class MC_CamIn(MotionBlock):
             TagType.LREAL,
             0.0,
             minimum=0.0,
-            maximum=0.0,
-            description="ramp-in distance (not modelled: must be 0)",
+            description="ramp-in distance before MasterSyncPosition (table master units; "
+            "0: no ramp-in)",
         ),
         Operand(
             "MasterSyncPosition",
             TagType.LREAL,
             0.0,
-            description="ramp-in sync position (not used while MasterStartDistance is 0)",
+            description="table master value where the ramp-in ends in sync",
         ),
         Operand(
             "StartMode",
@@ -159,6 +168,28 @@ class MC_CamIn(MotionBlock):
             k = int((x - prof.start) // prof.length)
             return x - k * prof.length, k
 
+        distance = float(self.op["MasterStartDistance"])
+        x_sync = float(self.op["MasterSyncPosition"])
+        if distance > 0.0 and not periodic and not prof.start <= x_sync <= prof.end:
+            raise self.out_of_range(
+                "MasterSyncPosition",
+                f"MasterSyncPosition {x_sync:g} is outside the table "
+                f"[{prof.start:g}, {prof.end:g}]",
+            )
+
+        def ramp(x0: float) -> tuple[float, float] | None:
+            """The ramp-in (x_start, x_sync) ahead of the coupling point ``x0``."""
+            if distance <= 0.0:
+                return None
+            sync = x_sync
+            if periodic:
+                sync += math.ceil((x0 - sync) / prof.length) * prof.length
+                if sync <= x0:
+                    sync += prof.length
+            elif sync <= x0:
+                return None  # past the sync position: coupled at once
+            return max(sync - distance, x0), sync
+
         m_now = ctl.read_master(master.index, source)[0]
         coupling(m_now)  # judged now: a refused coupling moves nothing
 
@@ -183,6 +214,7 @@ class MC_CamIn(MotionBlock):
                 master_number=master.number,
                 rollover=master.config.rollover,
                 origin=origin,
+                ramp_in=ramp(x0),
                 owner=self,
             )
 
@@ -213,3 +245,5 @@ class MC_CamIn(MotionBlock):
             self._passes = p.passes
         self.outputs["InSync"] = in_sync
         self.outputs["EndOfProfile"] = eop
+        if isinstance(p, CamProcess) and p.ramp is not None and not p.ramping:
+            self.outputs["Active"] = False  # waiting for the ramp-in to start

@@ -68,6 +68,7 @@ class CamLane(LevelledLane):
             and p.phase == CamPhase.LOCKED
             and p.master_direction == MasterDirection.BIDIRECTIONAL
             and p.successor is None
+            and p.ramp is None
             and p.in_range
             and p.engaged
         )
