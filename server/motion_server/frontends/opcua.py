@@ -214,6 +214,8 @@ class OpcUaFrontend:
         #: the guarded wire (opcua_wire) and the operation limits (opcua_limits)
         self.limits = OperationLimits.of(cfg)
         self.screen = OperationScreen(self.limits)
+        #: the client address of each open session (the per-client subscription quota)
+        self._peers: dict[ua.NodeId, str] = {}
         self.wire = Wire(cfg.max_chunk_size, self.screen, self._fault)
         #: the communication fault of the Clock tags (delayed or dropped answers); read
         #: from the scan's image (a bare tag image, as unit tests give, has none)
@@ -383,6 +385,7 @@ class OpcUaFrontend:
             user=user,
             external=external,
             limits=self.limits,
+            peers=self._peers,
         )
 
     def _fault(self, peer: Any, fault: ChannelFault) -> None:

@@ -17,9 +17,11 @@ specification):
   AddNodes / AddReferences / DeleteNodes / DeleteReferences, and CreateMonitoredItems,
   ModifyMonitoredItems, SetMonitoringMode, DeleteMonitoredItems (``max_monitored_items_per_call``).
 - :class:`QuotaSession` gives each session at most ``max_subscriptions_per_session``
-  subscriptions (``BadTooManySubscriptions``) and ``max_monitored_items_per_session``
-  monitored items (each item past the quota gets ``BadTooManyMonitoredItems``), and lets
-  a session act on its own subscriptions only (``BadSubscriptionIdInvalid`` otherwise).
+  subscriptions and all the sessions of one client address together at most
+  ``max_subscriptions_per_client`` (``BadTooManySubscriptions``), and at most
+  ``max_monitored_items_per_session`` monitored items (each item past the quota gets
+  ``BadTooManyMonitoredItems``); it lets a session act on its own subscriptions only
+  (``BadSubscriptionIdInvalid`` otherwise).
 - :func:`publish_capabilities` writes the limits into ``Server.ServerCapabilities``
   (``OperationLimits`` and the per-session quotas), so clients can split their requests.
 """
@@ -58,6 +60,7 @@ class OperationLimits:
     node_management: int = 0
     monitored_items_per_call: int = 0
     subscriptions_per_session: int = 0
+    subscriptions_per_client: int = 0
     monitored_items_per_session: int = 0
 
     @classmethod
@@ -73,6 +76,7 @@ class OperationLimits:
             node_management=cfg.max_nodes_per_node_management,
             monitored_items_per_call=cfg.max_monitored_items_per_call,
             subscriptions_per_session=cfg.max_subscriptions_per_session,
+            subscriptions_per_client=cfg.max_subscriptions_per_client,
             monitored_items_per_session=cfg.max_monitored_items_per_session,
         )
 
@@ -146,8 +150,11 @@ class OperationScreen:
         name, count = found
         limit = getattr(self.limits, name)
         if limit and count > limit:
-            self.refused[name] = self.refused.get(name, 0) + 1
-            raise ServiceError(Codes.BadTooManyOperations)
+            self._refuse(name)
+
+    def _refuse(self, name: str) -> None:
+        self.refused[name] = self.refused.get(name, 0) + 1
+        raise ServiceError(Codes.BadTooManyOperations)
 
 
 # -- per-session quotas and ownership ---------------------------------------------------------
@@ -155,9 +162,31 @@ class QuotaSession(PeerSession):
     """A :class:`~.opcua_users.PeerSession` held to its quotas, acting on its own
     subscriptions only."""
 
-    def __init__(self, *args: Any, limits: OperationLimits, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        *args: Any,
+        limits: OperationLimits,
+        peers: dict[ua.NodeId, str] | None = None,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.limits = limits
+        #: the client address of every open session, by session id (shared by the
+        #: front-end's sessions): whose subscriptions count against a client's quota
+        self.peers = peers if peers is not None else {}
+        self.peers[self.session_id] = self.client.address
+
+    async def close_session(self, delete_subs: bool = True) -> None:
+        try:
+            await super().close_session(delete_subs)
+        finally:
+            self.peers.pop(self.session_id, None)
+
+    def _client_held(self) -> int:
+        """Subscriptions of every session from this session's client address."""
+        address, peers = self.client.address, self.peers
+        subs = self.subscription_service.subscriptions.values()
+        return sum(1 for s in subs if peers.get(s.session_id) == address)
 
     def _own(self) -> list[InternalSubscription]:
         return [
@@ -190,6 +219,9 @@ class QuotaSession(PeerSession):
     ) -> ua.CreateSubscriptionResult:
         quota = self.limits.subscriptions_per_session
         if quota and len(self._own()) >= quota:
+            raise ServiceError(Codes.BadTooManySubscriptions)
+        quota = self.limits.subscriptions_per_client
+        if quota and self._client_held() >= quota:
             raise ServiceError(Codes.BadTooManySubscriptions)
         return await super().create_subscription(params, callback, request_callback)
 

@@ -28,7 +28,11 @@ This module replaces those parts without forking asyncua (subclasses only):
   (``BadIdentityTokenRejected``: a password never crosses the wire in clear, even
   encrypted with the server's key, since the unsigned channel carrying the session
   could be taken over), lets a session be activated only on the channel that created
-  it, closes a session with its connection, and passes each request to a ``screen``
+  it, closes a session with its connection, closes the session a new CreateSession on
+  the same channel replaces (asyncua forgets it there, and it lives on with its
+  subscriptions and its activation until its timeout: 120 CreateSession, ActivateSession,
+  CreateSubscription on one connection took every subscription slot of the server for a
+  minute after the connection closed), and passes each request to a ``screen``
   (the operation limits, :mod:`.opcua_limits`) once its session is activated.
 - :class:`WireServer` is asyncua's ``Server`` with these parts, and with no user name
   token offered on an endpoint without security.
@@ -76,6 +80,7 @@ SECURE_MIN = HEADER + 4 + 4
 #: chunk types each message type may carry (F final, C intermediate, A abort)
 CHUNK_TYPES = {b"HEL": b"F", b"OPN": b"F", b"CLO": b"F", b"MSG": b"FCA"}
 _ACTIVATE = ua.NodeId(ua.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
+_CREATE = ua.NodeId(ua.ObjectIds.CreateSessionRequest_Encoding_DefaultBinary)
 _WRAP = (1 << 32) - 1024  # sequence numbers wrap below 1024 after this (Part 6, 6.7.2.4)
 #: after an Error message: the most bytes read and dropped, the longest wait, before closing
 DRAIN_BYTES = 1 << 16
@@ -297,7 +302,9 @@ class GuardedProcessor(UaProcessor):
         self, typeid: ua.NodeId, requesthdr: ua.RequestHeader, seqhdr: Any, body: Buffer
     ) -> Any:
         session = self.session
-        if typeid == _ACTIVATE:
+        if typeid == _CREATE and session is not None:
+            await self._replace(session)
+        elif typeid == _ACTIVATE:
             if session is None:
                 # asyncua would look the session up by its authentication token and move
                 # it to this channel; here a session lives and dies with its connection
@@ -307,6 +314,20 @@ class GuardedProcessor(UaProcessor):
         elif session is not None and session.is_activated() and self.wire.screen is not None:
             self.wire.screen(typeid, body, session)
         return await super()._process_message(typeid, requesthdr, seqhdr, body)
+
+    async def _replace(self, session: InternalSession) -> None:
+        """Close ``session`` (and its subscriptions) before a new CreateSession on its
+        channel replaces it. asyncua's processor holds one session per channel and
+        simply overwrites it, leaving the old one open, unreachable from here (an
+        ActivateSession always acts on the current one), until its own timeout; and
+        starts a new session watchdog without stopping the old one."""
+        # asyncua leaves the attribute untyped
+        watchdog: asyncio.Task[None] | None = getattr(self, "_session_watchdog_task", None)
+        if watchdog is not None and not watchdog.done():
+            watchdog.cancel()
+        self._session_watchdog_task = None
+        self.session = None
+        await session.close_session(True)
 
     def _refuse_user_name(self, body: Buffer) -> None:
         try:
