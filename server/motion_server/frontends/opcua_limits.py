@@ -16,12 +16,20 @@ specification):
   TranslateBrowsePathsToNodeIds, RegisterNodes and UnregisterNodes, Call, HistoryRead,
   AddNodes / AddReferences / DeleteNodes / DeleteReferences, and CreateMonitoredItems,
   ModifyMonitoredItems, SetMonitoringMode, DeleteMonitoredItems (``max_monitored_items_per_call``).
+  TranslateBrowsePathsToNodeIds is also limited in the elements of all its paths
+  together (``max_browse_path_elements_per_request``, ``BadTooManyOperations``): the
+  path limit alone let 100 paths of 2,000 elements (3 MB) hold the process for seconds.
+  The count walks the encoding and stops at the limit, so it costs no more than a
+  request the limit allows.
 - :class:`QuotaSession` gives each session at most ``max_subscriptions_per_session``
   subscriptions and all the sessions of one client address together at most
   ``max_subscriptions_per_client`` (``BadTooManySubscriptions``), and at most
   ``max_monitored_items_per_session`` monitored items (each item past the quota gets
   ``BadTooManyMonitoredItems``); it lets a session act on its own subscriptions only
-  (``BadSubscriptionIdInvalid`` otherwise).
+  (``BadSubscriptionIdInvalid`` otherwise), and answers a browse path of more than
+  ``max_browse_path_elements`` elements with ``BadQueryTooComplex`` (that path's result;
+  OPC 10000-4 lists it among TranslateBrowsePathsToNodeIds' operation results: "the
+  requested operation requires too many resources in the server").
 - :func:`publish_capabilities` writes the limits into ``Server.ServerCapabilities``
   (``OperationLimits`` and the per-session quotas), so clients can split their requests.
 """
@@ -62,6 +70,8 @@ class OperationLimits:
     subscriptions_per_session: int = 0
     subscriptions_per_client: int = 0
     monitored_items_per_session: int = 0
+    browse_path_elements: int = 0
+    browse_path_elements_per_request: int = 0
 
     @classmethod
     def of(cls, cfg: OpcUaSection) -> OperationLimits:
@@ -78,12 +88,15 @@ class OperationLimits:
             subscriptions_per_session=cfg.max_subscriptions_per_session,
             subscriptions_per_client=cfg.max_subscriptions_per_client,
             monitored_items_per_session=cfg.max_monitored_items_per_session,
+            browse_path_elements=cfg.max_browse_path_elements,
+            browse_path_elements_per_request=cfg.max_browse_path_elements_per_request,
         )
 
 
 # -- counting operations in an encoded request ---------------------------------------------
 Skip = Callable[[Buffer], Any]
 _U32: Skip = Primitives.UInt32.unpack
+_I32: Callable[[Buffer], int] = Primitives.Int32.unpack
 _F64: Skip = Primitives.Double.unpack
 _BOOL: Skip = Primitives.Boolean.unpack
 _DATE: Skip = Primitives.DateTime.unpack
@@ -134,6 +147,33 @@ def operations(typeid: ua.NodeId, body: Buffer) -> tuple[str, int] | None:
     return limit, max(count, 0)
 
 
+_TRANSLATE = ids.TranslateBrowsePathsToNodeIdsRequest_Encoding_DefaultBinary
+
+
+def browse_path_elements(body: Buffer, limit: int) -> int:
+    """The elements of the browse paths of an encoded TranslateBrowsePathsToNodeIds
+    request (``body`` after the request header, not consumed), counted until more than
+    ``limit`` (the walk stops there). A body that does not decode counts what it held."""
+    buf = body.copy()
+    total = 0
+    try:
+        for _ in range(max(_I32(buf), 0)):
+            nodeid_from_binary(buf)  # StartingNode
+            count = max(_I32(buf), 0)  # RelativePath.Elements
+            total += count
+            if total > limit:
+                return total
+            for _ in range(count):
+                nodeid_from_binary(buf)  # ReferenceTypeId
+                buf.skip(2 + 2)  # IsInverse, IncludeSubtypes, TargetName.NamespaceIndex
+                size = _I32(buf)  # TargetName.Name
+                if size > 0:
+                    buf.skip(size)
+    except Exception:
+        pass  # asyncua answers what does not decode
+    return total
+
+
 class OperationScreen:
     """The request screen of :class:`~.opcua_wire.GuardedProcessor`: more operations
     than the limit in one request is a ``BadTooManyOperations`` ServiceFault."""
@@ -151,6 +191,10 @@ class OperationScreen:
         limit = getattr(self.limits, name)
         if limit and count > limit:
             self._refuse(name)
+        elements = self.limits.browse_path_elements_per_request
+        translate = name == "translate" and typeid.Identifier == _TRANSLATE
+        if translate and elements and browse_path_elements(body, elements) > elements:
+            self._refuse("browse_path_elements_per_request")
 
     def _refuse(self, name: str) -> None:
         self.refused[name] = self.refused.get(name, 0) + 1
@@ -224,6 +268,17 @@ class QuotaSession(PeerSession):
         if quota and self._client_held() >= quota:
             raise ServiceError(Codes.BadTooManySubscriptions)
         return await super().create_subscription(params, callback, request_callback)
+
+    async def translate_browsepaths_to_nodeids(
+        self, params: list[ua.BrowsePath]
+    ) -> list[ua.BrowsePathResult]:
+        limit = self.limits.browse_path_elements
+        if not limit:
+            return await super().translate_browsepaths_to_nodeids(params)
+        short = [i for i, p in enumerate(params) if len(p.RelativePath.Elements) <= limit]
+        done = await super().translate_browsepaths_to_nodeids([params[i] for i in short])
+        too_complex = ua.BrowsePathResult(StatusCode=ua.StatusCode(Codes.BadQueryTooComplex))
+        return _merge(len(params), short, done, too_complex)
 
     async def create_monitored_items(
         self, params: ua.CreateMonitoredItemsParameters
