@@ -29,11 +29,13 @@ import struct
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 import pytest_asyncio
 from asyncua import Client, ua
 from asyncua.crypto.security_policies import SecurityPolicyNone
+from asyncua.ua.ua_binary import struct_to_binary
 
 from motion_server import config
 from tests.integration.test_opcua_limits import outcome, requests
@@ -512,3 +514,191 @@ async def test_each_operation_limit_is_answered_with_bad_too_many_operations(
         await sub.delete()
     finally:
         await client.disconnect()
+
+
+# -- mutated requests on a session (the None endpoint, anonymous) -------------------------------
+#: how many mutated messages the batch sends, and the log it may leave (see FLOOD_*)
+MUTATED = 2_000 * SCALE
+
+
+def open_site(data_dir: Path) -> str:
+    """The campaign's site with anonymous sessions on the None endpoint (where every
+    request reaches asyncua's decoders) and the audit log on."""
+    users = "\n".join(
+        f'[[opcua.users]]\nname = "{name}"\nrole = "{USERS[name][0]}"\npassword_hash = "{h}"\n'
+        for name, h in user_hashes().items()
+    )
+    text = SITE.format(
+        data_dir=data_dir / "opcua",
+        anonymous="true",
+        none_endpoint="true",
+        lockout=0.0,
+        users=users,
+    )
+    text = text.replace('clock = "manual"', 'clock = "realtime"')
+    text = f'data_dir = "{data_dir}"\n' + text + "\n[audit]\nenabled = true\n"
+    config.parse(text, "opcua-open.toml")
+    return text
+
+
+@pytest_asyncio.fixture(loop_scope="module", scope="module")
+async def open_server(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[ServerProcess]:
+    directory = tmp_path_factory.mktemp("opcua-open")
+    srv = ServerProcess(open_site(directory), directory)
+    await srv.start()
+    try:
+        yield srv
+    finally:
+        await srv.stop()
+
+
+def session_requests(url: str, ns: int) -> list[Any]:
+    """One valid request of each service a session uses (the token is set when sent)."""
+    cycle = ua.NodeId("Clock.Cycle", ns)
+    read = ua.ReadRequest()
+    read.Parameters.NodesToRead = [ua.ReadValueId(cycle, ua.AttributeIds.Value)]
+    write = ua.WriteRequest()
+    write.Parameters.NodesToWrite = [
+        ua.WriteValue(
+            NodeId=ua.NodeId("Instructions.MAG_1.Ratio", ns),
+            AttributeId=ua.AttributeIds.Value,
+            Value=ua.DataValue(ua.Variant(1.5, ua.VariantType.Float)),
+        )
+    ]
+    browse = ua.BrowseRequest()
+    browse.Parameters.NodesToBrowse = [
+        ua.BrowseDescription(NodeId=ua.NodeId(ua.ObjectIds.ObjectsFolder), ResultMask=63)
+    ]
+    translate = ua.TranslateBrowsePathsToNodeIdsRequest()
+    translate.Parameters.BrowsePaths = [
+        ua.BrowsePath(
+            StartingNode=ua.NodeId(ua.ObjectIds.ObjectsFolder),
+            RelativePath=ua.RelativePath(
+                Elements=[ua.RelativePathElement(TargetName=ua.QualifiedName("Clock", ns))]
+            ),
+        )
+    ]
+    subscribe = ua.CreateSubscriptionRequest()
+    subscribe.Parameters.RequestedPublishingInterval = 100.0
+    monitor = ua.CreateMonitoredItemsRequest()
+    monitor.Parameters.SubscriptionId = 1
+    monitor.Parameters.ItemsToCreate = [
+        ua.MonitoredItemCreateRequest(ItemToMonitor=ua.ReadValueId(cycle, ua.AttributeIds.Value))
+    ]
+    register = ua.RegisterNodesRequest()
+    register.Parameters.NodesToRegister = [cycle]
+    call = ua.CallRequest()
+    call.Parameters.MethodsToCall = [
+        ua.CallMethodRequest(
+            ObjectId=ua.NodeId(ua.ObjectIds.Server),
+            MethodId=ua.NodeId(ua.ObjectIds.Server_GetMonitoredItems),
+            InputArguments=[ua.Variant(1, ua.VariantType.UInt32)],
+        )
+    ]
+    endpoints = ua.GetEndpointsRequest()
+    endpoints.Parameters.EndpointUrl = url
+    return [read, write, browse, translate, subscribe, monitor, register, call, endpoints]
+
+
+def mutate(r: random.Random, data: bytes) -> bytes:
+    """``data`` with one random mutation: bytes flipped, cut, inserted, an array length
+    or a string length made huge or negative, bytes that are not UTF-8, a slice repeated."""
+    b = bytearray(data)
+    at = r.randrange(len(b))
+    op = r.randrange(6)
+    if op == 0:
+        for _ in range(r.randrange(1, 5)):
+            b[r.randrange(len(b))] ^= 1 << r.randrange(8)
+    elif op == 1:
+        del b[at:]
+    elif op == 2:
+        b[at:at] = r.randbytes(r.randrange(1, 16))
+    elif op == 3:
+        b[at : at + 4] = r.choice([b"\xff\xff\xff\xff", b"\xff\xff\xff\x7f", b"\x00\x00\x00\x80"])
+    elif op == 4:
+        b[at : at + 3] = b"\xff\xfe\x80"
+    else:
+        b[at:at] = b[at : at + r.randrange(1, 64)]
+    return bytes(b)
+
+
+def broken_hello(r: random.Random, url: str) -> bytes:
+    """A Hello whose EndpointUrl is not UTF-8."""
+    raw = url.encode() + r.choice([b"\xff", b"\xed\xa0\x80", b"\xc0\xaf", b"\x80\x80"])
+    body = struct.pack("<IIIII", 0, 65535, 65535, 0, 0) + struct.pack("<i", len(raw))
+    return header(b"HELF", 8 + len(body) + len(raw)) + body + raw
+
+
+async def mutated_connection(srv: ServerProcess, r: random.Random, requests: list[Any]) -> int:
+    """One connection: a Hello (now and then a broken one), a channel, an anonymous
+    session, then up to 10 mutated requests (or chunks) sent at once; what comes back is
+    read for a moment. Returns the mutated messages sent."""
+    ch = await RawChannel.connect(srv.port, srv.endpoint)
+    try:
+        if r.random() < 0.05:
+            ch.send(broken_hello(r, srv.endpoint))
+            with contextlib.suppress(asyncio.TimeoutError, OSError, ConnectionError):
+                await asyncio.wait_for(ch.reader.read(), 1.0)
+            return 1
+        await ch.open()
+        assert await ch.anonymous_session() == ua.StatusCodes.Good
+        sent = 0
+        for _ in range(r.randrange(1, 11)):
+            request = r.choice(requests)
+            request.RequestHeader.AuthenticationToken = ch.token
+            body = struct_to_binary(request)
+            if r.random() < 0.8:  # the request mutated, framed right
+                chunk = ch.request(mutate(r, body))
+            else:  # the chunk mutated, headers included
+                chunk = mutate(r, ch.request(body))
+            with contextlib.suppress(OSError, ConnectionError):
+                ch.send(chunk)
+            sent += 1
+        with contextlib.suppress(OSError, ConnectionError):
+            await ch.writer.drain()
+        with contextlib.suppress(asyncio.TimeoutError, OSError, ConnectionError):
+            while await asyncio.wait_for(ch.reader.read(65536), 0.2):
+                pass
+        return sent
+    finally:
+        await ch.close()
+
+
+#: the log the mutated batch may leave: lines of the OPC UA front-end per 10 s window
+FLOOD_LINES = 20
+FLOOD_WINDOW_S = 10.0
+
+
+async def test_mutated_requests_leave_one_line_each_at_most_and_no_traceback(
+    open_server: ServerProcess, tmp_path: Path
+) -> None:
+    srv = open_server
+    checker = Checker(srv, tmp_path)
+    async with checker:
+        ns = srv.namespace_index
+        requests = session_requests(srv.endpoint, ns)
+        r = random.Random(f"{SEED}:mutated")
+        before = len(srv.log().splitlines())
+        t0 = time.monotonic()
+        sent = 0
+        while sent < MUTATED:
+            counts = await asyncio.gather(
+                *(mutated_connection(srv, r, requests) for _ in range(10))
+            )
+            sent += sum(counts)
+        elapsed = time.monotonic() - t0
+        await asyncio.sleep(0.5)  # the last lines
+        await checker.check("mutated requests")
+    new = srv.log().splitlines()[before:]
+    opcua = [line for line in new if " motion_server.opcua" in line or " asyncua" in line]
+    tracebacks = [line for line in new if line.startswith("Traceback")]
+    windows = int(elapsed // FLOOD_WINDOW_S) + 2
+    print(
+        f"\n{sent} mutated messages in {elapsed:.1f} s: {len(new)} log lines, {len(opcua)} "
+        f"of the OPC UA front-end, {len(tracebacks)} tracebacks"
+    )
+    for line in new[:40]:
+        print("  ", line[:200])
+    assert not tracebacks, "\n".join(new[:200])
+    # at most FLOOD_LINES per window, and one "suppressed" line for each window
+    assert len(opcua) <= windows * (FLOOD_LINES + 1), len(opcua)

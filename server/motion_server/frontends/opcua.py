@@ -122,6 +122,7 @@ from .certificates import self_signed
 from .comm_faults import CommFaults
 from .opcua_identity import identify
 from .opcua_limits import OperationLimits, OperationScreen, QuotaSession, publish_capabilities
+from .opcua_log import FloodGate
 from .opcua_space import VARIANT_TYPES, build_space
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
 from .opcua_wire import ChannelFault, GuardedProtocol, Wire, WireServer
@@ -247,6 +248,8 @@ class OpcUaFrontend:
         self.passes = 0
         #: connections closed for silence
         self.idle_closed = 0
+        #: the bound on the lines hostile traffic leaves in the log (opcua_log), while serving
+        self.flood_gate: FloodGate | None = None
 
     # -- lifecycle ------------------------------------------------------------------------
     @property
@@ -255,6 +258,8 @@ class OpcUaFrontend:
 
     async def start(self) -> None:
         cfg = self.config
+        self.flood_gate = FloodGate()
+        self.flood_gate.install()
         server = WireServer(self.wire, user_manager=self.directory)
         self._server = server
         # far below asyncua's 100 MB: a hostile peer cannot make us buffer much
@@ -333,6 +338,9 @@ class OpcUaFrontend:
         if self.server is not None:
             await self.server.stop()
             self.server = None
+        if self.flood_gate is not None:
+            self.flood_gate.flush()
+            self.flood_gate.remove()
 
     async def _certificate(self, server: Server, app_uri: str) -> None:
         common_name = f"motion-server {self.image.map.site}"
@@ -345,6 +353,8 @@ class OpcUaFrontend:
         loop = asyncio.get_running_loop()
         while True:
             await asyncio.sleep(min(timeout / 4, 1.0))
+            if self.flood_gate is not None:
+                self.flood_gate.flush()  # the lines a past flood left unsaid
             try:
                 self._sweep(loop.time(), timeout)
             except Exception:  # keep watching whatever one pass hit
