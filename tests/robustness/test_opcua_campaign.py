@@ -17,14 +17,24 @@ Then, against the same server: a chunk size lie streamed on four connections at 
 (64 MiB each) keeps the OPC UA process within 20 MB of its memory and drops no motion
 cycle; and every operation limit is answered with ``BadTooManyOperations`` one operation
 past it, while a request of exactly the limit is served.
+
+A second server offers anonymous sessions on the None endpoint (where every request
+reaches asyncua's decoders) and keeps an audit log: at least 2,000 mutated requests on
+sessions leave at most 20 log lines per 10 s of the OPC UA front-end and no traceback;
+CreateSession, ActivateSession, CreateSubscription 120 times on one connection hold one
+subscription at a time and free it when the connection closes; 100 browse paths of
+2,000 elements are refused before they are decoded; and 200 writes to NodeIds of random
+bytes are all refused and audited in valid UTF-8.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import os
 import random
+import stat
 import struct
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
@@ -702,3 +712,119 @@ async def test_mutated_requests_leave_one_line_each_at_most_and_no_traceback(
     assert not tracebacks, "\n".join(new[:200])
     # at most FLOOD_LINES per window, and one "suppressed" line for each window
     assert len(opcua) <= windows * (FLOOD_LINES + 1), len(opcua)
+
+
+# -- subscription slots, long browse paths, writes of any bytes (the None endpoint) --------------
+async def test_session_recreation_on_one_channel_holds_one_subscription_at_a_time(
+    open_server: ServerProcess, tmp_path: Path
+) -> None:
+    """CreateSession, ActivateSession, CreateSubscription 120 times on one connection
+    (the server has 100 slots): each new session closes the one it replaces, with its
+    subscription; the slots are free at once when the connection closes."""
+    srv = open_server
+    async with Checker(srv, tmp_path) as checker:
+        assert checker.client is not None
+        base = (await srv.stats(checker.client))["subscriptions"]
+        ch = await RawChannel.connect(srv.port, srv.endpoint)
+        try:
+            await ch.open()
+            results = []
+            for _ in range(120):
+                results.append(await ch.anonymous_session())
+                results.append(await ch.create_subscription())
+            assert set(results) == {ua.StatusCodes.Good}
+            held = (await srv.stats(checker.client))["subscriptions"]
+            assert held == base + 1, held
+        finally:
+            await ch.close()
+        deadline = time.monotonic() + 1.0
+        left = (await srv.stats(checker.client))["subscriptions"]
+        while left != base and time.monotonic() < deadline:
+            await asyncio.sleep(0.02)
+            left = (await srv.stats(checker.client))["subscriptions"]
+        assert left == base
+        sub = await checker.client.create_subscription(100, None)  # a slot for the others
+        await sub.delete()
+        await checker.check("session re-creation")
+
+
+async def test_browse_paths_of_2000_elements_are_refused_at_once(
+    open_server: ServerProcess, tmp_path: Path
+) -> None:
+    """The issue's request, 100 paths of 2,000 elements (3 MB), three times: refused
+    before it is decoded; the checking client's Read stays within 1 s, no cycle dropped."""
+    srv = open_server
+    async with Checker(srv, tmp_path) as checker:  # it learns the namespace index
+        step = ua.RelativePathElement(
+            ReferenceTypeId=ua.NodeId(ua.ObjectIds.HierarchicalReferences),
+            IncludeSubtypes=True,
+            TargetName=ua.QualifiedName("Clock", srv.namespace_index),
+        )
+        path = ua.BrowsePath(
+            StartingNode=ua.NodeId(ua.ObjectIds.ObjectsFolder),
+            RelativePath=ua.RelativePath(Elements=[step] * 2000),
+        )
+        ch = await RawChannel.connect(srv.port, srv.endpoint)
+        try:
+            await ch.open()
+            assert await ch.anonymous_session() == ua.StatusCodes.Good
+            request = ua.TranslateBrowsePathsToNodeIdsRequest()
+            request.RequestHeader.AuthenticationToken = ch.token
+            request.Parameters.BrowsePaths = [path] * 100
+            encoded = struct_to_binary(request)
+            for _ in range(3):
+                ch.send(ch.request(encoded))
+                assert await ch.service_result(30.0) == ua.StatusCodes.BadTooManyOperations
+        finally:
+            await ch.close()
+        elapsed, _ = await checker.check("long browse paths")
+        print(f"\nlong browse paths: refused; a Read after them in {elapsed * 1000:.1f} ms")
+
+
+async def test_refused_writes_of_any_bytes_are_all_audited(open_server: ServerProcess) -> None:
+    """Writes of an anonymous viewer to NodeIds of random bytes (mostly not UTF-8, in
+    namespace 2, outside the tag map): every one refused and audited in a line of valid
+    UTF-8; the audit file is 0600."""
+    srv = open_server
+    r = random.Random(f"{SEED}:audit")
+    names = [b"Campaign." + r.randbytes(r.randrange(1, 24)) for _ in range(200)]
+    ch = await RawChannel.connect(srv.port, srv.endpoint)
+    try:
+        await ch.open()
+        assert await ch.anonymous_session() == ua.StatusCodes.Good
+        for name in names:
+            request = ua.WriteRequest()
+            request.Parameters.NodesToWrite = [
+                ua.WriteValue(
+                    NodeId=ua.NodeId(name.decode("utf-8", "surrogateescape"), 2),
+                    AttributeId=ua.AttributeIds.Value,
+                    Value=ua.DataValue(ua.Variant(1.0, ua.VariantType.Float)),
+                )
+            ]
+            assert await ch.call(request) == ua.StatusCodes.Good  # the item is refused
+    finally:
+        await ch.close()
+    path = srv.site_file.parent / "audit.jsonl"
+    deadline = time.monotonic() + 5.0
+    while True:
+        lines = path.read_bytes().decode("utf-8").splitlines()  # strictly UTF-8
+        records = [json.loads(line) for line in lines]
+        ours = [
+            r
+            for r in records
+            if r["result"] == "refused" and str(r.get("node", "")).startswith("ns=2;s=Campaign.")
+        ]
+        if len(ours) >= len(names) or time.monotonic() > deadline:
+            break
+        await asyncio.sleep(0.1)
+    print(f"\n{len(names)} writes of random NodeIds refused: {len(ours)} audited")
+    assert len(ours) == len(names)
+    expected = [
+        "ns=2;s="
+        + n.decode("utf-8", "surrogateescape")
+        .encode("utf-8", "surrogateescape")
+        .decode("utf-8", "backslashreplace")
+        for n in names
+    ]
+    assert [r["node"] for r in ours] == expected
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
