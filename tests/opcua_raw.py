@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
 import struct
 from typing import Any
 
@@ -45,20 +46,26 @@ class RawChannel:
         self.reader, self.writer, self.url = reader, writer, url
         self.conn = SecureConnection(SecurityPolicyNone(), TransportLimits())
         self.request_id = 0
+        #: the authentication token of the session last created on this channel
+        self.token = ua.NodeId()
 
     @classmethod
-    async def connect(cls, port: int, url: str) -> RawChannel:
-        reader, writer = await asyncio.wait_for(asyncio.open_connection("127.0.0.1", port), 5)
+    async def connect(cls, port: int, url: str, local_host: str | None = None) -> RawChannel:
+        """A connection to 127.0.0.1:``port``, from ``local_host`` if given (any address
+        of 127.0.0.0/8 is this machine: a second client address for the tests)."""
+        local = (local_host, 0) if local_host is not None else None
+        opening = asyncio.open_connection("127.0.0.1", port, local_addr=local)
+        reader, writer = await asyncio.wait_for(opening, 5)
         return cls(reader, writer, url)
 
     def send(self, data: bytes) -> None:
         self.writer.write(data)
 
-    async def chunk(self) -> tuple[bytes, bytes]:
-        """The next chunk from the server: (8-byte header, rest)."""
-        head = await asyncio.wait_for(self.reader.readexactly(8), WAIT_S)
+    async def chunk(self, wait: float = WAIT_S) -> tuple[bytes, bytes]:
+        """The next chunk from the server: (8-byte header, rest), within ``wait`` seconds."""
+        head = await asyncio.wait_for(self.reader.readexactly(8), wait)
         size = struct.unpack_from("<I", head, 4)[0]
-        return head, await asyncio.wait_for(self.reader.readexactly(size - 8), WAIT_S)
+        return head, await asyncio.wait_for(self.reader.readexactly(size - 8), wait)
 
     async def error(self) -> tuple[int, str]:
         """The Error message the server sent (status code, reason), after which the
@@ -107,10 +114,12 @@ class RawChannel:
         self.conn.set_channel(response.Parameters, ua.SecurityTokenRequestType.Issue, b"")
 
     def request(self, request: Any) -> bytes:
-        """``request`` as the next chunk(s) on the channel (right ids, next sequence number)."""
+        """``request`` (or its encoding) as the next chunk(s) on the channel (right ids,
+        next sequence number)."""
         self.request_id += 1
+        body = request if isinstance(request, bytes) else struct_to_binary(request)
         return self.conn.message_to_binary(
-            struct_to_binary(request), ua.MessageType.SecureMessage, request_id=self.request_id
+            body, ua.MessageType.SecureMessage, request_id=self.request_id
         )
 
     def get_endpoints(self) -> bytes:
@@ -125,15 +134,51 @@ class RawChannel:
         msg = self.conn.receive_from_header_and_body(header_from_binary(buf), buf)
         return struct_from_binary(kind, msg.body())
 
-    async def service_result(self) -> int:
+    async def service_result(self, wait: float = WAIT_S) -> int:
         """The service result of the next response (a ServiceFault or any response)."""
-        head, rest = await self.chunk()
+        head, rest = await self.chunk(wait)
         assert head[:4] == b"MSGF", head
         buf = Buffer(head + rest)
         msg = self.conn.receive_from_header_and_body(header_from_binary(buf), buf)
         body = msg.body()
         nodeid_from_binary(body)  # the response's type
         return int(struct_from_binary(ua.ResponseHeader, body).ServiceResult.value)
+
+    async def call(self, request: Any, wait: float = WAIT_S) -> int:
+        """Send ``request`` on the current session (its token set); its service result."""
+        request.RequestHeader.AuthenticationToken = self.token
+        self.send(self.request(request))
+        return await self.service_result(wait)
+
+    async def create_session(self) -> None:
+        """CreateSession on this channel (asyncua's client would close the last one)."""
+        create = ua.CreateSessionRequest()
+        create.Parameters.ClientDescription = ua.ApplicationDescription(
+            ApplicationUri="urn:raw", ApplicationType=ua.ApplicationType.Client
+        )
+        create.Parameters.EndpointUrl = self.url
+        create.Parameters.ClientNonce = os.urandom(32)
+        create.Parameters.RequestedSessionTimeout = 60_000
+        self.send(self.request(create))
+        session = await self.response(ua.CreateSessionResponse)
+        assert session.ResponseHeader.ServiceResult.is_good(), session.ResponseHeader
+        self.token = session.Parameters.AuthenticationToken
+
+    async def anonymous_session(self) -> int:
+        """CreateSession, then ActivateSession as anonymous: the activation's result."""
+        await self.create_session()
+        activate = ua.ActivateSessionRequest()
+        activate.Parameters.UserIdentityToken = ua.AnonymousIdentityToken(PolicyId="anonymous")
+        return await self.call(activate)
+
+    async def create_subscription(self) -> int:
+        """CreateSubscription (1 s publishing) on the current session: its result."""
+        request = ua.CreateSubscriptionRequest()
+        request.Parameters.RequestedPublishingInterval = 1000.0
+        request.Parameters.RequestedLifetimeCount = 600
+        request.Parameters.RequestedMaxKeepAliveCount = 20
+        request.Parameters.PublishingEnabled = True
+        return await self.call(request)
 
     async def close(self) -> None:
         self.writer.close()

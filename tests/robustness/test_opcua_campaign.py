@@ -17,23 +17,35 @@ Then, against the same server: a chunk size lie streamed on four connections at 
 (64 MiB each) keeps the OPC UA process within 20 MB of its memory and drops no motion
 cycle; and every operation limit is answered with ``BadTooManyOperations`` one operation
 past it, while a request of exactly the limit is served.
+
+A second server offers anonymous sessions on the None endpoint (where every request
+reaches asyncua's decoders) and keeps an audit log: at least 2,000 mutated requests on
+sessions leave at most 20 log lines per 10 s of the OPC UA front-end and no traceback;
+CreateSession, ActivateSession, CreateSubscription 120 times on one connection hold one
+subscription at a time and free it when the connection closes; 100 browse paths of
+2,000 elements are refused before they are decoded; and 200 writes to NodeIds of random
+bytes are all refused and audited in valid UTF-8.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import os
 import random
+import stat
 import struct
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 import pytest_asyncio
 from asyncua import Client, ua
 from asyncua.crypto.security_policies import SecurityPolicyNone
+from asyncua.ua.ua_binary import struct_to_binary
 
 from motion_server import config
 from tests.integration.test_opcua_limits import outcome, requests
@@ -512,3 +524,307 @@ async def test_each_operation_limit_is_answered_with_bad_too_many_operations(
         await sub.delete()
     finally:
         await client.disconnect()
+
+
+# -- mutated requests on a session (the None endpoint, anonymous) -------------------------------
+#: how many mutated messages the batch sends, and the log it may leave (see FLOOD_*)
+MUTATED = 2_000 * SCALE
+
+
+def open_site(data_dir: Path) -> str:
+    """The campaign's site with anonymous sessions on the None endpoint (where every
+    request reaches asyncua's decoders) and the audit log on."""
+    users = "\n".join(
+        f'[[opcua.users]]\nname = "{name}"\nrole = "{USERS[name][0]}"\npassword_hash = "{h}"\n'
+        for name, h in user_hashes().items()
+    )
+    text = SITE.format(
+        data_dir=data_dir / "opcua",
+        anonymous="true",
+        none_endpoint="true",
+        lockout=0.0,
+        users=users,
+    )
+    text = text.replace('clock = "manual"', 'clock = "realtime"')
+    text = f'data_dir = "{data_dir}"\n' + text + "\n[audit]\nenabled = true\n"
+    config.parse(text, "opcua-open.toml")
+    return text
+
+
+@pytest_asyncio.fixture(loop_scope="module", scope="module")
+async def open_server(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[ServerProcess]:
+    directory = tmp_path_factory.mktemp("opcua-open")
+    srv = ServerProcess(open_site(directory), directory)
+    await srv.start()
+    try:
+        yield srv
+    finally:
+        await srv.stop()
+
+
+def session_requests(url: str, ns: int) -> list[Any]:
+    """One valid request of each service a session uses (the token is set when sent)."""
+    cycle = ua.NodeId("Clock.Cycle", ns)
+    read = ua.ReadRequest()
+    read.Parameters.NodesToRead = [ua.ReadValueId(cycle, ua.AttributeIds.Value)]
+    write = ua.WriteRequest()
+    write.Parameters.NodesToWrite = [
+        ua.WriteValue(
+            NodeId=ua.NodeId("Instructions.MAG_1.Ratio", ns),
+            AttributeId=ua.AttributeIds.Value,
+            Value=ua.DataValue(ua.Variant(1.5, ua.VariantType.Float)),
+        )
+    ]
+    browse = ua.BrowseRequest()
+    browse.Parameters.NodesToBrowse = [
+        ua.BrowseDescription(NodeId=ua.NodeId(ua.ObjectIds.ObjectsFolder), ResultMask=63)
+    ]
+    translate = ua.TranslateBrowsePathsToNodeIdsRequest()
+    translate.Parameters.BrowsePaths = [
+        ua.BrowsePath(
+            StartingNode=ua.NodeId(ua.ObjectIds.ObjectsFolder),
+            RelativePath=ua.RelativePath(
+                Elements=[ua.RelativePathElement(TargetName=ua.QualifiedName("Clock", ns))]
+            ),
+        )
+    ]
+    subscribe = ua.CreateSubscriptionRequest()
+    subscribe.Parameters.RequestedPublishingInterval = 100.0
+    monitor = ua.CreateMonitoredItemsRequest()
+    monitor.Parameters.SubscriptionId = 1
+    monitor.Parameters.ItemsToCreate = [
+        ua.MonitoredItemCreateRequest(ItemToMonitor=ua.ReadValueId(cycle, ua.AttributeIds.Value))
+    ]
+    register = ua.RegisterNodesRequest()
+    register.Parameters.NodesToRegister = [cycle]
+    call = ua.CallRequest()
+    call.Parameters.MethodsToCall = [
+        ua.CallMethodRequest(
+            ObjectId=ua.NodeId(ua.ObjectIds.Server),
+            MethodId=ua.NodeId(ua.ObjectIds.Server_GetMonitoredItems),
+            InputArguments=[ua.Variant(1, ua.VariantType.UInt32)],
+        )
+    ]
+    endpoints = ua.GetEndpointsRequest()
+    endpoints.Parameters.EndpointUrl = url
+    return [read, write, browse, translate, subscribe, monitor, register, call, endpoints]
+
+
+def mutate(r: random.Random, data: bytes) -> bytes:
+    """``data`` with one random mutation: bytes flipped, cut, inserted, an array length
+    or a string length made huge or negative, bytes that are not UTF-8, a slice repeated."""
+    b = bytearray(data)
+    at = r.randrange(len(b))
+    op = r.randrange(6)
+    if op == 0:
+        for _ in range(r.randrange(1, 5)):
+            b[r.randrange(len(b))] ^= 1 << r.randrange(8)
+    elif op == 1:
+        del b[at:]
+    elif op == 2:
+        b[at:at] = r.randbytes(r.randrange(1, 16))
+    elif op == 3:
+        b[at : at + 4] = r.choice([b"\xff\xff\xff\xff", b"\xff\xff\xff\x7f", b"\x00\x00\x00\x80"])
+    elif op == 4:
+        b[at : at + 3] = b"\xff\xfe\x80"
+    else:
+        b[at:at] = b[at : at + r.randrange(1, 64)]
+    return bytes(b)
+
+
+def broken_hello(r: random.Random, url: str) -> bytes:
+    """A Hello whose EndpointUrl is not UTF-8."""
+    raw = url.encode() + r.choice([b"\xff", b"\xed\xa0\x80", b"\xc0\xaf", b"\x80\x80"])
+    body = struct.pack("<IIIII", 0, 65535, 65535, 0, 0) + struct.pack("<i", len(raw))
+    return header(b"HELF", 8 + len(body) + len(raw)) + body + raw
+
+
+async def mutated_connection(srv: ServerProcess, r: random.Random, requests: list[Any]) -> int:
+    """One connection: a Hello (now and then a broken one), a channel, an anonymous
+    session, then up to 10 mutated requests (or chunks) sent at once; what comes back is
+    read for a moment. Returns the mutated messages sent."""
+    ch = await RawChannel.connect(srv.port, srv.endpoint)
+    try:
+        if r.random() < 0.05:
+            ch.send(broken_hello(r, srv.endpoint))
+            with contextlib.suppress(asyncio.TimeoutError, OSError, ConnectionError):
+                await asyncio.wait_for(ch.reader.read(), 1.0)
+            return 1
+        await ch.open()
+        assert await ch.anonymous_session() == ua.StatusCodes.Good
+        sent = 0
+        for _ in range(r.randrange(1, 11)):
+            request = r.choice(requests)
+            request.RequestHeader.AuthenticationToken = ch.token
+            body = struct_to_binary(request)
+            if r.random() < 0.8:  # the request mutated, framed right
+                chunk = ch.request(mutate(r, body))
+            else:  # the chunk mutated, headers included
+                chunk = mutate(r, ch.request(body))
+            with contextlib.suppress(OSError, ConnectionError):
+                ch.send(chunk)
+            sent += 1
+        with contextlib.suppress(OSError, ConnectionError):
+            await ch.writer.drain()
+        with contextlib.suppress(asyncio.TimeoutError, OSError, ConnectionError):
+            while await asyncio.wait_for(ch.reader.read(65536), 0.2):
+                pass
+        return sent
+    finally:
+        await ch.close()
+
+
+#: the log the mutated batch may leave: lines of the OPC UA front-end per 10 s window
+FLOOD_LINES = 20
+FLOOD_WINDOW_S = 10.0
+
+
+async def test_mutated_requests_leave_one_line_each_at_most_and_no_traceback(
+    open_server: ServerProcess, tmp_path: Path
+) -> None:
+    srv = open_server
+    checker = Checker(srv, tmp_path)
+    async with checker:
+        ns = srv.namespace_index
+        requests = session_requests(srv.endpoint, ns)
+        r = random.Random(f"{SEED}:mutated")
+        before = len(srv.log().splitlines())
+        t0 = time.monotonic()
+        sent = 0
+        while sent < MUTATED:
+            counts = await asyncio.gather(
+                *(mutated_connection(srv, r, requests) for _ in range(10))
+            )
+            sent += sum(counts)
+        elapsed = time.monotonic() - t0
+        await asyncio.sleep(0.5)  # the last lines
+        await checker.check("mutated requests")
+    new = srv.log().splitlines()[before:]
+    opcua = [line for line in new if " motion_server.opcua" in line or " asyncua" in line]
+    tracebacks = [line for line in new if line.startswith("Traceback")]
+    windows = int(elapsed // FLOOD_WINDOW_S) + 2
+    print(
+        f"\n{sent} mutated messages in {elapsed:.1f} s: {len(new)} log lines, {len(opcua)} "
+        f"of the OPC UA front-end, {len(tracebacks)} tracebacks"
+    )
+    for line in new[:40]:
+        print("  ", line[:200])
+    assert not tracebacks, "\n".join(new[:200])
+    # at most FLOOD_LINES per window, and one "suppressed" line for each window
+    assert len(opcua) <= windows * (FLOOD_LINES + 1), len(opcua)
+
+
+# -- subscription slots, long browse paths, writes of any bytes (the None endpoint) --------------
+async def test_session_recreation_on_one_channel_holds_one_subscription_at_a_time(
+    open_server: ServerProcess, tmp_path: Path
+) -> None:
+    """CreateSession, ActivateSession, CreateSubscription 120 times on one connection
+    (the server has 100 slots): each new session closes the one it replaces, with its
+    subscription; the slots are free at once when the connection closes."""
+    srv = open_server
+    async with Checker(srv, tmp_path) as checker:
+        assert checker.client is not None
+        base = (await srv.stats(checker.client))["subscriptions"]
+        ch = await RawChannel.connect(srv.port, srv.endpoint)
+        try:
+            await ch.open()
+            results = []
+            for _ in range(120):
+                results.append(await ch.anonymous_session())
+                results.append(await ch.create_subscription())
+            assert set(results) == {ua.StatusCodes.Good}
+            held = (await srv.stats(checker.client))["subscriptions"]
+            assert held == base + 1, held
+        finally:
+            await ch.close()
+        deadline = time.monotonic() + 1.0
+        left = (await srv.stats(checker.client))["subscriptions"]
+        while left != base and time.monotonic() < deadline:
+            await asyncio.sleep(0.02)
+            left = (await srv.stats(checker.client))["subscriptions"]
+        assert left == base
+        sub = await checker.client.create_subscription(100, None)  # a slot for the others
+        await sub.delete()
+        await checker.check("session re-creation")
+
+
+async def test_browse_paths_of_2000_elements_are_refused_at_once(
+    open_server: ServerProcess, tmp_path: Path
+) -> None:
+    """The issue's request, 100 paths of 2,000 elements (3 MB), three times: refused
+    before it is decoded; the checking client's Read stays within 1 s, no cycle dropped."""
+    srv = open_server
+    async with Checker(srv, tmp_path) as checker:  # it learns the namespace index
+        step = ua.RelativePathElement(
+            ReferenceTypeId=ua.NodeId(ua.ObjectIds.HierarchicalReferences),
+            IncludeSubtypes=True,
+            TargetName=ua.QualifiedName("Clock", srv.namespace_index),
+        )
+        path = ua.BrowsePath(
+            StartingNode=ua.NodeId(ua.ObjectIds.ObjectsFolder),
+            RelativePath=ua.RelativePath(Elements=[step] * 2000),
+        )
+        ch = await RawChannel.connect(srv.port, srv.endpoint)
+        try:
+            await ch.open()
+            assert await ch.anonymous_session() == ua.StatusCodes.Good
+            request = ua.TranslateBrowsePathsToNodeIdsRequest()
+            request.RequestHeader.AuthenticationToken = ch.token
+            request.Parameters.BrowsePaths = [path] * 100
+            encoded = struct_to_binary(request)
+            for _ in range(3):
+                ch.send(ch.request(encoded))
+                assert await ch.service_result(30.0) == ua.StatusCodes.BadTooManyOperations
+        finally:
+            await ch.close()
+        elapsed, _ = await checker.check("long browse paths")
+        print(f"\nlong browse paths: refused; a Read after them in {elapsed * 1000:.1f} ms")
+
+
+async def test_refused_writes_of_any_bytes_are_all_audited(open_server: ServerProcess) -> None:
+    """Writes of an anonymous viewer to NodeIds of random bytes (mostly not UTF-8, in
+    namespace 2, outside the tag map): every one refused and audited in a line of valid
+    UTF-8; the audit file is 0600."""
+    srv = open_server
+    r = random.Random(f"{SEED}:audit")
+    names = [b"Campaign." + r.randbytes(r.randrange(1, 24)) for _ in range(200)]
+    ch = await RawChannel.connect(srv.port, srv.endpoint)
+    try:
+        await ch.open()
+        assert await ch.anonymous_session() == ua.StatusCodes.Good
+        for name in names:
+            request = ua.WriteRequest()
+            request.Parameters.NodesToWrite = [
+                ua.WriteValue(
+                    NodeId=ua.NodeId(name.decode("utf-8", "surrogateescape"), 2),
+                    AttributeId=ua.AttributeIds.Value,
+                    Value=ua.DataValue(ua.Variant(1.0, ua.VariantType.Float)),
+                )
+            ]
+            assert await ch.call(request) == ua.StatusCodes.Good  # the item is refused
+    finally:
+        await ch.close()
+    path = srv.site_file.parent / "audit.jsonl"
+    deadline = time.monotonic() + 5.0
+    while True:
+        lines = path.read_bytes().decode("utf-8").splitlines()  # strictly UTF-8
+        records = [json.loads(line) for line in lines]
+        ours = [
+            r
+            for r in records
+            if r["result"] == "refused" and str(r.get("node", "")).startswith("ns=2;s=Campaign.")
+        ]
+        if len(ours) >= len(names) or time.monotonic() > deadline:
+            break
+        await asyncio.sleep(0.1)
+    print(f"\n{len(names)} writes of random NodeIds refused: {len(ours)} audited")
+    assert len(ours) == len(names)
+    expected = [
+        "ns=2;s="
+        + n.decode("utf-8", "surrogateescape")
+        .encode("utf-8", "surrogateescape")
+        .decode("utf-8", "backslashreplace")
+        for n in names
+    ]
+    assert [r["node"] for r in ours] == expected
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600

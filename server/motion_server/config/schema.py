@@ -573,6 +573,14 @@ class OpcUaSection(_Model):
     #: all of them (each item past it: BadTooManyMonitoredItems); 0: no limit
     max_subscriptions_per_session: Annotated[int, Field(ge=0, le=10000)] = 10
     max_monitored_items_per_session: Annotated[int, Field(ge=0, le=1000000)] = 10000
+    #: subscriptions of all the sessions from one client address (more:
+    #: BadTooManySubscriptions), so that one client cannot take every slot; 0: no limit
+    max_subscriptions_per_client: Annotated[int, Field(ge=0, le=10000)] = 50
+    #: TranslateBrowsePathsToNodeIds: elements of one browse path (more: that path's
+    #: result is BadQueryTooComplex) and of all the paths of a request (more:
+    #: BadTooManyOperations); 0: no limit
+    max_browse_path_elements: Annotated[int, Field(ge=0, le=100000)] = 32
+    max_browse_path_elements_per_request: Annotated[int, Field(ge=0, le=1000000)] = 1000
 
     @model_validator(mode="after")
     def _consistent_limits(self) -> OpcUaSection:

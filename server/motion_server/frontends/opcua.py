@@ -74,7 +74,9 @@ user name is refused on a channel without security, and a session ends with its
 connection, subscriptions included. Operation limits and per-session quotas
 (:mod:`.opcua_limits`) are enforced and published in ``Server.ServerCapabilities``.
 Writes refused to nodes outside the tag map (namespace 0, properties) are audited with
-``node=`` and the status code's name, as refused tag writes are with ``tag=``.
+``node=`` and the status code's name, as refused tag writes are with ``tag=``. What
+hostile traffic leaves in the log is one line per refused message, no traceback, and at
+most 20 lines per 10 s (:mod:`.opcua_log`).
 
 Silent clients: a session that receives no request for its session timeout (revised by
 the server, at most ``max_session_timeout_s``) is closed by asyncua, and with it its
@@ -127,6 +129,7 @@ from .comm_faults import CommFaults
 from .opcua_arrays import ArrayViews, RangeError
 from .opcua_identity import identify
 from .opcua_limits import OperationLimits, OperationScreen, QuotaSession, publish_capabilities
+from .opcua_log import FloodGate
 from .opcua_space import VARIANT_TYPES, build_space
 from .opcua_users import Account, Directory, LoginLimiter, PeerSession, _peer
 from .opcua_wire import ChannelFault, GuardedProtocol, Wire, WireServer
@@ -219,6 +222,8 @@ class OpcUaFrontend:
         #: the guarded wire (opcua_wire) and the operation limits (opcua_limits)
         self.limits = OperationLimits.of(cfg)
         self.screen = OperationScreen(self.limits)
+        #: the client address of each open session (the per-client subscription quota)
+        self._peers: dict[ua.NodeId, str] = {}
         self.wire = Wire(cfg.max_chunk_size, self.screen, self._fault)
         #: the communication fault of the Clock tags (delayed or dropped answers); read
         #: from the scan's image (a bare tag image, as unit tests give, has none)
@@ -252,6 +257,8 @@ class OpcUaFrontend:
         self.passes = 0
         #: connections closed for silence
         self.idle_closed = 0
+        #: the bound on the lines hostile traffic leaves in the log (opcua_log), while serving
+        self.flood_gate: FloodGate | None = None
 
     # -- lifecycle ------------------------------------------------------------------------
     @property
@@ -260,6 +267,8 @@ class OpcUaFrontend:
 
     async def start(self) -> None:
         cfg = self.config
+        self.flood_gate = FloodGate()
+        self.flood_gate.install()
         server = WireServer(self.wire, user_manager=self.directory)
         self._server = server
         # far below asyncua's 100 MB: a hostile peer cannot make us buffer much
@@ -338,6 +347,9 @@ class OpcUaFrontend:
         if self.server is not None:
             await self.server.stop()
             self.server = None
+        if self.flood_gate is not None:
+            self.flood_gate.flush()
+            self.flood_gate.remove()
 
     async def _certificate(self, server: Server, app_uri: str) -> None:
         common_name = f"motion-server {self.image.map.site}"
@@ -350,6 +362,8 @@ class OpcUaFrontend:
         loop = asyncio.get_running_loop()
         while True:
             await asyncio.sleep(min(timeout / 4, 1.0))
+            if self.flood_gate is not None:
+                self.flood_gate.flush()  # the lines a past flood left unsaid
             try:
                 self._sweep(loop.time(), timeout)
             except Exception:  # keep watching whatever one pass hit
@@ -390,6 +404,7 @@ class OpcUaFrontend:
             user=user,
             external=external,
             limits=self.limits,
+            peers=self._peers,
         )
 
     def _fault(self, peer: Any, fault: ChannelFault) -> None:

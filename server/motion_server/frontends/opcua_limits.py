@@ -16,10 +16,20 @@ specification):
   TranslateBrowsePathsToNodeIds, RegisterNodes and UnregisterNodes, Call, HistoryRead,
   AddNodes / AddReferences / DeleteNodes / DeleteReferences, and CreateMonitoredItems,
   ModifyMonitoredItems, SetMonitoringMode, DeleteMonitoredItems (``max_monitored_items_per_call``).
+  TranslateBrowsePathsToNodeIds is also limited in the elements of all its paths
+  together (``max_browse_path_elements_per_request``, ``BadTooManyOperations``): the
+  path limit alone let 100 paths of 2,000 elements (3 MB) hold the process for seconds.
+  The count walks the encoding and stops at the limit, so it costs no more than a
+  request the limit allows.
 - :class:`QuotaSession` gives each session at most ``max_subscriptions_per_session``
-  subscriptions (``BadTooManySubscriptions``) and ``max_monitored_items_per_session``
-  monitored items (each item past the quota gets ``BadTooManyMonitoredItems``), and lets
-  a session act on its own subscriptions only (``BadSubscriptionIdInvalid`` otherwise).
+  subscriptions and all the sessions of one client address together at most
+  ``max_subscriptions_per_client`` (``BadTooManySubscriptions``), and at most
+  ``max_monitored_items_per_session`` monitored items (each item past the quota gets
+  ``BadTooManyMonitoredItems``); it lets a session act on its own subscriptions only
+  (``BadSubscriptionIdInvalid`` otherwise), and answers a browse path of more than
+  ``max_browse_path_elements`` elements with ``BadQueryTooComplex`` (that path's result;
+  OPC 10000-4 lists it among TranslateBrowsePathsToNodeIds' operation results: "the
+  requested operation requires too many resources in the server").
 - :func:`publish_capabilities` writes the limits into ``Server.ServerCapabilities``
   (``OperationLimits`` and the per-session quotas), so clients can split their requests.
 """
@@ -58,7 +68,10 @@ class OperationLimits:
     node_management: int = 0
     monitored_items_per_call: int = 0
     subscriptions_per_session: int = 0
+    subscriptions_per_client: int = 0
     monitored_items_per_session: int = 0
+    browse_path_elements: int = 0
+    browse_path_elements_per_request: int = 0
 
     @classmethod
     def of(cls, cfg: OpcUaSection) -> OperationLimits:
@@ -73,13 +86,17 @@ class OperationLimits:
             node_management=cfg.max_nodes_per_node_management,
             monitored_items_per_call=cfg.max_monitored_items_per_call,
             subscriptions_per_session=cfg.max_subscriptions_per_session,
+            subscriptions_per_client=cfg.max_subscriptions_per_client,
             monitored_items_per_session=cfg.max_monitored_items_per_session,
+            browse_path_elements=cfg.max_browse_path_elements,
+            browse_path_elements_per_request=cfg.max_browse_path_elements_per_request,
         )
 
 
 # -- counting operations in an encoded request ---------------------------------------------
 Skip = Callable[[Buffer], Any]
 _U32: Skip = Primitives.UInt32.unpack
+_I32: Callable[[Buffer], int] = Primitives.Int32.unpack
 _F64: Skip = Primitives.Double.unpack
 _BOOL: Skip = Primitives.Boolean.unpack
 _DATE: Skip = Primitives.DateTime.unpack
@@ -130,6 +147,33 @@ def operations(typeid: ua.NodeId, body: Buffer) -> tuple[str, int] | None:
     return limit, max(count, 0)
 
 
+_TRANSLATE = ids.TranslateBrowsePathsToNodeIdsRequest_Encoding_DefaultBinary
+
+
+def browse_path_elements(body: Buffer, limit: int) -> int:
+    """The elements of the browse paths of an encoded TranslateBrowsePathsToNodeIds
+    request (``body`` after the request header, not consumed), counted until more than
+    ``limit`` (the walk stops there). A body that does not decode counts what it held."""
+    buf = body.copy()
+    total = 0
+    try:
+        for _ in range(max(_I32(buf), 0)):
+            nodeid_from_binary(buf)  # StartingNode
+            count = max(_I32(buf), 0)  # RelativePath.Elements
+            total += count
+            if total > limit:
+                return total
+            for _ in range(count):
+                nodeid_from_binary(buf)  # ReferenceTypeId
+                buf.skip(2 + 2)  # IsInverse, IncludeSubtypes, TargetName.NamespaceIndex
+                size = _I32(buf)  # TargetName.Name
+                if size > 0:
+                    buf.skip(size)
+    except Exception:
+        pass  # asyncua answers what does not decode
+    return total
+
+
 class OperationScreen:
     """The request screen of :class:`~.opcua_wire.GuardedProcessor`: more operations
     than the limit in one request is a ``BadTooManyOperations`` ServiceFault."""
@@ -146,8 +190,15 @@ class OperationScreen:
         name, count = found
         limit = getattr(self.limits, name)
         if limit and count > limit:
-            self.refused[name] = self.refused.get(name, 0) + 1
-            raise ServiceError(Codes.BadTooManyOperations)
+            self._refuse(name)
+        elements = self.limits.browse_path_elements_per_request
+        translate = name == "translate" and typeid.Identifier == _TRANSLATE
+        if translate and elements and browse_path_elements(body, elements) > elements:
+            self._refuse("browse_path_elements_per_request")
+
+    def _refuse(self, name: str) -> None:
+        self.refused[name] = self.refused.get(name, 0) + 1
+        raise ServiceError(Codes.BadTooManyOperations)
 
 
 # -- per-session quotas and ownership ---------------------------------------------------------
@@ -155,9 +206,31 @@ class QuotaSession(PeerSession):
     """A :class:`~.opcua_users.PeerSession` held to its quotas, acting on its own
     subscriptions only."""
 
-    def __init__(self, *args: Any, limits: OperationLimits, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        *args: Any,
+        limits: OperationLimits,
+        peers: dict[ua.NodeId, str] | None = None,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.limits = limits
+        #: the client address of every open session, by session id (shared by the
+        #: front-end's sessions): whose subscriptions count against a client's quota
+        self.peers = peers if peers is not None else {}
+        self.peers[self.session_id] = self.client.address
+
+    async def close_session(self, delete_subs: bool = True) -> None:
+        try:
+            await super().close_session(delete_subs)
+        finally:
+            self.peers.pop(self.session_id, None)
+
+    def _client_held(self) -> int:
+        """Subscriptions of every session from this session's client address."""
+        address, peers = self.client.address, self.peers
+        subs = self.subscription_service.subscriptions.values()
+        return sum(1 for s in subs if peers.get(s.session_id) == address)
 
     def _own(self) -> list[InternalSubscription]:
         return [
@@ -191,7 +264,21 @@ class QuotaSession(PeerSession):
         quota = self.limits.subscriptions_per_session
         if quota and len(self._own()) >= quota:
             raise ServiceError(Codes.BadTooManySubscriptions)
+        quota = self.limits.subscriptions_per_client
+        if quota and self._client_held() >= quota:
+            raise ServiceError(Codes.BadTooManySubscriptions)
         return await super().create_subscription(params, callback, request_callback)
+
+    async def translate_browsepaths_to_nodeids(
+        self, params: list[ua.BrowsePath]
+    ) -> list[ua.BrowsePathResult]:
+        limit = self.limits.browse_path_elements
+        if not limit:
+            return await super().translate_browsepaths_to_nodeids(params)
+        short = [i for i, p in enumerate(params) if len(p.RelativePath.Elements) <= limit]
+        done = await super().translate_browsepaths_to_nodeids([params[i] for i in short])
+        too_complex = ua.BrowsePathResult(StatusCode=ua.StatusCode(Codes.BadQueryTooComplex))
+        return _merge(len(params), short, done, too_complex)
 
     async def create_monitored_items(
         self, params: ua.CreateMonitoredItemsParameters

@@ -28,7 +28,11 @@ This module replaces those parts without forking asyncua (subclasses only):
   (``BadIdentityTokenRejected``: a password never crosses the wire in clear, even
   encrypted with the server's key, since the unsigned channel carrying the session
   could be taken over), lets a session be activated only on the channel that created
-  it, closes a session with its connection, and passes each request to a ``screen``
+  it, closes a session with its connection, closes the session a new CreateSession on
+  the same channel replaces (asyncua forgets it there, and it lives on with its
+  subscriptions and its activation until its timeout: 120 CreateSession, ActivateSession,
+  CreateSubscription on one connection took every subscription slot of the server for a
+  minute after the connection closed), and passes each request to a ``screen``
   (the operation limits, :mod:`.opcua_limits`) once its session is activated.
 - :class:`WireServer` is asyncua's ``Server`` with these parts, and with no user name
   token offered on an endpoint without security.
@@ -39,6 +43,7 @@ This module replaces those parts without forking asyncua (subclasses only):
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import struct
 from collections.abc import Callable
@@ -47,7 +52,7 @@ from typing import Any
 
 from asyncua import Server, ua
 from asyncua.common.connection import SecureConnection, TransportLimits
-from asyncua.common.utils import Buffer, ServiceError
+from asyncua.common.utils import Buffer, NotEnoughData, ServiceError
 from asyncua.crypto.security_policies import SecurityPolicyNone
 from asyncua.crypto.uacrypto import InvalidSignature
 from asyncua.server.binary_server_asyncio import BinaryServer, OPCUAProtocol
@@ -55,7 +60,7 @@ from asyncua.server.internal_server import InternalServer
 from asyncua.server.internal_session import InternalSession
 from asyncua.server.uaprocessor import UaProcessor
 from asyncua.ua.ua_binary import header_from_binary, struct_from_binary, uatcp_to_binary
-from asyncua.ua.uaerrors import BadRequestTooLarge, UaStatusCodeError
+from asyncua.ua.uaerrors import BadRequestTooLarge, UaError, UaStatusCodeError
 
 from ..tagmap import CommFault
 from .comm_faults import Fault
@@ -76,11 +81,22 @@ SECURE_MIN = HEADER + 4 + 4
 #: chunk types each message type may carry (F final, C intermediate, A abort)
 CHUNK_TYPES = {b"HEL": b"F", b"OPN": b"F", b"CLO": b"F", b"MSG": b"FCA"}
 _ACTIVATE = ua.NodeId(ua.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
+_CREATE = ua.NodeId(ua.ObjectIds.CreateSessionRequest_Encoding_DefaultBinary)
 _WRAP = (1 << 32) - 1024  # sequence numbers wrap below 1024 after this (Part 6, 6.7.2.4)
 #: after an Error message: the most bytes read and dropped, the longest wait, before closing
 DRAIN_BYTES = 1 << 16
 DRAIN_S = 1.0
 _SCRATCH = bytearray(1 << 14)  # where dropped bytes are read (shared, never looked at)
+
+#: exceptions of parameters that do not decode (asyncua's decoders raise them all)
+DECODING: tuple[type[Exception], ...] = (
+    struct.error,
+    ValueError,  # an enumeration out of range; UnicodeError is one too
+    IndexError,
+    OverflowError,
+    NotEnoughData,
+    UaError,
+)
 
 #: judges one request of an activated session before asyncua serves it (raises a
 #: ServiceError to answer a ServiceFault): type id, body after the request header, session
@@ -160,8 +176,16 @@ def check_hello(body: Buffer) -> None:
             Codes.BadConnectionRejected,
             f"buffers of {hello.ReceiveBufferSize}/{hello.SendBufferSize} bytes < {MIN_BUFFER}",
         )
-    if hello.EndpointUrl is not None and len(hello.EndpointUrl.encode()) > MAX_URL:
-        raise ChannelFault(Codes.BadTcpEndpointUrlInvalid, "EndpointUrl longer than 4096 bytes")
+    url = hello.EndpointUrl
+    if url is not None:
+        # asyncua decodes strings with surrogateescape: bytes that are not UTF-8 arrive as
+        # lone surrogates, which raised on encode (a traceback, then BadTcpInternalError)
+        try:
+            size = len(url.encode("utf-8"))
+        except UnicodeEncodeError:
+            raise ChannelFault(Codes.BadTcpEndpointUrlInvalid, "EndpointUrl is not UTF-8") from None
+        if size > MAX_URL:
+            raise ChannelFault(Codes.BadTcpEndpointUrlInvalid, "EndpointUrl longer than 4096 bytes")
 
 
 class GuardedConnection(SecureConnection):
@@ -297,7 +321,9 @@ class GuardedProcessor(UaProcessor):
         self, typeid: ua.NodeId, requesthdr: ua.RequestHeader, seqhdr: Any, body: Buffer
     ) -> Any:
         session = self.session
-        if typeid == _ACTIVATE:
+        if typeid == _CREATE and session is not None:
+            await self._replace(session)
+        elif typeid == _ACTIVATE:
             if session is None:
                 # asyncua would look the session up by its authentication token and move
                 # it to this channel; here a session lives and dies with its connection
@@ -306,7 +332,44 @@ class GuardedProcessor(UaProcessor):
                 self._refuse_user_name(body)
         elif session is not None and session.is_activated() and self.wire.screen is not None:
             self.wire.screen(typeid, body, session)
-        return await super()._process_message(typeid, requesthdr, seqhdr, body)
+        try:
+            return await super()._process_message(typeid, requesthdr, seqhdr, body)
+        except (ServiceError, UaStatusCodeError):
+            raise  # asyncua answers them with a ServiceFault (and one line)
+        except Exception as exc:
+            # asyncua's process_message answers BadInternalError and logs a traceback
+            # ("Error while processing message") for every exception here, above all
+            # parameters that do not decode (a truncated body, an enumeration out of
+            # range, an array length beyond the body); one line of ours instead
+            code = Codes.BadDecodingError if isinstance(exc, DECODING) else Codes.BadInternalError
+            name = ua.ObjectIdNames.get(typeid.Identifier, str(typeid)).split("_Encoding")[0]
+            log.info(
+                "OPC UA request from %s: %s %s (%s): %s",
+                self.name,
+                name,
+                "does not decode" if code == Codes.BadDecodingError else "failed",
+                _text(exc),
+                ua.StatusCode(code).name,
+            )
+            log.debug("OPC UA request from %s failed", self.name, exc_info=True)
+            fault = ua.ServiceFault()
+            fault.ResponseHeader.ServiceResult = ua.StatusCode(code)
+            self.send_response(requesthdr.RequestHandle, seqhdr, fault)
+            return True
+
+    async def _replace(self, session: InternalSession) -> None:
+        """Close ``session`` (and its subscriptions) before a new CreateSession on its
+        channel replaces it. asyncua's processor holds one session per channel and
+        simply overwrites it, leaving the old one open, unreachable from here (an
+        ActivateSession always acts on the current one), until its own timeout; and
+        starts a new session watchdog without stopping the old one."""
+        # asyncua leaves the attribute untyped
+        watchdog: asyncio.Task[None] | None = getattr(self, "_session_watchdog_task", None)
+        if watchdog is not None and not watchdog.done():
+            watchdog.cancel()
+        self._session_watchdog_task = None
+        self.session = None
+        await session.close_session(True)
 
     def _refuse_user_name(self, body: Buffer) -> None:
         try:
@@ -437,8 +500,9 @@ class GuardedProtocol(OPCUAProtocol, asyncio.BufferedProtocol):
         except ChannelFault as fault:
             self.fail(fault)
             return False
-        except Exception as exc:
-            log.exception("OPC UA: message from %s failed", self.peer_name)
+        except Exception as exc:  # one line (the stack at DEBUG): a client can repeat it
+            log.warning("OPC UA: message from %s failed: %s", self.peer_name, _text(exc))
+            log.debug("OPC UA: message from %s failed", self.peer_name, exc_info=True)
             self.fail(ChannelFault(Codes.BadTcpInternalError, _text(exc)))
             return False
         if not ok:
@@ -466,8 +530,11 @@ class GuardedProtocol(OPCUAProtocol, asyncio.BufferedProtocol):
         if self.wire.on_fault is not None:
             self.wire.on_fault(self.peer_name, fault)
         transport.write(fault.message())
-        if transport.can_write_eof():
-            transport.write_eof()
+        # the peer may be gone already: asyncio's write_eof then raises OSError 107
+        # (ENOTCONN) from shutdown(), out of this protocol callback, with a traceback
+        with contextlib.suppress(OSError):
+            if transport.can_write_eof():
+                transport.write_eof()
         if self._paused:
             self._paused = False
             transport.resume_reading()  # to drain

@@ -16,15 +16,24 @@ certificate (plain Modbus has none); ``role`` is the client's role (``viewer``,
 ``operator``, ``admin``; empty for plain Modbus). No credential is ever written: values
 are those of tags, user names and certificate names only, never a password, a key or a
 certificate. The file rotates by size
-(``logging.handlers.RotatingFileHandler``: ``max_bytes``, ``backups``).
+(``logging.handlers.RotatingFileHandler``: ``max_bytes``, ``backups``); it and its
+rotations are created readable and writable by their owner only (0600).
+
+Every line is valid UTF-8, whatever a client sent: asyncua decodes an OPC UA String
+that is not UTF-8 with ``surrogateescape`` (a NodeId with the byte 0xFF arrives as
+``"\\udcff"``), which no UTF-8 file takes; such bytes are written escaped, ``\\xff``,
+and any other character UTF-8 cannot carry as its ``\\u`` escape (before, the line of
+such a refused write was lost).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import logging.handlers
 import math
+import os
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
@@ -36,6 +45,20 @@ from ..tagmap.codec import Value
 from .client import ClientInfo, current_client
 
 
+def escaped(text: str) -> str:
+    r"""``text`` as UTF-8 can carry it: bytes that were not UTF-8 (decoded with
+    ``surrogateescape``) as ``\xNN``, any other lone surrogate as ``\uXXXX``."""
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        pass
+    try:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:  # surrogates that are no escaped bytes
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
 def _plain(value: Any) -> Any:
     """A JSON-safe form of a tag value (non-finite floats as strings)."""
     if isinstance(value, bool) or value is None:
@@ -44,7 +67,19 @@ def _plain(value: Any) -> Any:
         return int(value)
     if isinstance(value, float):
         return value if math.isfinite(value) else str(value)
-    return str(value)
+    return escaped(str(value))
+
+
+class PrivateRotatingFileHandler(logging.handlers.RotatingFileHandler):
+    """A rotating file created 0600 (and an existing one made so): the audit log names
+    clients, users and values, which are not everybody's to read. ``logging`` opens the
+    file (and each new one after a rotation) with the process umask."""
+
+    def _open(self) -> Any:
+        fd = os.open(self.baseFilename, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o600)
+        with contextlib.suppress(OSError):  # a file of another owner keeps its mode
+            os.fchmod(fd, 0o600)
+        return open(fd, self.mode, encoding=self.encoding, errors=self.errors)
 
 
 class AuditLog:
@@ -64,8 +99,14 @@ class AuditLog:
         self._sink = sink
         if path is not None:
             Path(path).parent.mkdir(parents=True, exist_ok=True)
-            handler = logging.handlers.RotatingFileHandler(
-                path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8"
+            # errors: a line another process formatted may hold lone surrogates; in a
+            # JSON string their escape (backslash, u, four hex digits) is valid JSON
+            handler = PrivateRotatingFileHandler(
+                path,
+                maxBytes=max_bytes,
+                backupCount=backups,
+                encoding="utf-8",
+                errors="backslashreplace",
             )
             handler.setFormatter(logging.Formatter("%(message)s"))
             self._handler = handler
@@ -104,10 +145,10 @@ class AuditLog:
             "event": event,
             "result": result,
             "protocol": client.protocol,
-            "address": client.address,
+            "address": escaped(client.address),
             "port": client.port,
             "connection": client.connection,
-            "user": client.user,
+            "user": escaped(client.user),
             "role": client.role,
             **{k: _plain(v) for k, v in fields.items()},
         }
