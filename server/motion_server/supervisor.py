@@ -28,6 +28,8 @@ output), from the moment the scan runs, start-up included:
 - SIGINT or SIGTERM: the scan runs the programmed stop of every group, hands over the
   retained state, and ends; then the front-ends are stopped; exit 0.
 
+The children die with the supervisor, however it ends (``launch.follow_supervisor``).
+
 The supervisor also owns the files several processes feed: the audit log (the
 front-ends send it their lines) and the retain file (the scan sends its payload).
 
@@ -213,6 +215,7 @@ class Supervisor:
             self.size,
             scan_fds,
             fresh=self.fresh,
+            supervisor=os.getpid(),
         )
         scan = self._spawn("scan", [sys.executable, "-m", "motion_server.scan"], spec)
         for sock in scan_socks:  # the scan holds them now
@@ -274,6 +277,7 @@ class Supervisor:
             {self.roles[role]: fe_end.fileno()},
             users=self.users if role == "opcua" else None,
             generation=generation,
+            supervisor=os.getpid(),
         )
         self._spawn(role, [sys.executable, "-m", "motion_server.frontends", role], spec)
         if self._serving:  # a restart: it must listen in time as well (then beat)

@@ -336,3 +336,24 @@ def test_a_stop_asked_of_a_server_whose_scan_stands_still_ends_without_orphans(
     finally:
         continue_all(pids.values())
         server.stop(timeout=15.0)
+
+
+def test_no_process_outlives_a_killed_supervisor(site_dir: Path) -> None:
+    """The supervisor killed (SIGKILL, the OOM killer) while its scan stands still: the
+    scan cannot read its lifeline, yet it ends with the supervisor, and so do the
+    front-ends."""
+    server = MotionServer.start(site_dir, site_dir / "site.toml", clock="realtime", opcua=False)
+    pids = children(server.pid)
+    try:
+        os.kill(pids["scan"], signal.SIGSTOP)
+        server.proc.kill()
+        server.proc.wait(10)
+        give_up = time.monotonic() + 20.0
+        while not all(gone(pid) for pid in pids.values()) and time.monotonic() < give_up:
+            time.sleep(0.1)
+        assert all(gone(pid) for pid in pids.values()), pids
+    finally:
+        continue_all(pids.values())
+        for pid in pids.values():  # what this test would otherwise leave behind
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)

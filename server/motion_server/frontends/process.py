@@ -32,7 +32,7 @@ from typing import Any
 from ..config import SiteMap
 from ..image.buffer import ImageError, ImageReader, map_shared
 from ..image.layout import ImageLayout
-from ..launch import LaunchSpec, setup_logging
+from ..launch import LaunchSpec, follow_supervisor, setup_logging
 from ..liveness import FRONTEND_BEAT
 from ..safety.access import AccessPolicy
 from ..safety.audit import AuditLog
@@ -195,6 +195,7 @@ def main() -> int:
         print("usage: python -m motion_server.frontends modbus|opcua", file=sys.stderr)
         return 2
     spec = LaunchSpec.read(sys.stdin.buffer)
+    follow_supervisor(spec)
     setup_logging(spec.log_level)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     return asyncio.run(serve(kind, spec))

@@ -31,7 +31,7 @@ import time
 from ..config import SiteMapError
 from ..image import wire
 from ..image.buffer import map_shared
-from ..launch import LaunchSpec, setup_logging
+from ..launch import LaunchSpec, follow_supervisor, setup_logging
 from ..liveness import SCAN_BEAT
 from ..safety.retain import RetainError
 from ..scheduling import SCAN_RT_PRIORITY, Policy
@@ -65,6 +65,7 @@ def _realtime(mode: ClockMode) -> bool:
 
 def main() -> int:
     spec = LaunchSpec.read(sys.stdin.buffer)
+    follow_supervisor(spec)
     setup_logging(spec.log_level)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     wake_r, wake_w = os.pipe()
