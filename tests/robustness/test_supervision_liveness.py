@@ -313,6 +313,41 @@ def test_a_scan_that_stands_still_stops_the_server_and_leaves_the_retain_file(
         server.stop(timeout=15.0)
 
 
+def test_a_hung_scan_that_comes_back_runs_its_programmed_stop_but_writes_no_retain(
+    site_dir: Path,
+) -> None:
+    """Declared hung, the scan is asked for its programmed stop; one that can still run
+    it (here: continued right after the line) does, and ends by itself within the grace.
+    What it hands over then is not written: the retain file stays as it was."""
+    first = MotionServer.start(site_dir, site_dir / "site.toml", clock="manual", opcua=False)
+    first.step(10)
+    assert first.stop() == 0, first.log()[-3000:]
+    retain_file = site_dir / "retain.json"
+    saved = retain_file.read_bytes()
+    server = MotionServer.start(site_dir, site_dir / "site.toml", clock="manual", opcua=False)
+    pids = children(server.pid)
+    try:
+        server.step(25)
+        offset = len(server.log())
+        os.kill(pids["scan"], signal.SIGSTOP)
+        give_up = time.monotonic() + END_BOUND
+        while "scan process hung" not in server.log()[offset:]:
+            assert time.monotonic() < give_up, server.log()[-3000:]
+            time.sleep(0.05)
+        os.kill(pids["scan"], signal.SIGCONT)
+        code = server.proc.wait(END_BOUND)
+        log = server.log()[offset:]
+        assert code != 0
+        assert "programmed stop complete" in log, log
+        assert "did not stop: killed" not in log
+        assert "retain: the state a hung scan handed over is not written" in log
+        assert retain_file.read_bytes() == saved
+        assert all(gone(pid) for pid in pids.values()), pids
+    finally:
+        continue_all(pids.values())
+        server.stop(timeout=15.0)
+
+
 def test_a_stop_asked_of_a_server_whose_scan_stands_still_ends_without_orphans(
     site_dir: Path,
 ) -> None:
