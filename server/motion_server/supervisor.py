@@ -598,7 +598,7 @@ class Supervisor:
             elif "listening" in msg:
                 child.listening = msg
                 self._ports[role] = msg
-                self._live.watch(role, FRONTEND_HANG.get(role, SCAN_HANG), time.monotonic())
+                self._live.watch(role, FRONTEND_HANG[role], time.monotonic())
             elif "failed" in msg:
                 child.failed = str(msg.get("reason", "failed"))
 

@@ -291,7 +291,7 @@ def test_a_scan_that_stands_still_stops_the_server_and_leaves_the_retain_file(
             assert server.proc.poll() is None, server.log()[-3000:]
             time.sleep(0.2)
         assert server.read("Clock.Cycle") == 25
-        assert "hung" not in server.log()
+        assert "scan process hung" not in server.log()
         os.kill(pids["scan"], signal.SIGSTOP)
         t0 = time.monotonic()
         try:
