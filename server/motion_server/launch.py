@@ -98,8 +98,20 @@ def follow_supervisor(spec: LaunchSpec) -> None:
         libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
     except (OSError, AttributeError):
         return
-    if os.getppid() != spec.supervisor:  # it ended before the line above
+    if os.getppid() != spec.supervisor and not _alive(spec.supervisor):
+        # it ended before the line above (a parent that is not the supervisor but lives
+        # is a launcher between the two, which then stands for it)
         raise SystemExit("motion-server: the supervisor is gone")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def setup_logging(level: str) -> None:

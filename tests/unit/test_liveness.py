@@ -4,6 +4,9 @@ the supervisor's own stalls are not blamed on the others."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 
 from motion_server.image.buffer import META_WORDS, ImageWriter, Progress, image_bytes
@@ -86,3 +89,24 @@ def test_the_image_shows_publishes_and_beats_to_the_supervisor() -> None:
     writer.publish(np.zeros(4), np.zeros(META_WORDS, dtype=np.int64))
     third = progress.marker()
     assert third[0] == second[0] + 1 and third[1] == second[1]  # a cycle published
+
+
+def test_a_child_whose_supervisor_is_already_gone_exits_at_once() -> None:
+    """Between its start and asking the kernel to follow the supervisor, the supervisor
+    may end: the child then exits in one line instead of living on unwatched."""
+    dead = subprocess.Popen(["true"])  # a pid that no longer runs
+    dead.wait()
+    probe = (
+        "from motion_server.launch import LaunchSpec, follow_supervisor\n"
+        f"spec = LaunchSpec({{}}, '', 'INFO', -1, 0, {{}}, supervisor={dead.pid})\n"
+        "follow_supervisor(spec)\n"
+        "print('still here')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert out.returncode == 1
+    assert out.stderr.strip() == "motion-server: the supervisor is gone"
+    assert "still here" not in out.stdout
+    # its own parent, alive: it runs on (and dies with that parent)
+    probe = probe.replace(f"supervisor={dead.pid}", "supervisor=__import__('os').getppid()")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "still here", out.stderr
