@@ -1,6 +1,8 @@
 """What the supervisor tells a process it starts (the scan, a front-end): one JSON line
 on the child's standard input. The pipe stays open afterwards as a lifeline: when it
-reaches end of file, the supervisor is gone and the child stops.
+reaches end of file, the supervisor is gone and the child stops. A child that is hung
+cannot read its lifeline: :func:`follow_supervisor` also has the kernel kill it when the
+supervisor ends, however it ends (SIGKILL, the OOM killer), so no process outlives it.
 
 The site map travels as validated data (``SiteMap.model_dump``), so the child neither
 reads files nor the environment again: every process serves exactly the map the
@@ -9,8 +11,11 @@ supervisor checked, with the command line's overrides applied.
 
 from __future__ import annotations
 
+import ctypes
 import json
 import logging
+import os
+import signal
 import sys
 from dataclasses import asdict, dataclass, field
 from typing import IO, Any
@@ -35,6 +40,8 @@ class LaunchSpec:
     users: list[dict[str, Any]] = field(default_factory=list)
     #: how many times this front-end was started before (connection numbers stay unique)
     generation: int = 0
+    #: the supervisor's pid (0: started by something else)
+    supervisor: int = 0
 
     @classmethod
     def build(
@@ -75,6 +82,36 @@ class LaunchSpec:
 
     def opcua_users(self) -> list[OpcUaUser]:
         return [OpcUaUser.model_validate(u) for u in self.users]
+
+
+#: prctl(2) option: the signal a process gets when its parent ends
+PR_SET_PDEATHSIG = 1
+
+
+def follow_supervisor(spec: LaunchSpec) -> None:
+    """SIGKILL this process when the supervisor that started it ends (Linux; elsewhere
+    the lifeline alone). Exits at once when the supervisor is already gone."""
+    if not spec.supervisor:
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != spec.supervisor and not _alive(spec.supervisor):
+        # it ended before the line above (a parent that is not the supervisor but lives
+        # is a launcher between the two, which then stands for it)
+        raise SystemExit("motion-server: the supervisor is gone")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def setup_logging(level: str) -> None:

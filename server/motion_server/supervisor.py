@@ -9,16 +9,26 @@ anonymous ``memfd``) and one ``SOCK_SEQPACKET`` socket pair per channel, and sta
    protocol (``python -m motion_server.frontends modbus|opcua``), so their ports open
    only when there is a controller behind them.
 
-Then it watches them:
+Then it watches them, for their exits and for their liveness (:mod:`.liveness`: the
+scan's publish count and beat in the image, each front-end's beat on its standard
+output), from the moment the scan runs, start-up included:
 
-- a front-end that dies is logged and started again (after 0.5 s, doubling to 30 s while
-  it keeps dying within a minute of its start) on the same port, with the same channel to
-  the scan, while motion goes on; clients reconnect. ``Diagnostics.FrontendRestarts``
-  counts the restarts;
-- a scan that dies stops everything with one log line; the retained state is not
-  overwritten (only the scan hands it over, and the supervisor writes what it was given);
+- a front-end that dies, or hangs (no beat for its limit: it is killed), is logged and
+  started again (after 0.5 s, doubling to 30 s while it keeps dying within a minute of its
+  start) on the same port, with the same channel to the scan, while motion goes on;
+  clients reconnect. ``Diagnostics.FrontendRestarts`` counts the restarts;
+- a scan that ends without being asked to (it died, or it ran its programmed stop
+  because something else sent it SIGTERM) stops everything with one log line, exit 1;
+- a scan that hangs (neither a cycle nor a beat for ``SCAN_HANG`` s) stops everything
+  with one log line, exit 1: it is asked for its programmed stop, killed after
+  ``SCAN_KILL_GRACE`` s, then the front-ends are stopped. What it might still send is
+  not written: the retain file keeps what was last saved before the hang;
+- the retained state is written only as the scan hands it over: a scan that dies or
+  hangs leaves the file as it was;
 - SIGINT or SIGTERM: the scan runs the programmed stop of every group, hands over the
   retained state, and ends; then the front-ends are stopped; exit 0.
+
+The children die with the supervisor, however it ends (``launch.follow_supervisor``).
 
 The supervisor also owns the files several processes feed: the audit log (the
 front-ends send it their lines) and the retain file (the scan sends its payload).
@@ -51,9 +61,10 @@ from typing import IO, Any
 
 from .config import OpcUaUser, SiteMap, opcua_users
 from .image import wire
-from .image.buffer import create_shared, image_bytes
+from .image.buffer import Progress, create_shared, image_bytes, map_shared
 from .image.layout import ImageLayout
 from .launch import LaunchSpec
+from .liveness import FRONTEND_HANG, SCAN_HANG, SCAN_KILL_GRACE, Liveness
 from .safety import retain
 from .safety.audit import AuditLog
 from .scan.channel import CONTROL, MODBUS, OPCUA
@@ -90,6 +101,8 @@ class _Child:
     listening: dict[str, Any] = field(default_factory=dict)
     buffer: bytes = b""
     failed: str = ""
+    #: why the supervisor killed it ("": it was not killed for hanging)
+    hung: str = ""
 
     @property
     def stdout(self) -> IO[bytes]:
@@ -147,7 +160,13 @@ class Supervisor:
         self._stopping = False
         self._scan_stopped = False
         self._retain_parts: list[bytes] = []
+        #: False once the scan hung: what it hands over afterwards is not written
+        self._retain_trusted = True
         self._signal_r, self._signal_w = os.pipe()
+        self._live = Liveness()
+        self._progress: Progress | None = None
+        self._marker = (0, 0)
+        self._serving = False
 
     # -- start ------------------------------------------------------------------------------
     def run(self) -> int:
@@ -177,6 +196,8 @@ class Supervisor:
             # refuse a bad retain file here, in one line, before anything starts
             retain.load(self.retain_file, self.site.site.name)
         self.image_fd = create_shared(self.size)
+        # read-only: what shows that the scan works (its publish count and its beat)
+        self._progress = Progress(map_shared(self.image_fd, self.size, writable=False))
         self.control, scan_control = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         self.control.setblocking(False)
         self._fe_ends: dict[str, socket.socket] = {}
@@ -194,6 +215,7 @@ class Supervisor:
             self.size,
             scan_fds,
             fresh=self.fresh,
+            supervisor=os.getpid(),
         )
         scan = self._spawn("scan", [sys.executable, "-m", "motion_server.scan"], spec)
         for sock in scan_socks:  # the scan holds them now
@@ -201,11 +223,15 @@ class Supervisor:
         self._selector.register(self.control, selectors.EVENT_READ, "control")
         if not self._wait_ready(scan):
             code = scan.proc.poll()
+            if code is not None and code < 0:  # killed by a signal (said in one line)
+                return 1
             return code if code else (0 if self._stopping else 1)
         for role in self.roles:
             self._start_frontend(role)
-        if not self._wait_listening():
-            return 1
+        code = self._wait_listening()
+        if code is not None:
+            return code
+        self._serving = True
         self._write_ready()
         return self._watch()
 
@@ -251,8 +277,11 @@ class Supervisor:
             {self.roles[role]: fe_end.fileno()},
             users=self.users if role == "opcua" else None,
             generation=generation,
+            supervisor=os.getpid(),
         )
         self._spawn(role, [sys.executable, "-m", "motion_server.frontends", role], spec)
+        if self._serving:  # a restart: it must listen in time as well (then beat)
+            self._live.watch(role, FRONTEND_START_TIMEOUT, time.monotonic())
 
     def _wait_ready(self, scan: _Child) -> bool:
         """Until the scan says READY; False when it exited or a signal came first."""
@@ -260,6 +289,7 @@ class Supervisor:
         while time.monotonic() < give_up:
             for kind in self._poll(0.2):
                 if kind == wire.Kind.READY:
+                    self._live.watch("scan", SCAN_HANG, time.monotonic())
                     return True
             if self._stopping:
                 self._stop_all()
@@ -269,18 +299,23 @@ class Supervisor:
                 return False
         raise StartError(f"the scan did not start within {SCAN_START_TIMEOUT:.0f} s")
 
-    def _wait_listening(self) -> bool:
-        """Until every front-end listens. One that reports it cannot serve (a port in
-        use) stops the server; one that dies otherwise is started again, as later."""
+    def _wait_listening(self) -> int | None:
+        """Until every front-end listens (None). One that reports it cannot serve (a port
+        in use) stops the server; one that dies otherwise is started again, as later. A
+        scan that ends or hangs meanwhile stops it too. Else the exit code."""
         give_up = time.monotonic() + FRONTEND_START_TIMEOUT
         while time.monotonic() < give_up:
             self._poll(0.2)
             failed = [c for c in self._children.values() if c.failed]
             if failed or self._stopping:
+                asked = self._stopping
                 for c in failed:
                     log.error("motion-server: cannot serve %s: %s", c.role, c.failed)
                 self._stop_all()
-                return self._stopping and not failed
+                return 0 if asked and not failed and self._scan_clean() else 1
+            code = self._look()
+            if code is not None:
+                return code
             self._reap_frontends()
             now = time.monotonic()
             for role, when in list(self._due.items()):
@@ -290,7 +325,7 @@ class Supervisor:
             children = [self._children.get(r) for r in self.roles]
             if all(c is not None and c.listening for c in children):
                 log.info("serving: %s", self._where())
-                return True
+                return None
         raise StartError(f"the front-ends did not listen within {FRONTEND_START_TIMEOUT:.0f} s")
 
     def _where(self) -> str:
@@ -307,7 +342,6 @@ class Supervisor:
 
     # -- watch ------------------------------------------------------------------------------
     def _watch(self) -> int:
-        scan = self._children["scan"]
         while True:
             timeout = 0.5
             if self._due:
@@ -315,27 +349,116 @@ class Supervisor:
             self._poll(timeout)
             if self._stopping and not self._stop_sent:
                 self._send_stop()
-            if scan.proc.poll() is not None or self._scan_stopped:
-                break
+            code = self._look()
+            if code is not None:
+                return code
             self._reap_frontends()
             now = time.monotonic()
             for role, when in list(self._due.items()):
                 if now >= when and not self._stopping:
                     del self._due[role]
                     self._start_frontend(role)
+
+    def _look(self) -> int | None:
+        """One look at every process, after a poll: the scan first (its end or its hang
+        ends the server: then every process is stopped and the exit code returned), then
+        the front-ends (a hung one is killed here and restarted by the next reap)."""
+        scan = self._children["scan"]
+        hung = self._hung()
+        if scan.proc.poll() is not None or self._scan_stopped:
+            return self._scan_ended(scan)
+        if "scan" in hung:
+            return self._scan_hung(scan, hung.pop("scan"))
+        if not self._stopping:
+            for role, silent in hung.items():
+                self._kill_hung(role, silent)
+        return None
+
+    def _hung(self) -> dict[str, float]:
+        """Process -> seconds silent, of those silent beyond their limit."""
+        now = time.monotonic()
+        if self._progress is not None:
+            marker = self._progress.marker()
+            if marker != self._marker:
+                self._marker = marker
+                self._live.seen("scan", now)
+        return dict(self._live.hung(now))
+
+    def _scan_ended(self, scan: _Child) -> int:
+        """The scan exited, or said STOPPED and is exiting: 0 when it was asked to stop
+        and stopped cleanly; else one line and 1. Every process is stopped."""
+        self._live.forget("scan")
+        give_up = time.monotonic() + TERMINATE_GRACE
+        while scan.proc.poll() is None and time.monotonic() < give_up:
+            self._poll(0.1)  # its last packets (the retained state, STOPPED) are read
+        if scan.proc.poll() is None:
+            scan.proc.kill()
         code = scan.proc.wait()
-        # the scan's last packets (the retained state, STOPPED) may still be unread: it
-        # can exit between the poll above and the check of its status
+        # its last packets may still be unread: it can exit between a poll and the check
         self._on_control()
-        if self._scan_stopped or (self._stopping and code == 0):
+        clean = self._scan_stopped or code == 0
+        if self._stopping and clean:
             self._stop_frontends()
             log.info("stopped")
             return 0
-        log.error(
-            "the scan process died (%s): motion has stopped; stopping the server", _describe(code)
-        )
+        if clean:
+            log.error(
+                "the scan process stopped without being asked to (%s; a SIGTERM sent to it "
+                "runs the programmed stop): motion has stopped; stopping the server",
+                _describe(code),
+            )
+        else:
+            log.error(
+                "the scan process died (%s): motion has stopped; stopping the server",
+                _describe(code),
+            )
         self._stop_frontends()
         return 1
+
+    def _scan_hung(self, scan: _Child, silent: float) -> int:
+        """A scan that shows no progress: one line, a programmed stop asked for (it may
+        still run one), killed after the grace, the front-ends stopped; 1."""
+        log.error(
+            "the scan process hung (no cycle and no heartbeat for %.1f s): motion has "
+            "stopped; stopping the server (it is killed if it does not stop within %.0f s)",
+            silent,
+            SCAN_KILL_GRACE,
+        )
+        self._live.forget("scan")
+        self._retain_trusted = False
+        self._stopping = True
+        self._remove_ready()
+        if not self._stop_sent:
+            self._send_stop()
+        give_up = time.monotonic() + SCAN_KILL_GRACE
+        while scan.proc.poll() is None and time.monotonic() < give_up:
+            self._poll(0.1)
+        if scan.proc.poll() is None:
+            scan.proc.kill()
+            scan.proc.wait()
+        self._stop_frontends()
+        return 1
+
+    def _scan_clean(self) -> bool:
+        """The scan has ended after its programmed stop (not killed, not hung)."""
+        scan = self._children.get("scan")
+        code = None if scan is None else scan.proc.poll()
+        return self._retain_trusted and (self._scan_stopped or code == 0)
+
+    def _kill_hung(self, role: str, silent: float) -> None:
+        """A front-end that stands still: killed (SIGKILL: a loop that does not run does
+        not handle SIGTERM); the next reap restarts it like one that died."""
+        self._live.forget(role)
+        child = self._children.get(role)
+        if child is None or child.proc.poll() is not None:
+            return
+        if child.listening:
+            child.hung = f"hung (no heartbeat for {silent:.1f} s) and was killed"
+        else:
+            child.hung = f"did not listen within {silent:.0f} s and was killed"
+        child.proc.kill()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            child.proc.wait(2.0)  # at once, unless it is stuck in the kernel
 
     _stop_sent = False
 
@@ -363,9 +486,9 @@ class Supervisor:
             self._delay[role] = min(delay * 2, RESTART_LONGEST)
             self.restarts += 1
             log.error(
-                "the %s front-end died (%s): restarting it in %.1f s; motion goes on",
+                "the %s front-end %s: restarting it in %.1f s; motion goes on",
                 role,
-                _describe(child.proc.returncode),
+                child.hung or f"died ({_describe(child.proc.returncode)})",
                 delay,
             )
             self._due[role] = time.monotonic() + delay
@@ -374,6 +497,7 @@ class Supervisor:
 
     def _drop(self, child: _Child) -> None:
         del self._children[child.role]
+        self._live.forget(child.role)
         if child.proc.stdout is not None:
             with contextlib.suppress(KeyError, ValueError):
                 self._selector.unregister(child.proc.stdout)
@@ -433,9 +557,13 @@ class Supervisor:
                     self._retain_parts = []
             elif kind == wire.Kind.STOPPED:
                 self._scan_stopped = True
+                self._live.forget("scan")  # only its exit is still to come
 
     def _write_retain(self, blob: bytes) -> None:
         if self.retain_file is None:
+            return
+        if not self._retain_trusted:
+            log.warning("retain: the state a hung scan handed over is not written")
             return
         try:
             payload = json.loads(blob)
@@ -453,6 +581,7 @@ class Supervisor:
             data = None
         if data is None:
             return
+        self._live.seen(role, time.monotonic())  # a line, or part of one: its loop runs
         if not data:  # end of file: the child is exiting
             with contextlib.suppress(KeyError, ValueError):
                 self._selector.unregister(child.stdout)
@@ -469,6 +598,7 @@ class Supervisor:
             elif "listening" in msg:
                 child.listening = msg
                 self._ports[role] = msg
+                self._live.watch(role, FRONTEND_HANG[role], time.monotonic())
             elif "failed" in msg:
                 child.failed = str(msg.get("reason", "failed"))
 
@@ -531,6 +661,9 @@ class Supervisor:
             give_up = time.monotonic() + TERMINATE_GRACE * 3
             while scan.proc.poll() is None and time.monotonic() < give_up:
                 self._poll(0.1)
+                hung = self._hung()
+                if "scan" in hung:  # it does not run its programmed stop: no use waiting
+                    self._scan_hung(scan, hung["scan"])
         self._stop_frontends()
         self._wait_children(list(self._children.values()))
 

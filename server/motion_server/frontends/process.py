@@ -8,7 +8,10 @@ protocol costs that process only: never the motion cycle, never the other protoc
 
 It tells the supervisor, one JSON line each on standard output, where it listens
 (``{"listening": "modbus", "port": 5020, "tls_port": 0}``) and every audit line
-(``{"audit": "..."}``: the supervisor owns the audit file). End of file on standard input
+(``{"audit": "..."}``: the supervisor owns the audit file), and, once it listens, a beat
+(``{"beat": n}``) every :data:`~motion_server.liveness.FRONTEND_BEAT` seconds from a task
+of its event loop: a loop that stands still misses it, and the supervisor replaces the
+process (:mod:`motion_server.liveness`). End of file on standard input
 (the supervisor is gone) or SIGTERM ends it; SIGINT is left to the supervisor.
 """
 
@@ -29,7 +32,8 @@ from typing import Any
 from ..config import SiteMap
 from ..image.buffer import ImageError, ImageReader, map_shared
 from ..image.layout import ImageLayout
-from ..launch import LaunchSpec, setup_logging
+from ..launch import LaunchSpec, follow_supervisor, setup_logging
+from ..liveness import FRONTEND_BEAT
 from ..safety.access import AccessPolicy
 from ..safety.audit import AuditLog
 from ..scan.channel import MODBUS, OPCUA
@@ -137,7 +141,7 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
             stop.set()
 
     loop.add_reader(sys.stdin.fileno(), lifeline)
-    tasks = [asyncio.create_task(_watch_link(link, stop))]
+    tasks = [asyncio.create_task(_watch_link(link, stop)), asyncio.create_task(_beat())]
     if kind == "modbus":
         tasks.append(asyncio.create_task(_follow_policy(modbus_policy())))
     try:
@@ -164,6 +168,13 @@ async def _watch_link(link: ScanLink, stop: asyncio.Event) -> None:
     stop.set()
 
 
+async def _beat() -> None:
+    """Tell the supervisor that the event loop runs."""
+    for n in itertools.count(1):
+        await asyncio.sleep(FRONTEND_BEAT)
+        _say({"beat": n})
+
+
 def modbus_policy() -> Policy:
     """Real-time below the scan (:data:`~motion_server.scheduling.MODBUS_RT_PRIORITY`):
     a PLC's write and its polls of DN come before the OPC UA front-end's bulk work."""
@@ -184,6 +195,7 @@ def main() -> int:
         print("usage: python -m motion_server.frontends modbus|opcua", file=sys.stderr)
         return 2
     spec = LaunchSpec.read(sys.stdin.buffer)
+    follow_supervisor(spec)
     setup_logging(spec.log_level)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     return asyncio.run(serve(kind, spec))

@@ -2,7 +2,8 @@
 
 Memory layout (all 8-byte words)::
 
-    control   magic, slot count, layout fingerprint, publish count P, scan pid, spare x3
+    control   magic, slot count, layout fingerprint, publish count P, scan pid, beat B,
+              spare x2
     buffer 0  sequence, META_WORDS meta words, one float64 per slot
     buffer 1  the same
 
@@ -16,6 +17,9 @@ The order of the writer's stores and of the reader's loads is what makes this co
 CPython performs them in program order (each is a separate C call), and x86-64 keeps
 stores ordered with stores and loads with loads. On a weakly ordered CPU (ARM) a torn
 snapshot is possible in principle; nothing else in the server depends on the CPU.
+
+B moves on every pass of the scan's loop, idle included: with P it tells the supervisor
+that the scan works (:class:`Progress`, :mod:`motion_server.liveness`).
 
 Meta words: the cycle (tick) the snapshot shows, the publish count, the scan's state,
 the clock mode, and for every write channel the sequence number of the last batch the
@@ -38,7 +42,7 @@ MAX_CHANNELS = 16
 META_WORDS = 8 + MAX_CHANNELS
 
 # control words
-_C_MAGIC, _C_SLOTS, _C_PRINT, _C_COUNT, _C_PID = range(5)
+_C_MAGIC, _C_SLOTS, _C_PRINT, _C_COUNT, _C_PID, _C_BEAT = range(6)
 
 
 class Meta(IntEnum):
@@ -141,6 +145,22 @@ class ImageWriter(_Image):
         self.control[_C_COUNT] = n
         self.count = n
         return n
+
+    def beat(self) -> None:
+        """The scan's loop made a pass (it calls this on every one, idle included)."""
+        self.control[_C_BEAT] += 1
+
+
+class Progress:
+    """The supervisor's view of the image: only what shows that the scan works."""
+
+    def __init__(self, buf: memoryview | bytearray | mmap.mmap) -> None:
+        self._control = np.frombuffer(buf, dtype=np.int64, count=CONTROL_WORDS, offset=0)
+
+    def marker(self) -> tuple[int, int]:
+        """(publish count, beat): the scan worked between two calls when they differ."""
+        c = self._control
+        return int(c[_C_COUNT]), int(c[_C_BEAT])
 
 
 class ImageReader(_Image):

@@ -6,6 +6,11 @@ loop over its channels (the supervisor's control channel and one per front-end).
 imports no protocol stack (a test checks): nothing a client sends is parsed here, only
 the judged batches front-ends forward.
 
+Liveness: every pass of the loop beats in the image (:meth:`ImageWriter.beat`), and the
+loop passes at least every :data:`~motion_server.liveness.SCAN_BEAT` seconds even with
+nothing due (the manual clock waiting for a step), so the supervisor can tell an idle scan
+from a hung one (:mod:`motion_server.liveness`).
+
 Signals: SIGTERM runs the programmed stop of every group, then the process exits 0;
 SIGINT is left to the supervisor (a terminal's Ctrl-C reaches the whole process group,
 and the supervisor orders the stop). End of file on the control channel (the
@@ -26,7 +31,8 @@ import time
 from ..config import SiteMapError
 from ..image import wire
 from ..image.buffer import map_shared
-from ..launch import LaunchSpec, setup_logging
+from ..launch import LaunchSpec, follow_supervisor, setup_logging
+from ..liveness import SCAN_BEAT
 from ..safety.retain import RetainError
 from ..scheduling import SCAN_RT_PRIORITY, Policy
 from ..tagmap.fields import ClockMode
@@ -59,6 +65,7 @@ def _realtime(mode: ClockMode) -> bool:
 
 def main() -> int:
     spec = LaunchSpec.read(sys.stdin.buffer)
+    follow_supervisor(spec)
     setup_logging(spec.log_level)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     wake_r, wake_w = os.pipe()
@@ -99,15 +106,19 @@ def main() -> int:
     gc.collect()
     gc.freeze()
     scan.start(time.monotonic())
+    terminated = False
     while not scan.finished:
-        if stop[0]:
+        if stop[0] and not terminated:
+            terminated = True
+            log.warning("SIGTERM: programmed stop of every group, then the scan ends")
             scan.request_stop()
+        scan.writer.beat()
         wake = scan.service(time.monotonic())
         priority.follow(_realtime(scan.mode), scan.load)
         if scan.finished:
             break
         fds: list[int] = [wake_r, *(ch.fileno() for ch in scan.channels.values())]
-        timeout = None if wake is None else max(0.0, wake - time.monotonic())
+        timeout = SCAN_BEAT if wake is None else min(SCAN_BEAT, max(0.0, wake - time.monotonic()))
         if timeout == 0.0:
             continue
         try:
