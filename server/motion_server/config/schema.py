@@ -292,10 +292,13 @@ class ModbusAccessSection(_Model):
     (``allow``; empty = everyone), read-only mode, per-network write rules (the first
     rule whose networks hold the client decides; no rule = every writable tag),
     connection limit and idle timeout (seconds without a complete request before a
-    connection is closed; default 60, 0 = never)."""
+    connection is closed; default 60, 0 = never). ``role``: what a plain Modbus TCP client
+    may write (viewer, operator or admin, as the roles of OPC UA users); unset, admin on a
+    map that defines no users and no TLS roles, operator on one that does."""
 
     allow: list[str] = Field(default_factory=list)
     read_only: bool = False
+    role: Literal["viewer", "operator", "admin"] | None = None
     rules: list[WriteRule] = Field(default_factory=list)
     max_connections: Annotated[int, Field(ge=1, le=10000)] = 64
     idle_timeout: Annotated[float, Field(ge=0.0)] = 60.0
