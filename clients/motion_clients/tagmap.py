@@ -8,12 +8,13 @@ from 16-bit holding registers here, in the map's word order, without importing t
 
 from __future__ import annotations
 
+import difflib
 import json
 import shutil
 import struct
 import subprocess
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -79,6 +80,11 @@ class MapTag:
             try:
                 value = float(text) if self.is_float else int(text, 0)
             except ValueError:
+                if self.enum:
+                    names = ", ".join(f"{k} ({v})" for k, v in self.enum.items())
+                    raise MapError(
+                        f"{self.name}: {value!r} is not one of its names: {names}"
+                    ) from None
                 raise MapError(f"{self.name}: {value!r} is not a {self.type}") from None
         if self.type == "BOOL":
             return bool(value)
@@ -190,7 +196,8 @@ class ClientMap:
         try:
             return self._tags[name]
         except KeyError:
-            raise MapError(f"no tag {name!r} in the map of site {self.site!r}") from None
+            hint = _nearest(name, self._tags)
+            raise MapError(f"no tag {name!r} in the map of site {self.site!r}{hint}") from None
 
     def __contains__(self, name: object) -> bool:
         return name in self._tags
@@ -202,7 +209,8 @@ class ClientMap:
         """The tags of an axis, group, instance, ``Clock`` or ``Diagnostics``."""
         tags = [t for t in self._tags.values() if t.owner == owner]
         if not tags:
-            raise MapError(f"no axis, group or instance {owner!r} in the map")
+            hint = _nearest(owner, {t.owner for t in self._tags.values()})
+            raise MapError(f"no axis, group or instance {owner!r} in the map{hint}")
         return tags
 
     def expand(self, names: Sequence[str]) -> list[MapTag]:
@@ -216,3 +224,13 @@ class ClientMap:
         if code in self.errors:
             return self.errors[code]
         return "no error" if code == 0 else f"error {code} (not in the map's error table)"
+
+
+def _nearest(name: str, names: Iterable[str]) -> str:
+    """``"; did you mean 'X'?"`` for the name closest to ``name``, or nothing."""
+    known = list(names)
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+    if not close:  # a case slip: difflib's ratio does not fold case
+        folded = {k.lower(): k for k in known}
+        close = [folded[m] for m in difflib.get_close_matches(name.lower(), folded, n=1)]
+    return f"; did you mean {close[0]!r}?" if close else ""
