@@ -106,3 +106,14 @@ async def test_modbus_access_role_sets_the_plain_role(  # type: ignore[no-untype
     said = [r for r in caplog.records if "plain clients" in r.getMessage()]
     assert len(said) == 1 and said[0].levelno == logging.WARNING
     assert f"role {role} ([modbus.access] role" in said[0].getMessage()
+
+
+def test_the_run_option_sets_the_plain_role() -> None:
+    from motion_server import cli, config
+
+    site = config.parse(
+        test_access.SITE.format(word_order="big", unit_id=1) + with_user(), "r.toml"
+    )
+    args = cli.build_parser().parse_args(["run", "--modbus-role", "admin"])
+    assert cli.site_for_run(site, args).modbus.access.role == "admin"
+    assert site.modbus.access.role is None  # the map itself is unchanged
