@@ -3,7 +3,8 @@
 A :class:`ClientMap` is loaded from the JSON export (a file, a dict, or the output of
 ``motion-server map --format json``). It knows each tag's type, access, Modbus registers
 and OPC UA node, enumerations, and the server's error table. Values are converted to and
-from 16-bit holding registers here, in the map's word order, without importing the server.
+from 16-bit holding registers by :mod:`.codec` (the server's own codec), in the map's
+word order.
 """
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ from __future__ import annotations
 import difflib
 import json
 import shutil
-import struct
 import subprocess
 import sys
 from collections.abc import Iterable, Iterator, Sequence
@@ -19,13 +19,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from . import codec
+
 MAP_FORMAT = "motion-server-map/1"
 
 Value = bool | int | float
 
-#: struct format of each type's value, big-endian; BOOLs are bits of one register
-_FORMAT = {"SINT": "h", "INT": "h", "DINT": "i", "UDINT": "I", "REAL": "f", "LREAL": "d"}
-_WORDS = {"BOOL": 1, "SINT": 1, "INT": 1, "DINT": 2, "UDINT": 2, "REAL": 2, "LREAL": 4}
 _INT_RANGE = {
     "SINT": (-128, 127),
     "INT": (-32768, 32767),
@@ -111,28 +110,14 @@ class MapTag:
 
 def encode(tag: MapTag, value: Value, word_order: str = "big") -> list[int]:
     """Registers holding ``value`` (not for BOOLs: they are bits, see the back-end)."""
-    fmt = _FORMAT[tag.type]
-    words = _WORDS[tag.type]
-    v = tag.coerce(value)
-    if tag.is_float:
-        raw = struct.pack(">" + fmt, float(v))
-    else:
-        mask = (1 << (16 * words)) - 1
-        raw = struct.pack(">" + ("I" if words == 2 else "H"), int(v) & mask)
-    regs = list(struct.unpack(f">{words}H", raw))
-    return regs[::-1] if word_order == "little" and words > 1 else regs
+    return codec.encode(tag.type, tag.coerce(value), word_order)
 
 
 def decode(tag: MapTag, regs: Sequence[int], word_order: str = "big") -> Value:
     """The value held in ``regs`` (``tag.count`` registers from ``tag.address``)."""
     if tag.type == "BOOL":
         return bool(regs[0] >> (tag.bit or 0) & 1)
-    words = _WORDS[tag.type]
-    seq = list(regs[:words])
-    if word_order == "little" and words > 1:
-        seq.reverse()
-    value: Value = struct.unpack(">" + _FORMAT[tag.type], struct.pack(f">{words}H", *seq))[0]
-    return value
+    return codec.decode(tag.type, regs, word_order)
 
 
 class ClientMap:
