@@ -44,7 +44,15 @@ _HOMES = {
 }
 
 
+#: submodules reachable as attributes of the package, as when it imported them all
+_SUBMODULES = frozenset(
+    {"backend", "cli", "client", "codec", "opcua", "plot", "scenario", "tagmap", "trace"}
+)
+
+
 def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:
+        return importlib.import_module(f".{name}", __name__)
     home = _HOMES.get(name)
     if home is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
