@@ -72,6 +72,12 @@ async def test_users_make_plain_modbus_an_operator(serve, caplog) -> None:  # ty
     assert await code_of(tags, "Clock.StepCycles", [0, 3]) == 2
     assert rt.image.read("Clock.StepCycles") == before
     assert rt.image.read("Clock.CommFault") == 0
+    restore = tags.map.tag("Clock.SnapshotRestore")  # a bit: FC22 sets it alone
+    bit = 1 << (restore.bit or 0)
+    rr = await tags.client.mask_write_register(
+        address=restore.address, and_mask=~bit & 0xFFFF, or_mask=bit, device_id=1
+    )
+    assert isinstance(rr, ExceptionResponse) and rr.exception_code == 2
     # an operator still runs the machine: operands and triggers
     assert await code_of(tags, "MAJ_1.Speed", [0x41C8, 0]) == 0  # 25.0
     assert rt.image.read("MAJ_1.Speed") == 25.0
