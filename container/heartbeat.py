@@ -34,7 +34,6 @@ import hashlib
 import json
 import os
 import socket
-import struct
 import subprocess
 import sys
 import time
@@ -47,18 +46,6 @@ CLOCK_MODE_TAG = "Clock.Mode"
 READY_TAG = "Diagnostics.Ready"
 #: seconds between two attempts with ``--wait``
 RETRY_PAUSE = 0.5
-
-#: tag type -> (struct code, registers)
-TYPES: dict[str, tuple[str, int]] = {
-    "BOOL": ("H", 1),
-    "SINT": ("h", 1),
-    "INT": ("h", 1),
-    "UINT": ("H", 1),
-    "DINT": ("i", 2),
-    "UDINT": ("I", 2),
-    "REAL": ("f", 2),
-    "LREAL": ("d", 4),
-}
 
 
 class Unhealthy(Exception):
@@ -130,24 +117,19 @@ def find_tag(tag_map: dict[str, Any], name: str) -> dict[str, Any] | None:
 
 
 def decode(registers: list[int], tag_type: str, word_order: str) -> int | float:
-    """A tag value from its holding registers (big-endian words, word order as mapped)."""
-    code, count = TYPES[tag_type]
-    words = list(registers[:count])
-    if word_order == "little":
-        words.reverse()
-    raw = b"".join(w.to_bytes(2, "big") for w in words)
-    value: int | float = struct.unpack(">" + code, raw)[0]
-    return value
+    """A tag value from its holding registers (the project's codec; a BOOL's register as
+    a number, its bit picked by the caller)."""
+    from motion_clients import codec
+
+    value = codec.decode("UINT" if tag_type == "BOOL" else tag_type, registers, word_order)
+    return int(value) if isinstance(value, bool) else value
 
 
 def encode(value: float, tag_type: str, word_order: str) -> list[int]:
     """Holding registers of a tag value: the inverse of :func:`decode`."""
-    code, count = TYPES[tag_type]
-    raw = struct.pack(">" + code, int(value) if code not in "fd" else float(value))
-    words = [int.from_bytes(raw[i : i + 2], "big") for i in range(0, 2 * count, 2)]
-    if word_order == "little":
-        words.reverse()
-    return words
+    from motion_clients import codec
+
+    return codec.encode("UINT" if tag_type == "BOOL" else tag_type, value, word_order)
 
 
 def site_ports() -> tuple[int, int]:

@@ -6,8 +6,10 @@ clock, trace) is protocol-free, so the same client code runs over Modbus TCP or 
 
 from __future__ import annotations
 
+import contextlib
+import logging
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any, ClassVar
 
 from pymodbus.client import AsyncModbusTcpClient
@@ -23,6 +25,44 @@ MAX_GAP = 8
 
 class ClientError(Exception):
     """The server refused a request or could not be reached."""
+
+
+class _Held(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+
+@contextlib.contextmanager
+def held_logs(*names: str) -> Iterator[list[logging.LogRecord]]:
+    """Hold back what the loggers ``names`` (a library's) log meanwhile, and yield the
+    records: a failed connection is then told in one line of ours, with its likely cause,
+    instead of after the library's own lines (pymodbus' "Failed to connect", asyncua's
+    ServiceFault dump)."""
+    held = _Held()
+    saved = []
+    for name in names:
+        logger = logging.getLogger(name)
+        saved.append((logger, logger.propagate))
+        logger.addHandler(held)
+        logger.propagate = False
+    try:
+        yield held.records
+    finally:
+        for logger, propagate in saved:
+            logger.removeHandler(held)
+            logger.propagate = propagate
+
+
+def connection_refused_hint(protocol: str, port: int) -> str:
+    """Why a connection is refused, most of the time, in words."""
+    return (
+        f"connection refused: nothing listens on port {port} (is motion-server running, "
+        f"with {protocol} on? At start it logs the address it serves)"
+    )
 
 
 class Backend(ABC):
@@ -92,8 +132,25 @@ class ModbusBackend(Backend):
         self.client = AsyncModbusTcpClient(host, port=self.port, timeout=timeout, retries=0)
 
     async def connect(self) -> None:
-        if not await self.client.connect():
-            raise ClientError(f"cannot connect to Modbus TCP {self.host}:{self.port}")
+        with held_logs("pymodbus") as records:
+            connected = await self.client.connect()
+        if not connected:
+            said = " ".join(r.getMessage() for r in records)
+            raise ClientError(
+                f"cannot connect to Modbus TCP {self.host}:{self.port}: {self._why(said)}"
+            )
+
+    def _why(self, said: str) -> str:
+        """The likely cause of a failed connection, from what pymodbus logged."""
+        text = said.removeprefix("Failed to connect").strip()
+        if "Errno 111" in text or "refused" in text.lower():
+            return connection_refused_hint("Modbus TCP", self.port)
+        if "Name or service not known" in text or "name resolution" in text:
+            return f"unknown host {self.host!r}"
+        if not text or "timed out" in text.lower() or "Errno 110" in text:
+            timeout = self.client.comm_params.timeout_connect
+            return f"no answer within {timeout:g} s (a wrong host, or a firewall)"
+        return text
 
     async def close(self) -> None:
         self.client.close()

@@ -159,6 +159,20 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _check_names(args: argparse.Namespace, tagmap: ClientMap) -> None:
+    """Tag names and values checked against the map before connecting: a typo is told
+    (with the nearest name) even when the server is not there."""
+    if args.command in ("read", "watch", "trace"):
+        tagmap.expand(args.tags)
+    elif args.command == "write":
+        for name, value in _pairs(args.assignments).items():
+            tagmap.tag(name).coerce(value)
+    elif args.command == "trigger":
+        tagmap.owned_by(args.instance)
+        for name, value in _pairs(args.operands).items():
+            tagmap.tag(f"{args.instance}.{name}").coerce(value)
+
+
 async def _run(args: argparse.Namespace, tagmap: ClientMap) -> int:
     opts = {"user": args.user, "password": args.password, "security": args.security}
     opts["cert_dir"] = args.cert_dir
@@ -172,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "plot":
             return cmd_plot(args)
         tagmap = ClientMap.load(args.map)
+        _check_names(args, tagmap)
         return asyncio.run(_run(args, tagmap))
     except (ClientError, MapError, KeyError, ValueError, OSError) as exc:
         print(f"motion-client: {exc}", file=sys.stderr)

@@ -21,7 +21,7 @@ from typing import Any
 from asyncua import Client, ua
 from asyncua.crypto.security_policies import SecurityPolicyBasic256Sha256
 
-from .backend import Backend, ClientError
+from .backend import Backend, ClientError, connection_refused_hint, held_logs
 from .tagmap import ClientMap, MapTag, Value
 
 VARIANT = {
@@ -40,6 +40,20 @@ MODES = {
 CLIENT_URI = "urn:motion-server:motion-client"
 MAX_NODES_PER_READ = ua.NodeId(
     ua.ObjectIds.Server_ServerCapabilities_OperationLimits_MaxNodesPerRead
+)
+#: status codes of a refused identity: a wrong user name or password (or a locked-out address)
+IDENTITY_REFUSED = frozenset(
+    {"BadUserAccessDenied", "BadIdentityTokenInvalid", "BadIdentityTokenRejected"}
+)
+#: status codes of a refused secure channel
+CHANNEL_REFUSED = frozenset(
+    {
+        "BadSecurityPolicyRejected",
+        "BadSecurityModeRejected",
+        "BadCertificateInvalid",
+        "BadCertificateUntrusted",
+        "BadSecurityChecksFailed",
+    }
 )
 
 
@@ -92,13 +106,43 @@ class OpcUaBackend(Backend):
         if self.user is not None:
             self.client.set_user(self.user)
             self.client.set_password(self.password or "")
-        try:
-            await self.client.connect()
-            self.ns = await self.client.get_namespace_index(self.map.namespace_uri)
-            limit = await self.client.get_node(MAX_NODES_PER_READ).read_value()
-            self.max_read = int(limit or 0)
-        except (OSError, TimeoutError, ua.UaError, ValueError) as exc:
-            raise ClientError(f"cannot connect to OPC UA {self.endpoint}: {exc!r}") from None
+        with held_logs("asyncua"):
+            try:
+                await self.client.connect()
+                self.ns = await self.client.get_namespace_index(self.map.namespace_uri)
+                limit = await self.client.get_node(MAX_NODES_PER_READ).read_value()
+                self.max_read = int(limit or 0)
+            except (OSError, TimeoutError, ua.UaError, ValueError) as exc:
+                await self.close()
+                why = self._why(exc)
+                raise ClientError(f"cannot connect to OPC UA {self.endpoint}: {why}") from None
+
+    def _why(self, exc: BaseException) -> str:
+        """The likely cause of a failed connection, in one line."""
+        name = type(exc).__name__
+        if name in IDENTITY_REFUSED:
+            who = f"user {self.user!r}" if self.user is not None else "an anonymous session"
+            return (
+                f"{who} refused ({name}): a wrong user name or password, or this address "
+                "is locked out for a while after repeated failures"
+            )
+        if name in CHANNEL_REFUSED:
+            return (
+                f"the secure channel was refused ({name}): the server offers no endpoint "
+                f"with {self.security}/{self.mode}, or does not accept our certificate"
+            )
+        if isinstance(exc, ConnectionRefusedError):
+            return connection_refused_hint("OPC UA", self.port)
+        if isinstance(exc, TimeoutError):
+            return "no answer in time (a wrong host or port, or a firewall)"
+        if isinstance(exc, ua.UaStatusCodeError):
+            return name
+        if isinstance(exc, ValueError) and self.map.namespace_uri in str(exc):
+            return (
+                f"the server has no namespace {self.map.namespace_uri!r}: the tag map is "
+                "not this server's site"
+            )
+        return f"{name}: {exc}"
 
     async def close(self) -> None:
         # a session that never opened, or a server already gone

@@ -3,28 +3,28 @@
 A :class:`ClientMap` is loaded from the JSON export (a file, a dict, or the output of
 ``motion-server map --format json``). It knows each tag's type, access, Modbus registers
 and OPC UA node, enumerations, and the server's error table. Values are converted to and
-from 16-bit holding registers here, in the map's word order, without importing the server.
+from 16-bit holding registers by :mod:`.codec` (the server's own codec), in the map's
+word order.
 """
 
 from __future__ import annotations
 
+import difflib
 import json
 import shutil
-import struct
 import subprocess
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from . import codec
 
 MAP_FORMAT = "motion-server-map/1"
 
 Value = bool | int | float
 
-#: struct format of each type's value, big-endian; BOOLs are bits of one register
-_FORMAT = {"SINT": "h", "INT": "h", "DINT": "i", "UDINT": "I", "REAL": "f", "LREAL": "d"}
-_WORDS = {"BOOL": 1, "SINT": 1, "INT": 1, "DINT": 2, "UDINT": 2, "REAL": 2, "LREAL": 4}
 _INT_RANGE = {
     "SINT": (-128, 127),
     "INT": (-32768, 32767),
@@ -79,6 +79,11 @@ class MapTag:
             try:
                 value = float(text) if self.is_float else int(text, 0)
             except ValueError:
+                if self.enum:
+                    names = ", ".join(f"{k} ({v})" for k, v in self.enum.items())
+                    raise MapError(
+                        f"{self.name}: {value!r} is not one of its names: {names}"
+                    ) from None
                 raise MapError(f"{self.name}: {value!r} is not a {self.type}") from None
         if self.type == "BOOL":
             return bool(value)
@@ -105,28 +110,14 @@ class MapTag:
 
 def encode(tag: MapTag, value: Value, word_order: str = "big") -> list[int]:
     """Registers holding ``value`` (not for BOOLs: they are bits, see the back-end)."""
-    fmt = _FORMAT[tag.type]
-    words = _WORDS[tag.type]
-    v = tag.coerce(value)
-    if tag.is_float:
-        raw = struct.pack(">" + fmt, float(v))
-    else:
-        mask = (1 << (16 * words)) - 1
-        raw = struct.pack(">" + ("I" if words == 2 else "H"), int(v) & mask)
-    regs = list(struct.unpack(f">{words}H", raw))
-    return regs[::-1] if word_order == "little" and words > 1 else regs
+    return codec.encode(tag.type, tag.coerce(value), word_order)
 
 
 def decode(tag: MapTag, regs: Sequence[int], word_order: str = "big") -> Value:
     """The value held in ``regs`` (``tag.count`` registers from ``tag.address``)."""
     if tag.type == "BOOL":
         return bool(regs[0] >> (tag.bit or 0) & 1)
-    words = _WORDS[tag.type]
-    seq = list(regs[:words])
-    if word_order == "little" and words > 1:
-        seq.reverse()
-    value: Value = struct.unpack(">" + _FORMAT[tag.type], struct.pack(f">{words}H", *seq))[0]
-    return value
+    return codec.decode(tag.type, regs, word_order)
 
 
 class ClientMap:
@@ -190,7 +181,8 @@ class ClientMap:
         try:
             return self._tags[name]
         except KeyError:
-            raise MapError(f"no tag {name!r} in the map of site {self.site!r}") from None
+            hint = _nearest(name, self._tags)
+            raise MapError(f"no tag {name!r} in the map of site {self.site!r}{hint}") from None
 
     def __contains__(self, name: object) -> bool:
         return name in self._tags
@@ -202,7 +194,8 @@ class ClientMap:
         """The tags of an axis, group, instance, ``Clock`` or ``Diagnostics``."""
         tags = [t for t in self._tags.values() if t.owner == owner]
         if not tags:
-            raise MapError(f"no axis, group or instance {owner!r} in the map")
+            hint = _nearest(owner, {t.owner for t in self._tags.values()})
+            raise MapError(f"no axis, group or instance {owner!r} in the map{hint}")
         return tags
 
     def expand(self, names: Sequence[str]) -> list[MapTag]:
@@ -216,3 +209,13 @@ class ClientMap:
         if code in self.errors:
             return self.errors[code]
         return "no error" if code == 0 else f"error {code} (not in the map's error table)"
+
+
+def _nearest(name: str, names: Iterable[str]) -> str:
+    """``"; did you mean 'X'?"`` for the name closest to ``name``, or nothing."""
+    known = list(names)
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+    if not close:  # a case slip: difflib's ratio does not fold case
+        folded = {k.lower(): k for k in known}
+        close = [folded[m] for m in difflib.get_close_matches(name.lower(), folded, n=1)]
+    return f"; did you mean {close[0]!r}?" if close else ""

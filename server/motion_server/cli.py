@@ -88,8 +88,8 @@ _opcua_port = _setting(config.OpcUaSection, "port", int)
 def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteMap:
     """The site map as ``run`` (and ``check``) use it: the options that override its
     settings applied (``--clock``, ``--scale``, ``--modbus-host``, ``--modbus-port``,
-    ``--no-modbus``, ``--opcua-port``, ``--no-opcua``). Messages about an overridden
-    field name the option."""
+    ``--modbus-role``, ``--no-modbus``, ``--opcua-port``, ``--no-opcua``). Messages about
+    an overridden field name the option."""
     sections: dict[str, dict[str, Any]] = {"controller": {}, "modbus": {}, "opcua": {}}
     origins: dict[tuple[str, str], str] = {}
     for section, key, option, value in (
@@ -104,6 +104,10 @@ def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteM
         if value is not None:
             sections[section][key] = value
             origins[(section, key)] = f"option {option}"
+    if getattr(args, "modbus_role", None) is not None:
+        access = site.modbus.access.model_copy(update={"role": args.modbus_role})
+        sections["modbus"]["access"] = access
+        origins[("modbus", "access")] = "option --modbus-role"
     update = {
         name: getattr(site, name).model_copy(update=changes)
         for name, changes in sections.items()
@@ -246,6 +250,12 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--modbus-port",
         type=_modbus_port,
         help="Modbus TCP port, 0 = ephemeral (site map: [modbus] port)",
+    )
+    p.add_argument(
+        "--modbus-role",
+        choices=("viewer", "operator", "admin"),
+        help="what plain Modbus TCP clients may write ([modbus.access] role; default: admin "
+        "without users or TLS roles, else operator)",
     )
     p.add_argument("--no-modbus", action="store_true", help="do not serve Modbus TCP")
     p.add_argument(

@@ -38,7 +38,7 @@ from .image import wire
 from .image.buffer import ImageReader
 from .instructions import MotionSystem
 from .kernel import Controller
-from .safety.access import AccessPolicy
+from .safety.access import AccessPolicy, plain_role
 from .safety.audit import AuditLog
 from .safety.client import ClientInfo
 from .scan import Scan
@@ -233,7 +233,8 @@ class Runtime:
             task = asyncio.create_task(self._run(), name="scan")
             if cfg.enabled if modbus is None else modbus:
                 view = await self._link(MODBUS, links)
-                policy = AccessPolicy(cfg.access, self.tagmap)
+                plain = plain_role(self.site, bool(opcua_users(self.site)))
+                policy = AccessPolicy(cfg.access, self.tagmap, plain)
                 self.modbus = ModbusFrontend(
                     view, cfg.host, cfg.port, cfg.unit_id, policy, self.audit, cfg.tls
                 )

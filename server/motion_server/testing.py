@@ -105,6 +105,9 @@ class MotionServer:
         if site is not None:
             cmd.append(str(site))
         cmd += ["--clock", clock, "--modbus-port", "0", "--ready-file", "ready.json"]
+        # the helpers step the clock and take snapshots over plain Modbus: admin writes,
+        # which a map with users or TLS roles gives plain Modbus only when asked
+        cmd += ["--modbus-role", "admin"]
         cmd += ["--no-opcua"] if opcua is False else ["--opcua-port", "0"]
         cmd += list(args)
         (work / "ready.json").unlink(missing_ok=True)  # left by a server that was killed

@@ -7,6 +7,7 @@ and 1.5 mm after 100 cycles (0.5 + 10 · 0.1).
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -65,6 +66,23 @@ async def test_wrong_password_is_a_clear_connection_error(
     with pytest.raises(ClientError, match="cannot connect to OPC UA"):
         async with connect(bench, password="guess"):
             pass
+
+
+async def test_a_wrong_password_is_one_line_of_ours_without_asyncuas_dump(
+    bench: tuple[int, ClientMap, Path], caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.WARNING)
+    port = bench[0]
+    with pytest.raises(ClientError) as exc:
+        async with connect(bench, password="guess"):
+            pass
+    assert str(exc.value) == (
+        f"cannot connect to OPC UA opc.tcp://127.0.0.1:{port}/: user 'bench' refused "
+        "(BadUserAccessDenied): a wrong user name or password, or this address is locked "
+        "out for a while after repeated failures"
+    )
+    leaked = [r.getMessage() for r in caplog.records if r.name.startswith("asyncua.client")]
+    assert leaked == []
 
 
 async def test_a_read_of_more_tags_than_the_servers_limit_is_split(

@@ -329,6 +329,16 @@ async def test_unknown_or_malformed_roles_get_read_only_and_case_is_ignored(serv
     assert roles == {"intruder": "viewer", "odd-ca": "viewer", "hmi-2": "operator"}
 
 
+async def test_a_padded_role_text_matches_no_role(serve) -> None:  # type: ignore[no-untyped-def]
+    site = await serve()
+    padded = await site.client("padded", " admin ")
+    assert await refused_write(padded, "MAJ_1.Speed", [0x41C8, 0]) == 2
+    assert await refused_write(padded, "Clock.StepCycles", [0, 7]) == 2
+    assert site.runtime.image.read("MAJ_1.Speed") == 10.0
+    roles = {r["user"]: r["role"] for r in site.audit if r["event"] == "connect"}
+    assert roles == {"padded": "viewer"}
+
+
 async def test_a_roles_table_maps_the_site_pki_names(serve) -> None:  # type: ignore[no-untyped-def]
     site = await serve(tls='roles = { Engineer = "admin", Line = "operator" }')
     rt = site.runtime

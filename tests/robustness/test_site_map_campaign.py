@@ -326,7 +326,17 @@ def bad_reference(r: random.Random, data: dict[str, Any]) -> str:
     elif kind == 8:
         victim = r.choice([*axes, *groups, *instances, data["watchdogs"][0]])
         victim["name"] = r.choice(
-            ["Servo", "Fast", "JogMaster", "Hmi", "Clock", "MAJ_1", "bad name"]
+            [
+                "Servo",
+                "Fast",
+                "JogMaster",
+                "Hmi",
+                "Clock",
+                "MAJ_1",
+                "bad name",
+                "N" * 41,
+                "N" * 10**6,
+            ]
         )
     elif kind == 9:
         data["instructions"]["every_type"] = True

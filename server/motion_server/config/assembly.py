@@ -28,7 +28,7 @@ from typing import Any, NoReturn
 from ..instructions import MotionSystem
 from ..kernel import ConfigError, MotionError
 from ..safety import retain
-from ..safety.access import AccessPolicy
+from ..safety.access import AccessPolicy, plain_role
 from ..safety.watchdog import Watchdog
 from ..tagmap.layout import plan_tagmap
 from ..tagmap.model import TagMap
@@ -89,8 +89,8 @@ def assemble(
         watchdogs = {w.name: Watchdog(w, system.ctl) for w in site.watchdogs}
     except (ConfigError, MotionError, KeyError, ValueError) as exc:
         raise SiteMapError(site.located((), f"cannot build the system: {exc}")) from None
-    access = AccessPolicy(site.modbus.access, tagmap)
     users = opcua_users(site, environ)
+    access = AccessPolicy(site.modbus.access, tagmap, plain_role(site, bool(users)))
     audit_path = _in_data_dir(site, site.audit.path) if site.audit.enabled else None
     retain_path = retain.retain_path(site) if site.retain.enabled else None
     if probe:

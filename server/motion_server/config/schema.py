@@ -57,6 +57,9 @@ MAP_ENV = "MOTION_SERVER_MAP"
 #: prefix of the per-setting overrides: MOTION_SERVER_<SECTION>_<FIELD>
 ENV_PREFIX = "MOTION_SERVER_"
 NAME_RE = r"^[A-Za-z][A-Za-z0-9_]*$"
+#: the longest name of a site, axis, group, instance or watchdog: a Logix tag name's 40
+#: characters (names become tag names, node ids and the lines of every export)
+NAME_MAX = 40
 #: the largest and the smallest normal Logix REAL (IEEE 754 binary32): axis attributes
 #: are REALs, and a positive limit below the normal range makes no stop computable (a
 #: speed over a deceleration of 5e-324 is an infinite time)
@@ -126,6 +129,17 @@ def _within(lo: float, hi: float, zero: bool = False) -> AfterValidator:
     return AfterValidator(check)
 
 
+def _short_name(value: Any) -> Any:
+    if isinstance(value, str) and len(value) > NAME_MAX:
+        raise ValueError(
+            f"a name of {len(value)} characters (at most {NAME_MAX}, as a Logix tag name): "
+            f"{value[:20]!r}..."
+        )
+    return value
+
+
+#: a name that becomes a tag name: a letter, then letters, digits and _, 40 at most
+Name = Annotated[str, BeforeValidator(_short_name), Field(pattern=NAME_RE)]
 #: an IP address to bind to
 BindAddress = Annotated[str, AfterValidator(_ip_address)]
 #: a file or directory name (relative ones as the section says)
@@ -147,7 +161,7 @@ class _Model(BaseModel):
 
 
 class SiteSection(_Model):
-    name: str = Field(default="site", pattern=NAME_RE)
+    name: Name = "site"
     namespace_uri: str = ""
 
 
@@ -167,7 +181,7 @@ class AxisSection(_Model):
     """An axis (``[[axes]]``): the fields of :class:`~motion_server.kernel.AxisConfig`,
     with its defaults; ``number`` defaults to the axis's place in the list (1-based)."""
 
-    name: str = Field(pattern=NAME_RE)
+    name: Name
     number: Annotated[int, Field(ge=1, le=65535)] | None = None
     type: AxisType = _AXIS.type
     units: str = Field(default=_AXIS.units, max_length=32)
@@ -217,7 +231,7 @@ class AxisSection(_Model):
 
 
 class GroupSection(_Model):
-    name: str = Field(pattern=NAME_RE)
+    name: Name
     number: Annotated[int, Field(ge=1, le=255)] | None = None
     coarse_update_period_ms: Annotated[float, Field(ge=MIN_PERIOD * 1000, le=MAX_PERIOD * 1000)] = (
         2.0
@@ -226,7 +240,7 @@ class GroupSection(_Model):
 
 
 class InstanceSection(_Model):
-    name: str = Field(pattern=NAME_RE)
+    name: Name
     type: str
     operands: dict[str, Any] = Field(default_factory=dict)
     #: explicit Modbus base register of the instance block (overrides the kind's default)
@@ -341,10 +355,13 @@ class ModbusAccessSection(_Model):
     (``allow``; empty = everyone), read-only mode, per-network write rules (the first
     rule whose networks hold the client decides; no rule = every writable tag),
     connection limit and idle timeout (seconds without a complete request before a
-    connection is closed; default 60, 0 = never)."""
+    connection is closed; default 60, 0 = never). ``role``: what a plain Modbus TCP client
+    may write (viewer, operator or admin, as the roles of OPC UA users); unset, admin on a
+    map that defines no users and no TLS roles, operator on one that does."""
 
     allow: list[str] = Field(default_factory=list)
     read_only: bool = False
+    role: Literal["viewer", "operator", "admin"] | None = None
     rules: list[WriteRule] = Field(default_factory=list)
     max_connections: Annotated[int, Field(ge=1, le=10000)] = 64
     idle_timeout: Annotated[float, Field(ge=0.0)] = 60.0
@@ -424,7 +441,7 @@ class WatchdogSection(_Model):
     ``per_connection``: every client connection that changed the heartbeat is
     supervised on its own (else any change by anyone counts)."""
 
-    name: str = Field(pattern=NAME_RE)
+    name: Name
     timeout: Annotated[float, Field(gt=0.0, le=3600.0)]
     group: str
     stop_mode: Literal["programmed", "fast_stop", "fast_disable"] = "programmed"

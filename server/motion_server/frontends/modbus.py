@@ -79,6 +79,7 @@ from ..config import ModbusTlsSection
 from ..safety.access import AccessPolicy
 from ..safety.audit import AuditLog
 from ..safety.client import ClientInfo
+from ..safety.roles import Role
 from ..tagmap import TagMap
 from .modbus_protocol import Answer, ModbusConnection
 from .modbus_requests import RequestServer
@@ -208,6 +209,7 @@ class ModbusFrontend:
             if self.tls is None or not self.tls.tls_only:
                 self.server = await self._listen(self.requested_port, None)
                 log.info("Modbus TCP on %s:%d, unit id %d", self.host, self.port, self.unit_id)
+                self._say_plain_role()
             if self.tls is not None:
                 context = await self._tls_context(self.tls)
                 self.tls_server = await self._listen(self.tls.port, context)
@@ -223,6 +225,24 @@ class ModbusFrontend:
             await self.stop()
             raise
         self._sweeper = asyncio.create_task(self._sweep())
+
+    def _say_plain_role(self) -> None:
+        """One line at start: what plain Modbus TCP clients may write, and why."""
+        if self.policy is None:
+            return
+        plain = self.policy.plain
+        if plain.role == Role.ADMIN and plain.secured:
+            # as the None-endpoint warning: an open door on a site that authenticates
+            log.warning(
+                "Modbus TCP: plain clients have role admin (%s): anyone who reaches port %d "
+                "may write the Clock tags",
+                plain.why,
+                self.port,
+            )
+        elif plain.role != Role.ADMIN or plain.secured:
+            log.warning("Modbus TCP: plain clients have role %s (%s)", plain.role.label, plain.why)
+        else:
+            log.info("Modbus TCP: plain clients have role admin (%s)", plain.why)
 
     async def _listen(self, port: int, tls: ssl.SSLContext | None) -> Listener:
         listener = Listener(self, tls)

@@ -9,6 +9,13 @@ once its cycles ran). The answers of one received chunk go out in one write; whi
 coroutine runs, nothing after its request is served (reading pauses, the rest stays in
 the buffer), so answers keep the order of the requests.
 
+Fair share: one turn serves at most :data:`REQUESTS_PER_TURN` requests of a connection.
+When more complete requests wait in its buffer, the connection stops reading and takes
+its next turn through ``loop.call_soon``: behind every callback already due, so the other
+connections' received bytes (and the scan link) are served in between, round-robin. A
+client that pipelines thousands of requests in one segment delays another client's
+request by one turn, not by its whole flood.
+
 A header that delimits no frame (protocol id other than 0, length outside 2..254) closes
 the connection at once: nothing after it can be delimited. The buffer therefore holds at
 most one incomplete frame (under 260 bytes) plus what one read brought while a request
@@ -40,6 +47,8 @@ log = logging.getLogger("motion_server.modbus")
 #: answers written at once while serving one received chunk, at most (then the
 #: transport's flow control may pause the connection)
 FLUSH_BYTES = 65536
+#: requests of one connection served in one turn, at most (then the other connections')
+REQUESTS_PER_TURN = 16
 #: what :meth:`Service.answer` returns: the answer ADU, or a coroutine producing it
 Answer = bytes | Coroutine[Any, Any, bytes]
 
@@ -81,6 +90,8 @@ class ModbusConnection(asyncio.Protocol):
         self._waiting: asyncio.Task[None] | None = None
         self._write_paused = False
         self._reading = True
+        #: the next turn of a connection that had more requests than one turn serves
+        self._turn: asyncio.Handle | None = None
 
     # -- asyncio callbacks --------------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
@@ -97,6 +108,9 @@ class ModbusConnection(asyncio.Protocol):
         if self._waiting is not None:
             self._waiting.cancel()
             self._waiting = None
+        if self._turn is not None:
+            self._turn.cancel()
+            self._turn = None
         self.recv_buffer.clear()
         self.service.closed(self)
 
@@ -123,9 +137,14 @@ class ModbusConnection(asyncio.Protocol):
     # -- state --------------------------------------------------------------------------------
     @property
     def ready(self) -> bool:
-        """The buffer may be served now (no handshake, wait or full peer in the way)."""
+        """The buffer may be served now (no handshake, wait, full peer or turn of the
+        other connections in the way)."""
         return not (
-            self.tls_pending or self._waiting is not None or self._write_paused or self.closing
+            self.tls_pending
+            or self._waiting is not None
+            or self._write_paused
+            or self.closing
+            or self._turn is not None
         )
 
     @property
@@ -179,7 +198,12 @@ class ModbusConnection(asyncio.Protocol):
         pos = 0
         out: list[bytes] = []
         size = 0
+        served = 0
         while end - pos >= 6:
+            if served == REQUESTS_PER_TURN:  # the others' turn: this one continues after
+                self._pause()
+                self._turn = self._loop.call_soon(self._next_turn)
+                break
             try:
                 tid, length = header(buf, pos)
             except HeaderError as exc:
@@ -194,6 +218,7 @@ class ModbusConnection(asyncio.Protocol):
             unit = buf[pos + HEADER_SIZE - 1]
             pdu = bytes(buf[pos + HEADER_SIZE : stop])
             pos = stop
+            served += 1
             answer = service.answer(self, tid, unit, pdu)
             if not isinstance(answer, bytes):
                 # the answer waits (for the scan): nothing after it is served meanwhile
@@ -214,6 +239,10 @@ class ModbusConnection(asyncio.Protocol):
         if pos:
             self.last_request = self._loop.time()
             self.partial_since = self.last_request if buf else None
+
+    def _next_turn(self) -> None:
+        self._turn = None
+        self.resume()
 
     async def _finish(self, answer: Coroutine[Any, Any, bytes]) -> None:
         try:

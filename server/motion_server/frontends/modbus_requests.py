@@ -8,7 +8,8 @@ Application Protocol gives (count, then address, then processing):
 - FC3 reads the registers of the snapshot the scan published last (with this front-end's
   writes the scan has not applied yet laid over it);
 - FC6, FC16, FC22 and FC23 write: every register in the map and in a command region
-  (02), allowed by ``[modbus.access]`` and by the client's role (02), a value each tag can
+  (02), allowed by ``[modbus.access]`` and by the client's role (02: the certificate's on
+  Modbus/TCP Security, the site's plain role on plain Modbus TCP), a value each tag can
   hold (03), then queued for the scan (04 when it cannot take writes). FC22 applies its
   masks to the register as the client last saw it: (current AND and) OR (or AND NOT
   and). FC23 checks its read range before writing and reads after the write.
@@ -153,10 +154,14 @@ class RequestServer:
             reason = self.policy.write_refused(client.address, address, count)
             if reason is not None:
                 raise PermissionError(reason)
-        if client.role:  # Modbus/TCP Security: the certificate's role
-            reason = self._roles.write_refused(Role.named(client.role), address, count)
-            if reason is not None:
-                raise PermissionError(reason)
+        # Modbus/TCP Security: the certificate's role; plain Modbus TCP: the site's plain role
+        if client.role:
+            role = Role.named(client.role)
+        else:
+            role = self.policy.plain.role if self.policy is not None else Role.ADMIN
+        reason = self._roles.write_refused(role, address, count)
+        if reason is not None:
+            raise PermissionError(reason)
         values: Sequence[int] = request.values
         if request.function == FunctionCode.MASK_WRITE_REGISTER:
             and_mask, or_mask = request.masks

@@ -9,8 +9,9 @@ handshake fails). The client's role travels in its certificate as the X.509 v3 e
 :class:`~motion_server.safety.roles.Role` through ``[modbus.tls] roles``:
 
 - no role extension: ``default_role`` (viewer unless the site map says otherwise);
-- a role the table does not name, or an extension that is not a well-formed UTF8String:
-  viewer (read only; logged), never more.
+- a role the table does not name (compared without regard to case, but exactly otherwise:
+  " admin " with its spaces is no role), or an extension that is not a well-formed
+  UTF8String: viewer (read only; logged), never more.
 
 The extension must not be marked critical: OpenSSL refuses certificates with critical
 extensions it does not know, before the server sees them.
@@ -136,7 +137,8 @@ def identify(der: bytes, roles: Mapping[str, str], default_role: str) -> Identit
         role = Role.named(default_role)
         return Identity(name, role, None, f"no role extension: default role {role.label}")
     shown = "".join(c if c.isprintable() else "?" for c in claimed)[:MAX_NAME]
-    mapped = roles.get(claimed.strip().lower())
+    # case is ignored, padding is not: " admin " is no role (a CA that issues it is wrong)
+    mapped = roles.get(claimed.lower())
     if mapped is None:
         why = f"unknown certificate role {shown!r}: viewer"
         return Identity(name, Role.VIEWER, shown, why, recognised=False)

@@ -29,12 +29,13 @@ import socket
 import sys
 from typing import Any
 
-from ..config import SiteMap
+from ..config import SiteMap, SiteMapError
+from ..config import opcua_users as configured_users
 from ..image.buffer import ImageError, ImageReader, map_shared
 from ..image.layout import ImageLayout
 from ..launch import LaunchSpec, follow_supervisor, setup_logging
 from ..liveness import FRONTEND_BEAT
-from ..safety.access import AccessPolicy
+from ..safety.access import AccessPolicy, plain_role
 from ..safety.audit import AuditLog
 from ..scan.channel import MODBUS, OPCUA
 from ..scheduling import LOAD_WINDOW, MODBUS_RT_PRIORITY, CpuLoad, Policy
@@ -92,7 +93,12 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
     frontend: Any
     if kind == "modbus":
         cfg = site.modbus
-        policy = AccessPolicy(cfg.access, view.map)
+        try:
+            has_users = bool(configured_users(site))
+        except SiteMapError as exc:  # read by the supervisor a moment ago: assume users
+            log.warning("modbus front-end: %s", exc)
+            has_users = True
+        policy = AccessPolicy(cfg.access, view.map, plain_role(site, has_users))
         frontend = modbus_module.ModbusFrontend(
             view, cfg.host, cfg.port, cfg.unit_id, policy, audit, cfg.tls
         )

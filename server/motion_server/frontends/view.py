@@ -14,10 +14,17 @@ applies them at the start of its next cycle in arrival order. The returned
 protocol answer must wait for it (a ``Clock.Step``: answered once its cycles ran).
 Accepted writes are reported to :attr:`ImageView.observers` (the audit log) with the
 value they replace.
+
+A REAL written with a subnormal value (0 < |value| < 1.18e-38) is accepted, as a
+controller takes it, but warned of once per tag: it is what a 32-bit value sent in the
+other word order looks like (10.0 as CDAB read as ABCD is 2.3e-41), and a jog at that
+speed runs forever without moving. See ``docs/hmi.md``.
 """
 
 from __future__ import annotations
 
+import logging
+import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
@@ -37,7 +44,11 @@ from .link import Link, ScanUnavailable, Ticket, WriteRefused
 
 __all__ = ["ImageView", "ScanUnavailable", "Ticket", "WriteRefused", "outcome"]
 
+log = logging.getLogger("motion_server.writes")
+
 _HALF = 1 << 31
+#: the smallest normal REAL (IEEE 754 binary32); below it, but not 0, a REAL is subnormal
+REAL_MIN_NORMAL = 1.1754943508222875e-38
 #: Clock commands whose write is answered once the scan carried them out
 _ANSWERED_WHEN_DONE = frozenset({"Step", "SnapshotSave", "SnapshotRestore"})
 
@@ -94,6 +105,8 @@ class ImageView:
         self._values: np.ndarray = np.zeros(layout.size)
         self._regs_key: tuple[int, int] = (-1, -1)
         self._regs: np.ndarray = np.zeros(0, dtype=np.uint16)
+        #: REAL tags a subnormal value was written to (warned once each)
+        self._subnormal_warned: set[str] = set()
 
     # -- the snapshot ---------------------------------------------------------------------
     def snapshot(self) -> Snapshot:
@@ -153,6 +166,25 @@ class ImageView:
         """The Python value of slot ``slot`` holding ``raw``."""
         return _typed(self._types[slot], raw)
 
+    def _check_subnormal(self, tag: Tag, value: float) -> None:
+        """Warn (once per tag) of a subnormal REAL: the mark of a wrong word order."""
+        if value == 0.0 or not math.isfinite(value) or abs(value) >= REAL_MIN_NORMAL:
+            return
+        self._subnormal_warned.add(tag.name)
+        client = current_client()
+        who = f" by {client.address}:{client.port}" if client is not None else ""
+        order = self.map.word_order
+        log.warning(
+            "%s written as %.3g%s, a subnormal REAL: accepted, but a Modbus client that "
+            "sends 32-bit values in the other word order (this map's: %s, %s) writes such "
+            "values (docs/hmi.md); warned once per tag",
+            tag.name,
+            value,
+            who,
+            order.value,
+            "ABCD" if order.value == "big" else "CDAB",
+        )
+
     def write(self, tag: Tag | str, value: Any) -> Ticket:
         """Judge and queue one write (:class:`ReadOnlyError`, :class:`BadValueError`)."""
         return self.write_many([(self.tag(tag), value)])
@@ -165,7 +197,10 @@ class ImageView:
             tag = self.tag(ref)
             if not tag.writable:
                 raise ReadOnlyError(f"{tag.name} is read-only")
-            staged.append((tag, self.judge(tag, value)))
+            judged = self.judge(tag, value)
+            if tag.type == TagType.REAL and tag.name not in self._subnormal_warned:
+                self._check_subnormal(tag, float(judged))
+            staged.append((tag, judged))
         staged.sort(key=lambda tv: tv[0].type == TagType.BOOL)
         if self.link is None:
             raise ScanUnavailable("this image is read-only (no link to the scan)")

@@ -6,8 +6,9 @@
 - ``admin``: also the ``Clock`` tags (mode, step).
 
 OPC UA users get theirs from ``[[opcua.users]]``; Modbus/TCP Security clients from their
-certificate (``[modbus.tls]``). A plain Modbus TCP connection has no role: only
-``[modbus.access]`` limits it.
+certificate (``[modbus.tls]``). A plain Modbus TCP connection gets the site's plain role
+(:func:`~.access.plain_role`: admin on a map without users or TLS roles, operator on one
+with them, or ``[modbus.access] role``), on top of ``[modbus.access]``'s rules.
 """
 
 from __future__ import annotations

@@ -75,7 +75,7 @@ from .fields import (
     units_of,
 )
 from .model import MAX_ADDRESS, Access, Block, Folder, Tag, TagMap, TagMapError, WordOrder
-from .units import axis_range, fixed_range, narrowed
+from .units import axis_range, fixed_range, narrowed, operand_range
 
 if TYPE_CHECKING:
     # the site map's schema only: the tag map never imports the config package at run
@@ -311,6 +311,9 @@ def instruction_items(
         if isinstance(op, StatusField):
             return found
         if found is None:
+            documented = operand_range(cls.TYPE, op.name)
+            if documented is not None:
+                return documented
             if op.minimum is None or op.maximum is None:
                 return None
             return float(op.minimum), float(op.maximum)

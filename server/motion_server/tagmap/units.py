@@ -22,6 +22,9 @@ Ranges (``EURange``, the span a value takes in normal operation, from the axis l
   ± following_error_limit when one is set, else ± rollover on a rotary axis and the
   counter's travel on a linear one;
 - an operand's own limits narrow the range (``MAJ.Speed >= 0``: [0, max_velocity]);
+- an operand no axis limit bounds has the range its document gives
+  (:func:`operand_range`: MAG's real ``Ratio``, |Ratio| 0.00001..9.99999, so
+  [-9.99999, 9.99999]: the sign selects the direction);
 - the axis configuration tags (limits themselves): [0, value];
 - times: ``CoarseUpdatePeriod`` and ``Clock.Period`` [1, 32] ms (the allowed periods),
   ``CycleTime``/``MaxCycleTime`` [0, period] µs (a longer cycle is an overrun),
@@ -151,6 +154,18 @@ def axis_range(
         return -cfg.rollover, cfg.rollover
     travel = COUNTER_SPAN / cfg.counts_per_unit
     return -travel, travel
+
+
+def operand_range(type_name: str, operand: str) -> tuple[float, float] | None:
+    """The documented range of an analog operand that no axis limit bounds (None: the
+    document gives none). MAG's real ``Ratio`` (Logix MAG: "0.00001 to 9.99999", five
+    decimals; signed, the sign selecting the direction): the instruction's own bounds."""
+    if (type_name, operand) == ("MAG", "Ratio"):
+        from ..instructions.logix.mag import RATIO_SCALE, RATIO_STEPS
+
+        largest = RATIO_STEPS[1] / RATIO_SCALE
+        return -largest, largest
+    return None
 
 
 def narrowed(
