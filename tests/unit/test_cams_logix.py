@@ -445,3 +445,35 @@ def test_mcsv_gives_value_and_slopes_of_the_smooth_step() -> None:
     assert (out.outputs["ERR"], out.outputs["EXERR"]) == (ErrorCode.PARAMETER_OUT_OF_RANGE, 2)
     none = new(s, "MCSV", CamProfile=3, MasterValue=1.0)
     assert none.outputs["ERR"] == ErrorCode.CAM_PROFILE_NOT_CALCULATED
+
+
+def test_matc_master_driven_runs_on_the_mdac_masters_travel() -> None:
+    # MDAC Time Cam: t is the hand wheel's travel; TimeScaling 100 master units per second
+    # of the profile: master 50 -> x = 0.5 -> 5; forward travel only
+    s = cam_system()
+    calc(s, 6)
+    mdac = new(s, "MDAC", SlaveAxis=2, MasterAxis=1, MotionType=3)
+    assert mdac.outputs["DN"] and mdac.outputs["IP"]
+    inst = new(s, "MATC", Axis=2, CamProfile=6, TimeScaling=100.0)
+    for _ in range(100):  # time alone moves nothing
+        s.cycle()
+    assert slave(s) == 0.0 and inst.outputs["IP"] and mdac.outputs["AC"]
+    assert bit(s, 2, B.TIME_CAM) and not bit(s, 2, B.POSITION_CAM)
+    master_to(s, 50.0)
+    assert slave(s) == 5.0
+    master_to(s, 30.0)  # the master goes back: the axis holds
+    assert slave(s) == 5.0
+    master_to(s, 100.0)
+    assert slave(s) == 10.0
+    master_to(s, 101.0)  # the profile's end: Once completes
+    assert inst.outputs["PC"] and not mdac.outputs["AC"]
+
+
+def test_a_stop_that_breaks_the_mdac_ends_the_master_driven_time_cam() -> None:
+    s = cam_system()
+    calc(s, 6)
+    mdac = new(s, "MDAC", SlaveAxis=2, MasterAxis=1, MotionType=0)
+    inst = new(s, "MATC", Axis=2, CamProfile=6, TimeScaling=100.0)
+    master_to(s, 20.0)
+    new(s, "MAS", Axis=2, StopType=0)
+    assert not inst.outputs["IP"] and not mdac.outputs["IP"]

@@ -134,6 +134,7 @@ class CamProcess(Process):
         direction: MasterDirection = MasterDirection.BIDIRECTIONAL,
         origin: float = 0.0,
         ramp_in: tuple[float, float] | None = None,
+        kind: ProcessKind | None = None,
         owner: Any = None,
     ) -> None:
         super().__init__(owner)
@@ -143,7 +144,10 @@ class CamProcess(Process):
                 f"cam lock position {cam_lock:g} is outside the profile's master range "
                 f"[{profile.start:g}, {profile.end:g}]",
             )
-        self.kind = ProcessKind.POSITION_CAM if master is not None else ProcessKind.TIME_CAM
+        if kind is None:
+            kind = ProcessKind.POSITION_CAM if master is not None else ProcessKind.TIME_CAM
+        #: a time cam may run on a master's travel (MATC master driven through MDAC)
+        self.kind = kind
         self.profile = profile
         self.mode = CamMode(mode)
         self.scale = float(scale)

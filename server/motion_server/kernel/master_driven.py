@@ -63,6 +63,8 @@ class MotionType(IntEnum):
     ALL = 0
     JOG = 1
     MOVE = 2
+    #: MATC: the time cam runs on the master's travel (kernel/cams.py)
+    TIME_CAM = 3
 
 
 def link_reference(master: Axis, reference: MasterReference) -> MasterReference:

@@ -43,6 +43,7 @@ class LinkState(IntEnum):
 KIND_TYPE: dict[ProcessKind, MotionType] = {
     ProcessKind.JOG: MotionType.JOG,
     ProcessKind.MOVE: MotionType.MOVE,
+    ProcessKind.TIME_CAM: MotionType.TIME_CAM,
 }
 
 

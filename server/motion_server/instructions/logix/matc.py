@@ -18,8 +18,14 @@ axis's other motion.
 Status: DN and IP in the scan of execution; IP until completed (PC), superseded by a
 Pending cam, stopped (MAS All or Time Cam, MGS), merged, shut down or faulted; SEGMENT.
 MotionStatus TimeCamStatus while in process, TimeCamLockStatus (bit 14) while it drives
-the axis, TimeCamPendingStatus while a Pending time cam waits. The Master Driven mode
-(an MDAC on the axis) is not modelled: MATC always runs on time.
+the axis, TimeCamPendingStatus while a Pending time cam waits.
+
+Master Driven: with an MDAC on the axis whose MotionType is All or Time Cam, t is the
+MDAC master's travel since the start (master units; TimeScaling is master units per
+profile unit) instead of time, and like every master-driven motion the profile advances
+with forward master travel only (a master going back holds the axis). The MDAC's AC is
+set while the cam runs; a stop that breaks the link (MAS All, MGS, MASD, a fault) ramps
+the axis to rest.
 
 Errors: 23 an Immediate MATC on an axis already time camming; 30 / 32 the profile is
 being calculated / not calculated; 13 a scaling that is zero, not finite or beyond
@@ -30,8 +36,9 @@ not exist (EXERR names the operand); 8 a feedback-only axis; 5, 7, 20 the power 
 from __future__ import annotations
 
 from ...kernel import ProcessKind
-from ...kernel.cams import CamMode, CamProcess, active_cam
+from ...kernel.cams import CamMode, CamProcess, MasterDirection, active_cam
 from ...kernel.errors import ErrorCode, MotionError
+from ...kernel.master_driven import MotionType, link_reference
 from ...kernel.processes import Process
 from ..cam_common import ExecutionSchedule, calculated_profile, queue_pending, take_preloaded
 from ..operands import AXIS
@@ -101,8 +108,26 @@ class MATC(CamInstruction):
             )
         direction = resolve_direction(GearDirection(int(self.op["Direction"])), ax.cam_direction)
 
+        link = ctl.mdsc.link_for(ax.number, MotionType.TIME_CAM)
+
         def build() -> CamProcess:
-            return CamProcess(ctl, profile, mode, direction * ds, ts, profile.start, owner=self)
+            if link is None:
+                return CamProcess(ctl, profile, mode, direction * ds, ts, profile.start, owner=self)
+            master = ctl.axis(link.master)
+            return CamProcess(
+                ctl,
+                profile,
+                mode,
+                direction * ds,
+                ts,
+                profile.start,
+                master=master.index,
+                source=link_reference(master, link.reference),
+                master_number=master.number,
+                direction=MasterDirection.FORWARD_ONLY,
+                kind=ProcessKind.TIME_CAM,
+                owner=self,
+            )
 
         if pending:
             proc = build()
@@ -118,5 +143,7 @@ class MATC(CamInstruction):
             assert isinstance(started, CamProcess)
             proc = started
         ax.cam_direction = direction
+        if link is not None:
+            link.processes.append(proc)  # the MDAC's AC
         ctl.cams.register(number, proc)
         self.started(proc)

@@ -3,6 +3,8 @@
 After an MDAC, a MAJ or MAM on the slave whose rates are in master units runs
 master-driven: the slave's speed is the programmed speed times the master's speed.
 
+MotionType Time Cam (3) makes MATC master driven (its profile runs on the master's travel).
+
 Status: DN when executed; IP while the assignment is in place, including while a
 reassignment to a second master is pending (the slave switches when its next MAJ/MAM
 goes IP); AC while a master-driven motion runs under it. MotionType: All 0, Jog 1,
@@ -37,7 +39,13 @@ class MDAC(LogixInstruction):
     OPERANDS = (
         SLAVE_AXIS,
         MASTER_AXIS,
-        Operand("MotionType", TagType.DINT, 0, enum=MotionType, description="0 all, 1 jog, 2 move"),
+        Operand(
+            "MotionType",
+            TagType.DINT,
+            0,
+            enum=MotionType,
+            description="0 all, 1 jog, 2 move, 3 time cam",
+        ),
         Operand(
             "MasterReference",
             TagType.DINT,
