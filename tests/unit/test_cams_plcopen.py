@@ -4,6 +4,8 @@ linear tables of ``cam_support.TABLES`` and a hand-wheel master set exactly."""
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from motion_server.kernel import ErrorCode, PLCopenState
@@ -257,7 +259,7 @@ def test_ramp_in_arrives_with_the_master_speed() -> None:
         for u in (k / 1000 for k in range(1001))
     )
     bound = peak / 20.0**2 * 100.0**2 * 0.002
-    steps = [abs(b - a) for a, b in zip(velocities, velocities[1:], strict=False)]
+    steps = [abs(b - a) for a, b in itertools.pairwise(velocities)]
     assert max(steps) <= bound * 1.01
 
 

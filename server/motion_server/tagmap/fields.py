@@ -53,7 +53,7 @@ class FieldSpec:
 MOTION_STATUS_BITS = (
     "bits: 0 Accel, 1 Decel, 2 Move, 3 Jog, 4 Gearing, 5 Homing, 6 Stopping, 7 Homed, "
     "8 PositionCam, 9 TimeCam, 10 PositionCamPending, 11 TimeCamPending, 12 GearingLock, "
-    "13 PositionCamLock, 19 DirectVelocityControl, 20 DirectTorqueControl"
+    "13 PositionCamLock, 14 TimeCamLock, 19 DirectVelocityControl, 20 DirectTorqueControl"
 )
 
 AXIS_FIELDS: tuple[FieldSpec, ...] = (
