@@ -40,6 +40,11 @@ status_log_interval = 0.0
 [modbus]
 port = 0
 
+# the test steps the clock over plain Modbus: a map with users makes plain clients
+# operators unless the map grants more
+[modbus.access]
+role = "admin"
+
 [opcua]
 port = 0
 data_dir = "{data_dir}"
