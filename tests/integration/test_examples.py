@@ -413,3 +413,61 @@ def test_16_rotary_knife_one_turn_per_product_synchronous_in_the_cut(tmp_path: P
     assert min(vk[i] for i in moving if vc[i] == pytest.approx(400.0)) == pytest.approx(
         200.0, abs=1.0
     )
+
+
+def shear(x: float) -> tuple[float, float]:
+    """Example 17's table over one 500 mm period: (0, 0) cubic, (100, 50) linear, (250,
+    200) cubic, (500, 0), the selection's end slopes 0. The first segment runs from slope 0
+    to its linear neighbour's 1: c = (3·50/100 - 0 - 1)/100 = 0.005, d = (0 + 1 -
+    2·50/100)/100² = 0, the parabola 0.005·x²; the return from slope 1 at 250 to 0 at 500.
+    (shear mm at x mm of line into a period; its slope)."""
+    x %= 500.0
+    if x <= 100.0:
+        return 0.005 * x * x, 0.01 * x
+    if x <= 250.0:
+        return 50.0 + (x - 100.0), 1.0
+    return hermite(200.0, 0.0, 1.0, 0.0, 250.0, x - 250.0)
+
+
+def test_17_flying_shear_in_sync_one_pulse_per_cut_then_cam_out(tmp_path: Path) -> None:
+    # the closed form at the points and the middles (the return: 100 + 250·1/8 = 131.25)
+    assert [shear(x)[0] for x in (0.0, 50.0, 100.0, 250.0, 375.0, 500.0)] == [
+        0.0,
+        12.5,
+        50.0,
+        200.0,
+        131.25,
+        0.0,
+    ]
+    t = run("17_mc_camin_flying_shear", tmp_path)
+    cycle = t.column("cycle")
+    m, s = t.column("Line.CommandPosition"), t.column("Shear.CommandPosition")
+    vm, vs = t.column("Line.CommandVelocity"), t.column("Shear.CommandVelocity")
+    state = t.column("Shear.PLCopenState")
+    in_sync, eop = t.column("CamIn_Shear.InSync"), t.column("CamIn_Shear.EndOfProfile")
+    synced = [i for i, v in enumerate(in_sync) if v]
+    c = synced[0]
+    assert synced == list(range(c, synced[-1] + 1))
+    # every cycle sampled from the cycle before the coupling to the end of the cam
+    assert all(cycle[i] - cycle[i - 1] == 1 for i in range(c, synced[-1] + 1))
+    # relative slave: shear = shear at coupling + F(line) - F(line at coupling); the
+    # coupling sees the line where the previous cycle left it, sample c - 1
+    offset = s[c - 1] - shear(m[c - 1])[0]
+    assert state[c - 1] == 2.0 and vs[c - 1] == 0.0
+    cut = 0
+    for i in synced:
+        f, slope = shear(m[i])
+        assert s[i] - f == pytest.approx(offset, abs=1e-6)
+        assert vs[i] == pytest.approx(slope * vm[i], abs=1e-6)
+        assert state[i] == 8.0  # SynchronizedMotion
+        if 100.0 <= m[i] % 500.0 <= 250.0:  # the cut: the shear at the line's speed
+            assert vs[i] == pytest.approx(vm[i], abs=1e-9)
+            cut += 1
+        # one EndOfProfile pulse in the cycle the line completes a period
+        assert bool(eop[i]) == (m[i] // 500.0 > m[i - 1] // 500.0), (m[i - 1], m[i])
+    assert sum(eop[i] for i in synced) >= 2 and cut > 0
+    # MC_CamOut in the cut: ContinuousMotion at the line's speed, kept until MC_Stop
+    free = [i for i in range(synced[-1], len(t)) if state[i] == 7.0]
+    assert free and free[0] == synced[-1] + 1
+    assert all(vs[i] == pytest.approx(1000.0, abs=1e-9) for i in free)
+    assert vs[-1] == 0.0 and state[-1] == 2.0
