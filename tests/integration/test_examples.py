@@ -55,8 +55,8 @@ def run(name: str, tmp_path: Path, opcua: bool = False) -> Trace:
     return Trace.read_csv(tmp_path / f"{name}.csv")
 
 
-def test_examples_01_to_15_are_all_here() -> None:
-    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 16)]
+def test_examples_01_to_17_are_all_here() -> None:
+    assert [p.stem[:2] for p in EXAMPLES] == [f"{i:02d}" for i in range(1, 18)]
 
 
 def test_01_power_and_jog(tmp_path: Path) -> None:
@@ -332,3 +332,142 @@ def test_15_override_scales_the_running_jog(tmp_path: Path) -> None:
     assert max(steps) <= 500.0 * 5 * DT + 1e-9
     assert v[up[-1]] == pytest.approx(100.0, abs=1e-9)
     assert v[-1] == 0.0
+
+
+def hermite(p0: float, p1: float, m0: float, m1: float, h: float, u: float) -> tuple[float, float]:
+    """The cubic from (0, p0) with slope m0 to (h, p1) with slope m1 at ``u``: (value,
+    slope)."""
+    t = u / h
+    f = (
+        (2 * t**3 - 3 * t**2 + 1) * p0
+        + (t**3 - 2 * t**2 + t) * h * m0
+        + (-2 * t**3 + 3 * t**2) * p1
+        + (t**3 - t**2) * h * m1
+    )
+    df = (6 * t**2 - 6 * t) * p0 / h + (3 * t**2 - 4 * t + 1) * m0
+    df += (-6 * t**2 + 6 * t) * p1 / h + (3 * t**2 - 2 * t) * m1
+    return f, df
+
+
+def knife(c: float) -> tuple[float, float]:
+    """Example 16's table (0, 0) (60, 60) (240, 180) (420, 300) (480, 360), linear, cubic,
+    cubic, linear; the spline's slopes by hand: 1 at 60 and 420 (the linear neighbours),
+    m at 240 from 180·1 + 2·360·m + 180·1 = 3·(180·2/3 + 180·2/3): m = 1/2. (knife °
+    after c mm of conveyor, unwound, 360° per 480 mm; its slope °/mm)."""
+    k, x = divmod(c, 480.0)
+    if x <= 60.0:
+        f, df = x, 1.0
+    elif x <= 240.0:
+        f, df = hermite(60.0, 180.0, 1.0, 0.5, 180.0, x - 60.0)
+    elif x <= 420.0:
+        f, df = hermite(180.0, 300.0, 0.5, 1.0, 180.0, x - 240.0)
+    else:
+        f, df = 300.0 + (x - 420.0), 1.0
+    return 360.0 * k + f, df
+
+
+def test_16_rotary_knife_one_turn_per_product_synchronous_in_the_cut(tmp_path: Path) -> None:
+    # the closed form at the table's points and at the cubic segments' middles
+    # (Hermite basis 1/2, 1/8, 1/2, -1/8): 60 + 22.5 + 90 - 11.25 and 90 + 11.25 + 150 - 22.5
+    assert [knife(c)[0] for c in (60.0, 150.0, 240.0, 330.0, 420.0, 480.0)] == [
+        60.0,
+        131.25,
+        180.0,
+        228.75,
+        300.0,
+        360.0,
+    ]
+    t = run("16_mapc_rotary_knife", tmp_path)
+    conv, kn = t.column("Conveyor.CommandPosition"), t.column("Knife.CommandPosition")
+    vc, vk = t.column("Conveyor.CommandVelocity"), t.column("Knife.CommandVelocity")
+    status = [int(s) for s in t.column("Knife.MotionStatus")]
+    lock = next(i for i, s in enumerate(status) if s >> 13 & 1)  # the MAPC sample
+    # the conveyor rests at the lock, so the lock is at conveyor conv[lock]; the next
+    # sample is the jog's first cycle: 4000 mm/s² · dt² / 2 = 0.008 mm on
+    assert vc[lock] == 0.0
+    assert conv[lock + 1] - conv[lock] == pytest.approx(4000.0 * DT**2 / 2.0, abs=1e-12)
+    c0, k0 = conv[lock], kn[lock]
+    moving = [i for i in range(lock, len(t)) if vc[i] > 0.0]
+    # PositionCam (8) and PositionCamLock (13) set from the lock until MAS Position Cam
+    locked = [i for i in range(lock, len(t)) if status[i] >> 13 & 1]
+    assert locked == list(range(lock, locked[-1] + 1)) and locked[-1] > moving[-1]
+    assert all(status[i] >> 8 & 1 for i in locked)
+    assert status[-1] >> 8 & 1 == 0 and status[-1] >> 13 & 1 == 0
+    travel = 0.0
+    for i in locked:
+        expected, slope = knife(conv[i] - c0)
+        # the rotary knife reads modulo 360; its unwound travel follows the cam exactly
+        if i > lock:
+            d = kn[i] - kn[i - 1]
+            travel += d - 360.0 * round(d / 360.0)
+        assert travel == pytest.approx(expected, abs=1e-6)
+        assert kn[i] == pytest.approx((k0 + expected) % 360.0, abs=1e-6)
+        assert vk[i] == pytest.approx(slope * vc[i], abs=1e-6)
+        x = (conv[i] - c0) % 480.0
+        if x <= 60.0 or x >= 420.0:  # the cut: the blade at the conveyor's speed
+            assert vk[i] == pytest.approx(vc[i], abs=1e-9)
+    # one 360° turn per 480 mm product: at least two whole products ran
+    assert conv[moving[-1]] - c0 > 960.0
+    assert travel == pytest.approx(720.0 + knife(conv[locked[-1]] - c0 - 960.0)[0], abs=1e-6)
+    # at speed (400 mm/s) the knife slows to half of it at 240 mm: 200 °/s at the least
+    assert min(vk[i] for i in moving if vc[i] == pytest.approx(400.0)) == pytest.approx(
+        200.0, abs=1.0
+    )
+
+
+def shear(x: float) -> tuple[float, float]:
+    """Example 17's table over one 500 mm period: (0, 0) cubic, (100, 50) linear, (250,
+    200) cubic, (500, 0), the selection's end slopes 0. The first segment runs from slope 0
+    to its linear neighbour's 1: c = (3·50/100 - 0 - 1)/100 = 0.005, d = (0 + 1 -
+    2·50/100)/100² = 0, the parabola 0.005·x²; the return from slope 1 at 250 to 0 at 500.
+    (shear mm at x mm of line into a period; its slope)."""
+    x %= 500.0
+    if x <= 100.0:
+        return 0.005 * x * x, 0.01 * x
+    if x <= 250.0:
+        return 50.0 + (x - 100.0), 1.0
+    return hermite(200.0, 0.0, 1.0, 0.0, 250.0, x - 250.0)
+
+
+def test_17_flying_shear_in_sync_one_pulse_per_cut_then_cam_out(tmp_path: Path) -> None:
+    # the closed form at the points and the middles (the return: 100 + 250·1/8 = 131.25)
+    assert [shear(x)[0] for x in (0.0, 50.0, 100.0, 250.0, 375.0, 500.0)] == [
+        0.0,
+        12.5,
+        50.0,
+        200.0,
+        131.25,
+        0.0,
+    ]
+    t = run("17_mc_camin_flying_shear", tmp_path)
+    cycle = t.column("cycle")
+    m, s = t.column("Line.CommandPosition"), t.column("Shear.CommandPosition")
+    vm, vs = t.column("Line.CommandVelocity"), t.column("Shear.CommandVelocity")
+    state = t.column("Shear.PLCopenState")
+    in_sync, eop = t.column("CamIn_Shear.InSync"), t.column("CamIn_Shear.EndOfProfile")
+    synced = [i for i, v in enumerate(in_sync) if v]
+    c = synced[0]
+    assert synced == list(range(c, synced[-1] + 1))
+    # every cycle sampled from the cycle before the coupling to the end of the cam
+    assert all(cycle[i] - cycle[i - 1] == 1 for i in range(c, synced[-1] + 1))
+    # relative slave: shear = shear at coupling + F(line) - F(line at coupling); the
+    # coupling sees the line where the previous cycle left it, sample c - 1
+    offset = s[c - 1] - shear(m[c - 1])[0]
+    assert state[c - 1] == 2.0 and vs[c - 1] == 0.0
+    cut = 0
+    for i in synced:
+        f, slope = shear(m[i])
+        assert s[i] - f == pytest.approx(offset, abs=1e-6)
+        assert vs[i] == pytest.approx(slope * vm[i], abs=1e-6)
+        assert state[i] == 8.0  # SynchronizedMotion
+        if 100.0 <= m[i] % 500.0 <= 250.0:  # the cut: the shear at the line's speed
+            assert vs[i] == pytest.approx(vm[i], abs=1e-9)
+            cut += 1
+        # one EndOfProfile pulse in the cycle the line completes a period
+        assert bool(eop[i]) == (m[i] // 500.0 > m[i - 1] // 500.0), (m[i - 1], m[i])
+    assert sum(eop[i] for i in synced) >= 2 and cut > 0
+    # MC_CamOut in the cut: ContinuousMotion at the line's speed, kept until MC_Stop
+    free = [i for i in range(synced[-1], len(t)) if state[i] == 7.0]
+    assert free and free[0] == synced[-1] + 1
+    assert all(vs[i] == pytest.approx(1000.0, abs=1e-9) for i in free)
+    assert vs[-1] == 0.0 and state[-1] == 2.0
