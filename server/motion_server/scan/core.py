@@ -33,9 +33,8 @@ then the retained state is saved and :attr:`Scan.finished` becomes true.
 
 from __future__ import annotations
 
-import contextlib
-import copy
 import logging
+import os
 import time
 from collections import deque
 from collections.abc import Callable
@@ -73,6 +72,8 @@ MANUAL_CHUNK = 200
 FAST_SLICE = 0.001
 #: stop cycles run per pass
 STOP_CHUNK = 50
+#: seconds between two looks at a snapshot file being read or written
+JOB_POLL = 0.002
 
 RetainSink = Callable[[dict[str, Any]], None]
 
@@ -83,7 +84,9 @@ class Scan:
     ``buffer``: the shared memory of the image (the scan's side maps it writable); a
     private one when None. ``retain_sink``: where retained state goes (the supervisor
     writes the file); when None the scan writes the file itself. ``system``: a system
-    built from ``site`` (tests pass one they prepared).
+    built from ``site`` (tests pass one they prepared). ``background``: snapshot files are
+    written and read in a thread of their own while the cycles go on (the scan's
+    process); else at once, inside the write that asked (the in-process runtime).
     """
 
     def __init__(
@@ -94,22 +97,20 @@ class Scan:
         buffer: Any = None,
         fresh: bool = False,
         retain_sink: RetainSink | None = None,
+        background: bool = False,
     ) -> None:
         self.site = site
         self.system = system or site.build()
         self.ctl = self.system.ctl
         self.retain_file = retain.retain_path(site) if site.retain.enabled else None
         self._retain_sink = retain_sink
-        base: dict[str, Any] | None = None
         if self.retain_file is not None and not fresh:
             payload = retain.load(self.retain_file, site.site.name)
             if payload is not None:
-                base = copy.deepcopy(dict(payload))
                 for note in retain.restore(self.system, payload):
                     log.warning("retain: %s", note)
                 log.info("retained state restored from %s", self.retain_file)
-        #: what made the controller state (snapshots replay it)
-        self.inputs = snapshots.InputLog(base)
+        self.background = background
         ctl_cfg = site.controller
         self.mode = ClockMode[ctl_cfg.clock.upper()]
         self.scale = ctl_cfg.scale
@@ -135,8 +136,11 @@ class Scan:
         #: monotonic time the communication fault ends (None: none, or until cleared)
         self.comm_until: float | None = None
         self._comm_written = False
-        #: a snapshot command to carry out once its batch is applied: (kind, name, loaded)
-        self._snapshot_op: tuple[str, str, snapshots.Snapshot | None] | None = None
+        #: a snapshot command to carry out once its batch is applied: (kind, name)
+        self._snapshot_op: tuple[str, str] | None = None
+        #: the snapshot being written or read, and the write to answer once it is done
+        self._job: snapshots.Job | None = None
+        self._job_ack: tuple[Channel, int] | None = None
         # the image
         self.tagmap = build_tagmap(site)
         self.layout = ImageLayout(self.tagmap)
@@ -175,13 +179,15 @@ class Scan:
             if t.field in ("SnapshotSave", "SnapshotRestore", "CommFault")
         ]
 
-    def _install(self, system: MotionSystem) -> None:
-        """Serve ``system``: its watchdogs, its tag image and the image filler (at start,
-        and when a restore replaced it)."""
+    def _install(self, system: MotionSystem, watchdogs: dict[str, Watchdog] | None = None) -> None:
+        """Serve ``system``: its watchdogs (new ones unless given), its tag image and the
+        image filler (at start, and when a restore replaced it)."""
         old = getattr(self, "image", None)
         self.system = system
         self.ctl = system.ctl
-        self.watchdogs = {w.name: Watchdog(w, self.ctl) for w in self.site.watchdogs}
+        if watchdogs is None:
+            watchdogs = {w.name: Watchdog(w, self.ctl) for w in self.site.watchdogs}
+        self.watchdogs = watchdogs
         bindings: dict[str, tuple[Getter, Setter | None]] = {}
         for wd in self.watchdogs.values():
             bindings |= wd.bindings()
@@ -266,16 +272,19 @@ class Scan:
     def snapshot(self, kind: str) -> None:
         """(Host protocol) a rising edge of ``Clock.SnapshotSave`` / ``SnapshotRestore``:
         checked now (a refusal refuses the write), done once the batch is applied."""
+        if self._job is not None or self._snapshot_op is not None:
+            raise TagAccessError(
+                f"snapshot {self._job.name if self._job else self.snapshot_number} is "
+                "being saved or restored: one at a time"
+            )
         name = str(self.snapshot_number)
-        loaded = None
         try:
-            if kind == "restore":
-                loaded = snapshots.load(self.site, self.layout, name)
-            else:
-                snapshots.path_of(self.site, name)
+            path = snapshots.path_of(self.site, name)
+            if kind == "restore" and not os.path.lexists(path):
+                raise snapshots.SnapshotError(f"{path}: no such snapshot")
         except snapshots.SnapshotError as exc:
             raise TagAccessError(str(exc)) from None
-        self._snapshot_op = (kind, name, loaded)
+        self._snapshot_op = (kind, name)
 
     def comm_changed(self) -> None:
         """(Host protocol) a ``Clock.Comm...`` tag was written."""
@@ -283,83 +292,99 @@ class Scan:
 
     # -- snapshots ------------------------------------------------------------------------
     def save_snapshot(self, name: str) -> Path:
-        """Save the controller state as snapshot ``name`` (SnapshotError); its file."""
-        path = snapshots.save(self.site, self.layout, name, self.ctl.tick, self.inputs)
-        log.info("snapshot %s saved at cycle %d (%s)", name, self.ctl.tick, path)
+        """Save the controller state as snapshot ``name`` now (SnapshotError); its file."""
+        path = snapshots.path_of(self.site, name)
+        tick, body = self._capture()
+        snapshots.write(self.site, self.layout, name, tick, body)
+        log.info("snapshot %s saved at cycle %d (%s)", name, tick, path)
         return path
 
     def restore_snapshot(self, name: str) -> None:
-        """Restore snapshot ``name`` (SnapshotError in one line: nothing changed)."""
-        self._restore(snapshots.load(self.site, self.layout, name))
+        """Restore snapshot ``name`` now (SnapshotError in one line: nothing changed)."""
+        self._swap(snapshots.load(self.site, self.layout, name), time.perf_counter())
 
-    def _restore(self, snap: snapshots.Snapshot) -> None:
+    def _capture(self) -> tuple[int, bytes]:
+        """The cycle and the bytes of the controller's state (pickled at once: the only
+        part of a save done in the cycle; the file is written off it)."""
+        state = snapshots.capture(self.system, self.watchdogs)
+        return state.tick, snapshots.encode(state)
+
+    def _swap(self, loaded: snapshots.Loaded, started: float) -> None:
+        """Serve the state of a snapshot read and checked whole (between two cycles)."""
+        if self.state != ScanState.RUNNING:
+            raise snapshots.SnapshotError(f"{loaded.path}: not restored: the server is stopping")
         t0 = time.perf_counter()
-        system = self.site.build()
-        if snap.log.base is not None:
-            try:
-                retain.restore(system, copy.deepcopy(snap.log.base), snap.path)
-            except retain.RetainError as exc:
-                raise snapshots.SnapshotError(f"{snap.path}: its retained state: {exc}") from None
-        previous = self.system
-        self._install(system)
-        try:
-            tags = self.layout.tags
-            by_name = {t.name: t for t in tags}
-            for record in snap.log.records:
-                self._replay_until(record.tick)
-                # the log holds applied batches only: refused now means refused then
-                with writing_as(record.client), contextlib.suppress(TagAccessError):
-                    self.image.write_many((by_name[n], v) for n, v in record.items)
-            self._replay_until(snap.tick)
-        except Exception:
-            self._install(previous)
-            raise
-        self.inputs = snapshots.InputLog(snap.log.base, list(snap.log.records))
-        self.heartbeat = snap.tick & 0xFFFFFFFF
+        state = loaded.state
+        self._install(state.system, state.watchdogs)
+        self.heartbeat = state.tick & 0xFFFFFFFF
         self.filler.fill_all()
         self._refill = False
         self._dirty = True
+        # a step asked of the timeline left behind is not run; the schedule starts again
+        # from now (the restore is not a late cycle: no overrun, nothing dropped)
+        self._pending_cycles = 0
+        self._ack_waiting(wire.Result.NOT_RUN)
+        self._reschedule = True
         log.info(
-            "snapshot %s restored: cycle %d (%d writes replayed in %.2f s)",
-            snap.name,
-            snap.tick,
-            len(snap.log.records),
-            time.perf_counter() - t0,
+            "snapshot %s restored: cycle %d (read and checked in %.3f s, swapped in %.1f ms)",
+            loaded.name,
+            state.tick,
+            t0 - started,
+            (time.perf_counter() - t0) * 1000,
         )
 
-    def _replay_until(self, tick: int) -> None:
-        """Run cycles until ``tick`` as the scan ran them (watchdogs, then the system)."""
-        system, watchdogs = self.system, list(self.watchdogs.values())
-        ctl = self.ctl
-        with ctl.batch():
-            while ctl.tick < tick:
-                for wd in watchdogs:
-                    wd.check()
-                try:
-                    system.cycle()
-                except Exception:  # as the scan contains it (logged the first time round)
-                    self.kernel_failures += 1
-                system.internal_errors.clear()
-                ctl.take_internal_errors()
-
-    def _carry_out_snapshot(self, ch: Channel, seq: int) -> bool:
-        """The snapshot command of the batch just applied; False when it failed."""
+    def _start_snapshot(self, ch: Channel, seq: int) -> None:
+        """Begin the snapshot command of the batch just applied; it is answered once the
+        file is written, or read, checked and swapped in (:meth:`_finish_snapshot`)."""
         op, self._snapshot_op = self._snapshot_op, None
         assert op is not None
-        kind, name, loaded = op
-        try:
-            if kind == "save":
-                self.save_snapshot(name)
+        kind, name = op
+        site, layout = self.site, self.layout
+        work: Callable[[], Any]
+        if kind == "save":
+            try:
+                tick, body = self._capture()
+            except snapshots.SnapshotError as exc:
+                tick, body, error = 0, b"", exc
             else:
-                assert loaded is not None
-                self._restore(loaded)
-            ok = True
-        except snapshots.SnapshotError as exc:
-            log.warning("%s channel: snapshot %s not %s: %s", ch.name, name, kind + "d", exc)
-            ok = False
+                error = None
+
+            def work() -> Any:
+                if error is not None:
+                    raise error
+                snapshots.write(site, layout, name, tick, body)
+                return tick
+
+        else:
+
+            def work() -> Any:
+                return snapshots.load(site, layout, name)
+
+        self._job_ack = (ch, seq)
+        self._job = snapshots.Job(kind, name, work, self.background)
+        if self._job.done:
+            self._finish_snapshot()
+
+    def _finish_snapshot(self) -> None:
+        job, self._job = self._job, None
+        assert job is not None and self._job_ack is not None
+        ch, seq = self._job_ack
+        self._job_ack = None
+        error = job.error
+        if error is None and job.kind == "restore":
+            try:
+                self._swap(job.result, job.started)
+            except snapshots.SnapshotError as exc:
+                error = exc
+        elif error is None:
+            log.info("snapshot %s saved at cycle %d", job.name, job.result)
+        if error is not None:
+            log.warning("%s channel: snapshot %s not %sd: %s", ch.name, job.name, job.kind, error)
         self.snapshot_save = self.snapshot_restore = False  # the command bits read 0 again
-        self._refill_clock = True
-        return ok
+        self.filler.refresh(self._clock_commands)
+        self._refill = True
+        self._dirty = True
+        self._ack(ch, seq, wire.Result.APPLIED if error is None else wire.Result.FAILED)
 
     def _comm_update(self, now: float) -> None:
         """A Comm tag was written: the fault (re)starts now, for its duration."""
@@ -395,6 +420,8 @@ class Scan:
         """Do what is due at ``now`` (monotonic seconds); return when to be called next
         (None: only when a packet arrives)."""
         self._receive()
+        if self._job is not None and self._job.done:
+            self._finish_snapshot()
         if self._stop_requested and self.state == ScanState.RUNNING:
             self._begin_stop()
         if self.state == ScanState.STOPPING:
@@ -414,6 +441,8 @@ class Scan:
             # a write just switched the clock: the new mode's schedule starts now, not at
             # the old one's next wake-up (a manual clock's: a timer up to a second away)
             return now
+        if self._job is not None:  # a snapshot file being read or written: look again soon
+            timer = now + JOB_POLL if timer is None else min(timer, now + JOB_POLL)
         if wake is None:
             return timer
         return wake if timer is None else min(wake, timer)
@@ -422,6 +451,8 @@ class Scan:
         """Run ``count`` cycles now, whatever the clock mode (tests, tools); the writes
         waiting are applied first and the image is published after each cycle."""
         self._receive()
+        if self._job is not None and self._job.done:
+            self._finish_snapshot()
         with self.ctl.batch():
             for _ in range(count):
                 self._apply_queued()
@@ -626,7 +657,6 @@ class Scan:
                 return
             updates.append((tags[slot], value))
         before = self._pending_cycles
-        tick = self.ctl.tick
         try:
             with writing_as(batch.client):
                 self.image.write_many(updates)
@@ -637,12 +667,7 @@ class Scan:
             self.meta[Meta.APPLIED + ch.number] = batch.seq
             self._ack(ch, batch.seq, wire.Result.REFUSED)
             return
-        self.inputs.add(
-            tick, batch.client, [(t.name, v) for t, v in updates if snapshots.logged(t.folder)]
-        )
-        result = wire.Result.APPLIED
-        if self._snapshot_op is not None and not self._carry_out_snapshot(ch, batch.seq):
-            result = wire.Result.FAILED
+        snapshot = self._snapshot_op is not None
         if self._comm_written:
             self._comm_update(time.monotonic())
         if self._refill_clock:
@@ -653,8 +678,8 @@ class Scan:
         self.meta[Meta.APPLIED + ch.number] = batch.seq
         self.writes_applied += 1
         self._dirty = True
-        if result != wire.Result.APPLIED:
-            self._ack(ch, batch.seq, result)
+        if snapshot:
+            self._start_snapshot(ch, batch.seq)  # answered once done
         elif self._pending_cycles > before and self.state == ScanState.STOPPING:
             # a Clock.Step while the programmed stop runs: no cycles for clients any more
             self._pending_cycles = 0
