@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import re
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -72,19 +73,34 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
                     f"motion-server {info.get('version')}  saved {info.get('saved')}"
                 )
         return 0
-    if args.name is None or not args.name.isdigit():
-        raise SystemExit("motion-server: snapshot save|restore N: N is the snapshot's number")
-    number = int(args.name)
+    name = args.name or ""
+    # ASCII digits only ("²".isdigit() is true), and a number Clock.Snapshot holds (UDINT)
+    if not re.fullmatch(r"[0-9]{1,10}", name) or int(name) > 0xFFFFFFFF:
+        shown = name if len(name) <= 20 else name[:17] + "..."
+        raise SystemExit(
+            f"motion-server: snapshot {args.action} {shown!r}: the snapshot's number, "
+            "0 to 4294967295"
+        )
+    number = int(name)
     field = "SnapshotSave" if args.action == "save" else "SnapshotRestore"
+    site = _site(args)
 
     async def work(mc: Any) -> str:
         await mc.write("Clock.Snapshot", number)
         await mc.write(f"Clock.{field}", True)  # answered once done (or refused)
-        cycle = await mc.cycle()
         done = "saved" if args.action == "save" else "restored"
-        return f"snapshot {number} {done}: cycle {cycle}"
+        return f"snapshot {number} {done}: cycle {await _snapshot_cycle(site, number, mc)}"
 
     return _on_server(args, work)
+
+
+async def _snapshot_cycle(site: config.SiteMap, number: int, mc: Any) -> str:
+    """The cycle the snapshot was taken at, from its file when this machine can read it
+    (the server's clock runs on: a cycle read afterwards is a later one)."""
+    try:
+        return str(snapshots.header(snapshots.path_of(site, str(number)))["tick"])
+    except snapshots.SnapshotError:
+        return f"{await mc.cycle()} (read afterwards: the file is not on this machine)"
 
 
 def cmd_comm_fault(args: argparse.Namespace) -> int:

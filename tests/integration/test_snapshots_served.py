@@ -62,7 +62,7 @@ async def test_snapshot_save_and_restore_over_modbus(tmp_path: Path) -> None:
             k = await mc.cycle()
             await mc.write_many({"Clock.Snapshot": 41, "Clock.SnapshotSave": True})
             assert await mc.read("Clock.SnapshotSave") is False
-            assert (tmp_path / "snapshots" / "41.json").is_file()
+            assert (tmp_path / "snapshots" / "41.snap").is_file()
             first = await script(mc, 1000)
             assert await mc.cycle() == k + 1000
 
@@ -71,7 +71,7 @@ async def test_snapshot_save_and_restore_over_modbus(tmp_path: Path) -> None:
             with pytest.raises(ClientError):
                 await mc.write("Clock.SnapshotRestore", True)
             assert await mc.cycle() == k + 1000
-            assert "snapshots/42.json: no such snapshot" in server.log()
+            assert "snapshots/42.snap: no such snapshot" in server.log()
 
             await mc.write_many({"Clock.Snapshot": 41, "Clock.SnapshotRestore": True})
             assert await mc.cycle() == k

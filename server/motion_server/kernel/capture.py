@@ -102,12 +102,14 @@ def reduce_memoryview(m: memoryview) -> tuple[Any, ...]:
     return rebuild_memoryview, (a, m.format)
 
 
-def rebuild_memoryview(a: np.ndarray, fmt: str) -> memoryview:
+def rebuild_memoryview(a: np.ndarray, fmt: str) -> memoryview[Any]:
     """A memoryview of the whole array ``a`` in ``fmt`` (see :func:`reduce_memoryview`)."""
     if not isinstance(a, np.ndarray) or fmt not in MEMORYVIEW_FORMATS:
         raise ValueError(f"memoryview of {type(a).__name__} as {fmt!r}")
     raw = a.data.cast("B")
-    return raw if fmt == "B" else raw.cast(fmt)
+    if fmt == "d":
+        return raw.cast("d")
+    return raw.cast("?") if fmt == "?" else raw
 
 
 # -- closures -------------------------------------------------------------------------------

@@ -341,13 +341,12 @@ class Scan:
         kind, name = op
         site, layout = self.site, self.layout
         work: Callable[[], Any]
+        error: snapshots.SnapshotError | None = None
         if kind == "save":
             try:
                 tick, body = self._capture()
             except snapshots.SnapshotError as exc:
                 tick, body, error = 0, b"", exc
-            else:
-                error = None
 
             def work() -> Any:
                 if error is not None:

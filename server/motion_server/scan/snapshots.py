@@ -263,7 +263,7 @@ def _check_folder(folder: Path) -> None:
 
 
 # -- reading ----------------------------------------------------------------------------------
-def _read(path: Path) -> bytes:
+def _read(path: Path, limit: int = MAX_BYTES) -> bytes:
     try:
         _check_folder(path.parent)
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
@@ -280,7 +280,7 @@ def _read(path: Path) -> bytes:
         if info.st_size > MAX_BYTES:
             raise SnapshotError(f"{path}: larger than {MAX_BYTES // 2**20} MiB")
         with os.fdopen(fd, "rb", closefd=False) as f:
-            data = f.read(MAX_BYTES + 1)
+            data = f.read(limit + 1 if limit < MAX_BYTES else MAX_BYTES + 1)
     except OSError as exc:
         raise SnapshotError(f"{path}: cannot read the snapshot: {exc.strerror}") from None
     finally:
@@ -294,13 +294,18 @@ def _no_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a number a snapshot may hold")
 
 
-def split(path: Path, data: bytes) -> tuple[dict[str, Any], bytes]:
-    """The header (its fields checked for type) and the body of a snapshot file."""
+def split(path: Path, data: bytes, whole: bool = True) -> tuple[dict[str, Any], bytes]:
+    """The header (its fields checked for type) and the body of a snapshot file (``whole``:
+    ``data`` is the whole file, its body of the size the header says)."""
     end = data.find(b"\n", 0, MAX_HEADER)
     if end < 0:
         raise SnapshotError(f"{path}: not a {FORMAT} file (no header line)")
     try:
-        header = json.loads(data[:end].decode("utf-8"), parse_constant=_no_constant)
+        text = data[:end].decode("utf-8")
+    except UnicodeDecodeError:
+        raise SnapshotError(f"{path}: corrupt snapshot header (not UTF-8)") from None
+    try:
+        header = json.loads(text, parse_constant=_no_constant)
     except (ValueError, RecursionError) as exc:
         raise SnapshotError(f"{path}: corrupt snapshot header ({exc})") from None
     if not isinstance(header, dict) or header.get("format") != FORMAT:
@@ -323,7 +328,7 @@ def split(path: Path, data: bytes) -> tuple[dict[str, Any], bytes]:
         if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < 2**63:
             raise SnapshotError(f"{path}: malformed snapshot: {k} {v!r}")
     body = data[end + 1 :]
-    if len(body) != header["size"]:
+    if whole and len(body) != header["size"]:
         raise SnapshotError(
             f"{path}: truncated or padded: {len(body)} bytes of state, the header says "
             f"{header['size']}"
@@ -332,8 +337,9 @@ def split(path: Path, data: bytes) -> tuple[dict[str, Any], bytes]:
 
 
 def header(path: Path) -> dict[str, Any]:
-    """The header of a snapshot file (its signature not checked: for listings)."""
-    head, _ = split(path, _read(path))
+    """The header of a snapshot file (its signature not checked: for listings and the
+    CLI; only the header line is read)."""
+    head, _ = split(path, _read(path, MAX_HEADER), whole=False)
     return head
 
 
