@@ -12,7 +12,10 @@ clock's cycle and time, after every cycle.
 
 from __future__ import annotations
 
+import gc
 import json
+import time
+import tracemalloc
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -223,3 +226,67 @@ def test_a_refused_restore_over_the_clock_tags_changes_nothing(rt: Runtime) -> N
     assert ticket.ack is not None and ticket.ack.result.name == "REFUSED"
     assert rt.cycle_count == K
     assert rt.image.read("Clock.SnapshotRestore") is False
+
+
+def test_client_writes_are_not_kept(tmp_path: Path) -> None:
+    """The old design kept every applied client write (571 B each) for as long as the
+    server ran. 4,000 writes now leave no trace in the scan's memory."""
+    rt = Runtime(demo_site(tmp_path))
+    rt.image.write("MAJ_1.Speed", 1.0)
+    rt.cycle(1)
+    gc.collect()
+    tracemalloc.start()
+    try:
+        start, _ = tracemalloc.get_traced_memory()
+        for n in range(4000):  # an HMI heartbeat: one write, one cycle
+            rt.image.write("MAJ_1.Speed", float(n % 7))
+            rt.cycle(1)
+        gc.collect()
+        end, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert end - start < 4000 * 571 / 10, f"{end - start} bytes kept after 4,000 writes"
+
+
+def test_a_restore_runs_no_cycle_whatever_the_history(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A restore loads the state: it costs no cycle, however long the server ran (the
+    old design ran every cycle again, inside one cycle of the live scan)."""
+    rt = Runtime(demo_site(tmp_path))
+    before(rt)
+    rt.cycle(20000)
+    rt.scan.save_snapshot("long")
+    calls = 0
+    original = MotionSystem.cycle
+
+    def counted(self: MotionSystem) -> None:
+        nonlocal calls
+        calls += 1
+        original(self)
+
+    monkeypatch.setattr(MotionSystem, "cycle", counted)
+    rt.cycle(5)
+    assert calls == 5
+    rt.scan.restore_snapshot("long")
+    assert calls == 5
+    assert rt.cycle_count == K + 20000
+
+
+def test_a_snapshot_at_cycle_a_billion_restores_at_once(tmp_path: Path) -> None:
+    """A state at cycle 10^9 (the tick that hung the old design) restores in the time of
+    any other: the cycle is a number in the state, not cycles to run."""
+    rt = Runtime(demo_site(tmp_path))
+    before(rt)
+    state = snapshots.capture(rt.scan.system, rt.scan.watchdogs)
+    body = snapshots.encode(state)
+    far = snapshots.decode(rt.site, body, K)
+    far.system.ctl.tick = far.tick = 10**9
+    snapshots.write(rt.site, rt.layout, "far", 10**9, snapshots.encode(far))
+    t0 = time.perf_counter()
+    rt.scan.restore_snapshot("far")
+    assert time.perf_counter() - t0 < 2.0
+    assert rt.cycle_count == 10**9
+    assert rt.image.read("Clock.Cycle") == 10**9
+    rt.cycle(3)
+    assert rt.cycle_count == 10**9 + 3

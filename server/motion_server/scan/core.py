@@ -302,6 +302,7 @@ class Scan:
     def restore_snapshot(self, name: str) -> None:
         """Restore snapshot ``name`` now (SnapshotError in one line: nothing changed)."""
         self._swap(snapshots.load(self.site, self.layout, name), time.perf_counter())
+        self._publish()
 
     def _capture(self) -> tuple[int, bytes]:
         """The cycle and the bytes of the controller's state (pickled at once: the only

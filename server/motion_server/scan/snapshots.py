@@ -255,17 +255,17 @@ def write(site: SiteMap, layout: ImageLayout, name: str, tick: int, body: bytes)
     return path
 
 
-def _check_folder(folder: Path) -> None:
+def _check_folder(folder: Path, name: Path | None = None) -> None:
     """The snapshot folder is a folder of its own (not a link to elsewhere)."""
     info = os.lstat(folder)
     if stat.S_ISLNK(info.st_mode) or not stat.S_ISDIR(info.st_mode):
-        raise SnapshotError(f"{folder}: the snapshot folder is a link or not a folder")
+        raise SnapshotError(f"{name or folder}: the snapshot folder is a link or not a folder")
 
 
 # -- reading ----------------------------------------------------------------------------------
 def _read(path: Path, limit: int = MAX_BYTES) -> bytes:
     try:
-        _check_folder(path.parent)
+        _check_folder(path.parent, path)
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except FileNotFoundError:
         raise SnapshotError(f"{path}: no such snapshot") from None
@@ -348,7 +348,10 @@ def load(site: SiteMap, layout: ImageLayout, name: str) -> Loaded:
     site map (SnapshotError in one line). Slow for a large file: off the cycle."""
     path = path_of(site, name)
     head, body = split(path, _read(path))
-    key = installation_key(site, create=False)
+    try:
+        key = installation_key(site, create=False)
+    except SnapshotError as exc:
+        raise SnapshotError(f"{path}: cannot be verified: {exc}") from None
     claimed = head.pop("hmac")
     if not hmac.compare_digest(claimed, _mac(key, _canonical(head), body)):
         raise SnapshotError(
