@@ -105,8 +105,8 @@ def signed(rt: Runtime, head: dict[str, object], body: bytes) -> bytes:
 def test_the_old_finding_a_junk_base_with_a_recomputed_checksum(rt: Runtime) -> None:
     body = {"site": "demo", "tick": 3, "base": {"format": "junk"}, "records": []}
     text = json.dumps(body, sort_keys=True, separators=(",", ":"))
-    doc = {"format": "motion-server-snapshot/1", "sha256": hashlib.sha256(text.encode()).hexdigest(),
-           "body": body}  # fmt: skip
+    digest = hashlib.sha256(text.encode()).hexdigest()
+    doc = {"format": "motion-server-snapshot/1", "sha256": digest, "body": body}
     path(rt).write_text(json.dumps(doc) + "\n")
     refused(rt, "not a motion-server-snapshot/2 file")
 
