@@ -10,8 +10,11 @@ cycles traced one by one; restored, the same again: the same values.
 
 from __future__ import annotations
 
+import asyncio
+import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -90,3 +93,93 @@ async def test_snapshot_save_and_restore_over_modbus(tmp_path: Path) -> None:
     assert listed.returncode == 0, listed.stderr
     line = next(x for x in listed.stdout.splitlines() if x.startswith("41 "))
     assert f"cycle {k}" in line and "demo" in line
+
+
+def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "motion_server.cli", "snapshot", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
+def test_snapshot_numbers_the_clock_tag_cannot_hold_are_one_line(tmp_path: Path) -> None:
+    for args in (("save", "²"), ("restore", "4294967296"), ("save", "-1"), ("save",)):
+        done = cli(*args, cwd=tmp_path)
+        assert done.returncode == 1, done
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+        assert "the snapshot's number, 0 to 4294967295" in lines[0]
+
+
+async def run_fast(mc: MotionClient, seconds: float) -> int:
+    """Cycles as fast as the CPU allows for ``seconds``, then the manual clock again."""
+    await mc.write("Clock.Mode", 3)
+    await asyncio.sleep(seconds)
+    await mc.write("Clock.Mode", 1)
+    return int(await mc.cycle())
+
+
+@pytest.mark.slow
+async def test_crafted_files_and_a_long_history_over_modbus(tmp_path: Path) -> None:
+    """A junk file is refused in one line and the scan goes on; a snapshot after a long
+    run of the fast clock restores at once (the old design ran every cycle again inside
+    one cycle: the scan answered nothing meanwhile)."""
+    server = MotionServer.start(tmp_path, None, clock="manual", opcua=False)
+    try:
+        async with server.client() as mc:
+            folder = tmp_path / "snapshots"
+            folder.mkdir(mode=0o700)
+            (folder / "5.snap").write_text('{"format": "junk"}\n')
+            await mc.write("Clock.Snapshot", 5)
+            with pytest.raises(ClientError):
+                await mc.write("Clock.SnapshotRestore", True)
+            assert "5.snap: not a motion-server-snapshot/2 file" in server.log()
+            assert "Traceback" not in server.log()
+
+            assert (await mc.trigger("MSO_1", Axis=1)).ok
+            t0 = time.perf_counter()
+            k = await run_fast(mc, 3.0)
+            fast = time.perf_counter() - t0
+            assert k > 10000
+            await mc.write_many({"Clock.Snapshot": 6, "Clock.SnapshotSave": True})
+            await mc.step(10)
+            t0 = time.perf_counter()
+            await mc.write_many({"Clock.Snapshot": 6, "Clock.SnapshotRestore": True})
+            restore = time.perf_counter() - t0
+            assert await mc.cycle() == k
+            assert restore < fast / 10, f"{k} cycles: restored in {restore:.3f} s"
+        assert server.stop() == 0
+    finally:
+        server.stop()
+
+
+@pytest.mark.slow
+async def test_a_restore_on_a_realtime_server_is_not_a_late_cycle(tmp_path: Path) -> None:
+    """Realtime clock: a restore drops no cycle and counts no overrun burst; the CLI
+    prints the cycle of the snapshot itself, not one read after it."""
+    server = MotionServer.start(tmp_path, None, clock="realtime", opcua=False)
+    try:
+        async with server.client() as mc:
+            await run_fast(mc, 2.0)  # a long history: the old design ran it all again
+            await mc.write("Clock.Mode", 0)
+            await asyncio.sleep(0.5)
+            saved = cli("save", "8", "--port", str(server.modbus_port), cwd=tmp_path)
+            assert saved.returncode == 0, saved.stderr
+            tick = json.loads((tmp_path / "snapshots" / "8.snap").read_bytes().split(b"\n")[0])
+            assert saved.stdout.strip() == f"snapshot 8 saved: cycle {tick['tick']}"
+            await asyncio.sleep(0.5)
+            counts = ["Diagnostics.Overruns", "Diagnostics.DroppedCycles"]
+            first = await mc.read_many(counts)
+            done = cli("restore", "8", "--port", str(server.modbus_port), cwd=tmp_path)
+            assert done.returncode == 0, done.stderr
+            assert done.stdout.strip() == f"snapshot 8 restored: cycle {tick['tick']}"
+            await asyncio.sleep(0.5)
+            second = await mc.read_many(counts)
+        assert second["Diagnostics.DroppedCycles"] == first["Diagnostics.DroppedCycles"]
+        assert second["Diagnostics.Overruns"] - first["Diagnostics.Overruns"] < 50
+        assert "snapshot 8 restored" in server.log()
+    finally:
+        server.stop()

@@ -38,6 +38,7 @@ import os
 import time
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +56,7 @@ from ..safety import retain
 from ..safety.client import writing_as
 from ..safety.watchdog import Watchdog
 from ..scheduling import LOAD_WINDOW
-from ..tagmap import ClockMode, CommFault, TagAccessError, TagImage, build_tagmap
+from ..tagmap import ClockMode, CommFault, Folder, TagAccessError, TagImage, build_tagmap
 from ..tagmap.image import CommSettings, Getter, Setter
 from ..tagmap.judge import Judge
 from . import snapshots
@@ -76,6 +77,16 @@ STOP_CHUNK = 50
 JOB_POLL = 0.002
 
 RetainSink = Callable[[dict[str, Any]], None]
+
+
+@dataclass
+class _Served:
+    """A system with everything the scan needs to serve it (see :meth:`Scan._serving`)."""
+
+    system: MotionSystem
+    watchdogs: dict[str, Watchdog]
+    image: TagImage
+    filler: ImageFiller
 
 
 class Scan:
@@ -178,27 +189,45 @@ class Scan:
             for t in self.tagmap.owned_by("Clock")
             if t.field in ("SnapshotSave", "SnapshotRestore", "CommFault")
         ]
+        #: the tags the scan (the host) answers, not the controller: a restore refreshes them
+        self._host_tags = [
+            t for t in self.layout.tags if t.folder in (Folder.CLOCK, Folder.DIAGNOSTICS)
+        ]
 
-    def _install(self, system: MotionSystem, watchdogs: dict[str, Watchdog] | None = None) -> None:
-        """Serve ``system``: its watchdogs (new ones unless given), its tag image and the
-        image filler (at start, and when a restore replaced it)."""
-        old = getattr(self, "image", None)
-        self.system = system
-        self.ctl = system.ctl
+    def _install(self, system: MotionSystem) -> None:
+        """Serve ``system`` (at start)."""
+        self._serve(self._serving(system, None, fill=False))
+
+    def _serving(
+        self, system: MotionSystem, watchdogs: dict[str, Watchdog] | None, fill: bool = True
+    ) -> _Served:
+        """What serving ``system`` takes: its watchdogs (new ones unless given), its tag
+        image and the image filler, every slot filled. Touches nothing live: a restore
+        builds it off the cycle, in the thread that read the file (it takes most of the
+        time on a large map: thousands of bindings)."""
         if watchdogs is None:
-            watchdogs = {w.name: Watchdog(w, self.ctl) for w in self.site.watchdogs}
-        self.watchdogs = watchdogs
+            watchdogs = {w.name: Watchdog(w, system.ctl) for w in self.site.watchdogs}
         bindings: dict[str, tuple[Getter, Setter | None]] = {}
-        for wd in self.watchdogs.values():
+        for wd in watchdogs.values():
             bindings |= wd.bindings()
-        self.image = TagImage(
-            self.tagmap, system, self, bindings, Judge.for_system(self.tagmap, system)
-        )
+        image = TagImage(self.tagmap, system, self, bindings, Judge.for_system(self.tagmap, system))
+        filler = ImageFiller(image, self.layout)
+        if fill:
+            filler.fill_all()
+        return _Served(system, watchdogs, image, filler)
+
+    def _serve(self, served: _Served) -> None:
+        """Serve what :meth:`_serving` built (between two cycles)."""
+        old = getattr(self, "image", None)
+        self.system = served.system
+        self.ctl = served.system.ctl
+        self.watchdogs = served.watchdogs
+        self.image = served.image
         if old is not None:  # the Clock's command state is the host's, not the controller's
             self.image.step = old.step
             self.image.step_cycles = old.step_cycles
             self.image.observers = old.observers
-        self.filler = ImageFiller(self.image, self.layout)
+        self.filler = served.filler
 
     # -- set-up ---------------------------------------------------------------------------
     def attach(self, channel: Channel) -> None:
@@ -301,7 +330,8 @@ class Scan:
 
     def restore_snapshot(self, name: str) -> None:
         """Restore snapshot ``name`` now (SnapshotError in one line: nothing changed)."""
-        self._swap(snapshots.load(self.site, self.layout, name), time.perf_counter())
+        t0 = time.perf_counter()
+        self._swap(self._prepare(snapshots.load(self.site, self.layout, name)), t0)
         self._publish()
 
     def _capture(self) -> tuple[int, bytes]:
@@ -310,15 +340,21 @@ class Scan:
         state = snapshots.capture(self.system, self.watchdogs)
         return state.tick, snapshots.encode(state)
 
-    def _swap(self, loaded: snapshots.Loaded, started: float) -> None:
-        """Serve the state of a snapshot read and checked whole (between two cycles)."""
+    def _prepare(self, loaded: snapshots.Loaded) -> tuple[snapshots.Loaded, _Served]:
+        """A snapshot read and checked, made ready to serve (off the cycle)."""
+        return loaded, self._serving(loaded.state.system, loaded.state.watchdogs)
+
+    def _swap(self, ready: tuple[snapshots.Loaded, _Served], started: float) -> None:
+        """Serve the state of a snapshot read, checked and prepared whole (between two
+        cycles: an assignment, and the host's own tags refreshed)."""
+        loaded, served = ready
         if self.state != ScanState.RUNNING:
             raise snapshots.SnapshotError(f"{loaded.path}: not restored: the server is stopping")
         t0 = time.perf_counter()
         state = loaded.state
-        self._install(state.system, state.watchdogs)
+        self._serve(served)
         self.heartbeat = state.tick & 0xFFFFFFFF
-        self.filler.fill_all()
+        self.filler.refresh(self._host_tags)
         self._refill = False
         self._dirty = True
         # a step asked of the timeline left behind is not run; the schedule starts again
@@ -358,7 +394,7 @@ class Scan:
         else:
 
             def work() -> Any:
-                return snapshots.load(site, layout, name)
+                return self._prepare(snapshots.load(site, layout, name))
 
         self._job_ack = (ch, seq)
         self._job = snapshots.Job(kind, name, work, self.background)

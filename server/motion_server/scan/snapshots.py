@@ -34,6 +34,7 @@ import platform
 import re
 import secrets
 import stat
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -420,6 +421,12 @@ def listing(site: SiteMap) -> list[tuple[str, dict[str, Any] | str]]:
     return out
 
 
+#: the interpreter's switch interval while a job runs in the background: the scan's
+#: thread waits at most this long for the lock the job's Python code holds (5 ms by
+#: default, more than a cycle)
+JOB_SWITCH_INTERVAL = 0.0005
+
+
 class Job:
     """Work on a snapshot file off the scan's cycle: ``work`` runs in a thread of its own
     (``background``) or at once; :attr:`done` tells when :attr:`result` or :attr:`error`
@@ -433,7 +440,10 @@ class Job:
         self.started = time.perf_counter()
         self._work = work
         self._done = threading.Event()
+        self._background = background
         if background:
+            self._interval = sys.getswitchinterval()
+            sys.setswitchinterval(min(self._interval, JOB_SWITCH_INTERVAL))
             threading.Thread(target=self._run, name=f"snapshot-{kind}", daemon=True).start()
         else:
             self._run()
@@ -446,6 +456,8 @@ class Job:
         except Exception as exc:  # anything else still ends in one line, never a traceback
             self.error = SnapshotError(f"snapshot {self.name}: {type(exc).__name__}: {exc}")
         finally:
+            if self._background:
+                sys.setswitchinterval(self._interval)
             self._done.set()
 
     @property
