@@ -23,7 +23,7 @@ PROJECT_INI = """\
 motion_server_reuse = module
 """
 
-PROJECT_TESTS = '''\
+PROJECT_TESTS = """\
 import json
 from pathlib import Path
 
@@ -77,7 +77,7 @@ def test_second_finds_a_fresh_controller(motion_server):
 def test_a_marker_gets_a_server_of_its_own(motion_server):
     first = json.loads((OUT / "first.json").read_text())
     assert motion_server.pid != first["pid"]
-'''
+"""
 
 
 @pytest.mark.slow
