@@ -119,6 +119,9 @@ class MotionServer:
         work.mkdir(parents=True, exist_ok=True)
         site = Path(site_map).resolve() if site_map is not None else None
         environ = dict(os.environ if env is None else env)
+        # a site map without data_dir keeps its files (snapshots, retain, audit) in the
+        # server's own directory, never in one shared with other servers
+        environ["MOTION_SERVER_DATA_DIR"] = str(work.resolve())
         cmd = [sys.executable, "-m", "motion_server.cli", "run"]
         if site is not None:
             cmd.append(str(site))

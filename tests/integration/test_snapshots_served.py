@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -183,3 +185,41 @@ async def test_a_restore_on_a_realtime_server_is_not_a_late_cycle(tmp_path: Path
         assert "snapshot 8 restored" in server.log()
     finally:
         server.stop()
+
+
+@pytest.mark.slow
+def test_a_server_run_in_a_source_tree_leaves_no_files_there(tmp_path: Path) -> None:
+    """``motion-server run`` (the demo map, which sets no data_dir) started in a clone's
+    root, a snapshot saved: nothing appears in that directory; the snapshot and its key
+    are in the user's state directory."""
+    clone, home = tmp_path / "clone", tmp_path / "home"
+    clone.mkdir()
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MOTION_SERVER_")}
+    env.pop("XDG_STATE_HOME", None)
+    env["HOME"] = str(home)
+    ready = tmp_path / "ready.json"
+    cmd = [sys.executable, "-m", "motion_server.cli", "run", "--clock", "manual",
+           "--modbus-port", "0", "--no-opcua", "--ready-file", str(ready)]  # fmt: skip
+    log = (tmp_path / "server.log").open("wb")
+    proc = subprocess.Popen(cmd, cwd=clone, env=env, stdout=log, stderr=log)
+    try:
+        give_up = time.monotonic() + 120
+        while not ready.exists():
+            assert proc.poll() is None and time.monotonic() < give_up
+            time.sleep(0.05)
+        port = json.loads(ready.read_text())["modbus"]["port"]
+        done = subprocess.run(
+            [sys.executable, "-m", "motion_server.cli", "snapshot", "save", "3",
+             "--port", str(port)],
+            cwd=clone, env=env, capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+        log.close()
+    assert sorted(p.name for p in clone.iterdir()) == []
+    state = home / ".local" / "state" / "motion-server" / "demo"
+    assert (state / "snapshots" / "3.snap").is_file()
+    assert (state / "snapshot.key").stat().st_mode & 0o777 == 0o600
