@@ -85,22 +85,19 @@ async def test_snapshot_save_and_restore_over_modbus(tmp_path: Path) -> None:
         assert first[300]["MAG_1.IP"] is True  # the gear still runs behind the stopping master
     finally:
         server.stop()
-    listed = subprocess.run(
-        [sys.executable, "-m", "motion_server.cli", "snapshot", "list"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    listed = cli("list", cwd=tmp_path)
     assert listed.returncode == 0, listed.stderr
     line = next(x for x in listed.stdout.splitlines() if x.startswith("41 "))
     assert f"cycle {k}" in line and "demo" in line
 
 
 def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``motion-server snapshot ...`` on this machine, with the data directory the plugin
+    gives the server (its own directory, ``cwd`` here)."""
     return subprocess.run(
         [sys.executable, "-m", "motion_server.cli", "snapshot", *args],
         cwd=cwd,
+        env={**os.environ, "MOTION_SERVER_DATA_DIR": str(cwd.resolve())},
         capture_output=True,
         text=True,
         timeout=60,
@@ -147,11 +144,13 @@ async def test_crafted_files_and_a_long_history_over_modbus(tmp_path: Path) -> N
             fast = time.perf_counter() - t0
             assert k > 10000
             await mc.write_many({"Clock.Snapshot": 6, "Clock.SnapshotSave": True})
+            saved = json.loads((folder / "6.snap").read_bytes().split(b"\n")[0])["tick"]
+            assert saved >= k
             await mc.step(10)
             t0 = time.perf_counter()
             await mc.write_many({"Clock.Snapshot": 6, "Clock.SnapshotRestore": True})
             restore = time.perf_counter() - t0
-            assert await mc.cycle() == k
+            assert await mc.cycle() == saved
             assert restore < fast / 10, f"{k} cycles: restored in {restore:.3f} s"
         assert server.stop() == 0
     finally:
