@@ -25,6 +25,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from . import config
+from .image.layout import ImageLayout
 from .scan import snapshots
 from .tagmap import build_tagmap, to_dict
 
@@ -36,8 +37,13 @@ def _site(args: argparse.Namespace) -> config.SiteMap:
         raise SystemExit(f"motion-server: {exc}") from None
 
 
-def _on_server(args: argparse.Namespace, work: Callable[[Any], Awaitable[str]]) -> int:
-    """Run ``work(client)`` against the site map's server; print what it returns."""
+def _on_server(
+    args: argparse.Namespace,
+    work: Callable[[Any], Awaitable[str]],
+    explain: Callable[[], str | None] | None = None,
+) -> int:
+    """Run ``work(client)`` against the site map's server; print what it returns. When the
+    server refuses, ``explain()`` may say why in one line (else the client's words)."""
     from motion_clients import ClientError, ClientMap, MotionClient
 
     site = _site(args)
@@ -56,7 +62,10 @@ def _on_server(args: argparse.Namespace, work: Callable[[Any], Awaitable[str]]) 
 
     try:
         print(asyncio.run(run()))
-    except (ClientError, OSError, TimeoutError) as exc:
+    except ClientError as exc:
+        why = explain() if explain is not None else None
+        raise SystemExit(f"motion-server: {why or f'{host}:{port}: {exc}'}") from None
+    except (OSError, TimeoutError) as exc:
         raise SystemExit(f"motion-server: {host}:{port}: {exc}") from None
     return 0
 
@@ -91,7 +100,18 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
         done = "saved" if args.action == "save" else "restored"
         return f"snapshot {number} {done}: cycle {await _snapshot_cycle(site, number, mc)}"
 
-    return _on_server(args, work)
+    def explain() -> str | None:
+        """Why the server refused, when this machine can tell (the same checks on the
+        same file; the server's log says it in any case)."""
+        verb = "saved" if args.action == "save" else "restored"
+        try:
+            if args.action == "restore":
+                snapshots.load(site, ImageLayout(build_tagmap(site)), str(number))
+        except snapshots.SnapshotError as exc:
+            return f"snapshot {number} not {verb}: {exc}"
+        return f"snapshot {number} not {verb}: refused by the server (its log says why)"
+
+    return _on_server(args, work, explain)
 
 
 async def _snapshot_cycle(site: config.SiteMap, number: int, mc: Any) -> str:
