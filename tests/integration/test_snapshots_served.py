@@ -179,6 +179,12 @@ async def test_a_restore_on_a_realtime_server_is_not_a_late_cycle(tmp_path: Path
             assert done.stdout.strip() == f"snapshot 8 restored: cycle {tick['tick']}"
             await asyncio.sleep(0.5)
             second = await mc.read_many(counts)
+            missing = cli("restore", "77", "--port", str(server.modbus_port), cwd=tmp_path)
+            assert missing.returncode == 1
+            assert missing.stderr.strip().splitlines() == [
+                f"motion-server: snapshot 77 not restored: {tmp_path.resolve()}/snapshots/77.snap: "
+                "no such snapshot"
+            ]
         assert second["Diagnostics.DroppedCycles"] == first["Diagnostics.DroppedCycles"]
         assert second["Diagnostics.Overruns"] - first["Diagnostics.Overruns"] < 50
         assert "snapshot 8 restored" in server.log()
