@@ -16,6 +16,8 @@ where ``motion-server`` is installed has these fixtures (docs/testing-with-pytes
   Override the fixture in a ``conftest.py`` for a map of your own.
 - ``motion_server_factory``: starts more servers (any scope); each is stopped at the end
   of the session at the latest.
+- ``motion_server_shared``: with ``motion_server_reuse`` = module or session, the server
+  the tests of a module (or session) share (see the fast path below).
 
 Per test, the marker ``@pytest.mark.motion_server(site_map=..., clock="manual",
 opcua=False, args=[...])`` changes how ``motion_server`` is started. OPC UA is served
