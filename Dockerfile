@@ -53,7 +53,8 @@ ENV PATH=/opt/motion-server/bin:$PATH \
     MOTION_SERVER_MODBUS_PORT=5020 \
     MOTION_SERVER_OPCUA_HOST=0.0.0.0 \
     MOTION_SERVER_OPCUA_PORT=4840 \
-    MOTION_SERVER_OPCUA_DATA_DIR=/var/lib/motion-server/opcua
+    MOTION_SERVER_OPCUA_DATA_DIR=/var/lib/motion-server/opcua \
+    MOTION_SERVER_DATA_DIR=/var/lib/motion-server
 # Site map: the embedded demo map unless MOTION_SERVER_MAP names a file, e.g. one mounted
 # at /maps/site.toml (-v ./maps:/maps:ro -e MOTION_SERVER_MAP=/maps/site.toml), or baked
 # into a derived image (COPY site.toml /maps/site.toml + ENV MOTION_SERVER_MAP=...).

@@ -20,10 +20,12 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import re
 from collections.abc import Awaitable, Callable
 from typing import Any
 
 from . import config
+from .image.layout import ImageLayout
 from .scan import snapshots
 from .tagmap import build_tagmap, to_dict
 
@@ -35,8 +37,13 @@ def _site(args: argparse.Namespace) -> config.SiteMap:
         raise SystemExit(f"motion-server: {exc}") from None
 
 
-def _on_server(args: argparse.Namespace, work: Callable[[Any], Awaitable[str]]) -> int:
-    """Run ``work(client)`` against the site map's server; print what it returns."""
+def _on_server(
+    args: argparse.Namespace,
+    work: Callable[[Any], Awaitable[str]],
+    explain: Callable[[], str | None] | None = None,
+) -> int:
+    """Run ``work(client)`` against the site map's server; print what it returns. When the
+    server refuses, ``explain()`` may say why in one line (else the client's words)."""
     from motion_clients import ClientError, ClientMap, MotionClient
 
     site = _site(args)
@@ -55,7 +62,10 @@ def _on_server(args: argparse.Namespace, work: Callable[[Any], Awaitable[str]]) 
 
     try:
         print(asyncio.run(run()))
-    except (ClientError, OSError, TimeoutError) as exc:
+    except ClientError as exc:
+        why = explain() if explain is not None else None
+        raise SystemExit(f"motion-server: {why or f'{host}:{port}: {exc}'}") from None
+    except (OSError, TimeoutError) as exc:
         raise SystemExit(f"motion-server: {host}:{port}: {exc}") from None
     return 0
 
@@ -72,19 +82,45 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
                     f"motion-server {info.get('version')}  saved {info.get('saved')}"
                 )
         return 0
-    if args.name is None or not args.name.isdigit():
-        raise SystemExit("motion-server: snapshot save|restore N: N is the snapshot's number")
-    number = int(args.name)
+    name = args.name or ""
+    # ASCII digits only ("²".isdigit() is true), and a number Clock.Snapshot holds (UDINT)
+    if not re.fullmatch(r"[0-9]{1,10}", name) or int(name) > 0xFFFFFFFF:
+        shown = name if len(name) <= 20 else name[:17] + "..."
+        raise SystemExit(
+            f"motion-server: snapshot {args.action} {shown!r}: the snapshot's number, "
+            "0 to 4294967295"
+        )
+    number = int(name)
     field = "SnapshotSave" if args.action == "save" else "SnapshotRestore"
+    site = _site(args)
 
     async def work(mc: Any) -> str:
         await mc.write("Clock.Snapshot", number)
         await mc.write(f"Clock.{field}", True)  # answered once done (or refused)
-        cycle = await mc.cycle()
         done = "saved" if args.action == "save" else "restored"
-        return f"snapshot {number} {done}: cycle {cycle}"
+        return f"snapshot {number} {done}: cycle {await _snapshot_cycle(site, number, mc)}"
 
-    return _on_server(args, work)
+    def explain() -> str | None:
+        """Why the server refused, when this machine can tell (the same checks on the
+        same file; the server's log says it in any case)."""
+        verb = "saved" if args.action == "save" else "restored"
+        try:
+            if args.action == "restore":
+                snapshots.load(site, ImageLayout(build_tagmap(site)), str(number))
+        except snapshots.SnapshotError as exc:
+            return f"snapshot {number} not {verb}: {exc}"
+        return f"snapshot {number} not {verb}: refused by the server (its log says why)"
+
+    return _on_server(args, work, explain)
+
+
+async def _snapshot_cycle(site: config.SiteMap, number: int, mc: Any) -> str:
+    """The cycle the snapshot was taken at, from its file when this machine can read it
+    (the server's clock runs on: a cycle read afterwards is a later one)."""
+    try:
+        return str(snapshots.header(snapshots.path_of(site, str(number)))["tick"])
+    except snapshots.SnapshotError:
+        return f"{await mc.cycle()} (read afterwards: the file is not on this machine)"
 
 
 def cmd_comm_fault(args: argparse.Namespace) -> int:

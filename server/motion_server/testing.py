@@ -16,11 +16,21 @@ where ``motion-server`` is installed has these fixtures (docs/testing-with-pytes
   Override the fixture in a ``conftest.py`` for a map of your own.
 - ``motion_server_factory``: starts more servers (any scope); each is stopped at the end
   of the session at the latest.
+- ``motion_server_shared``: with ``motion_server_reuse`` = module or session, the server
+  the tests of a module (or session) share (see the fast path below).
 
 Per test, the marker ``@pytest.mark.motion_server(site_map=..., clock="manual",
 opcua=False, args=[...])`` changes how ``motion_server`` is started. OPC UA is served
 when the site map says so unless ``opcua=False``; with no user configured the server
 creates ``admin`` in its data directory (:attr:`MotionServer.opcua_admin_password`).
+
+The fast path: the ini option ``motion_server_reuse = module`` (or ``session``) starts one
+server per module (or per session) and gives each test a fresh controller all the same:
+right after start-up the server saves snapshot :data:`RESET_SNAPSHOT`, and before every
+test :meth:`MotionServer.reset` puts back the Clock settings the server started with and
+restores that snapshot (the controller state bit for bit: axes, instances, faults,
+watchdogs, the cycle count). A test with its own ``motion_server`` marker still gets a
+server of its own. ``motion_site_map`` is then evaluated once per module or session.
 """
 
 from __future__ import annotations
@@ -52,6 +62,14 @@ START_TIMEOUT = 120.0
 STOP_TIMEOUT = 60.0
 #: the lines of the server's log a failure shows
 LOG_TAIL = 40
+#: the snapshot the fast path saves after start-up and restores before every test
+RESET_SNAPSHOT = 0xFFFFFFFF
+#: the Clock settings a reset puts back as they were at start (the host's, not the
+#: controller's: a snapshot does not hold them)
+HOST_SETTINGS = ("Clock.Mode", "Clock.StepCycles", "Clock.CommDelay", "Clock.CommDuration",
+                 "Clock.CommClientPort")  # fmt: skip
+#: values of ``motion_server_reuse`` and the pytest scope of the shared server
+REUSE = {"test": "function", "module": "module", "session": "session"}
 
 T = TypeVar("T")
 
@@ -79,6 +97,8 @@ class MotionServer:
         self.info: dict[str, Any] = {}
         self._map: ClientMap | None = None
         self._stopped = False
+        #: the Clock settings at start, once :meth:`keep_initial_state` saved them
+        self._initial: dict[str, Any] | None = None
 
     # -- start and stop -------------------------------------------------------------------
     @classmethod
@@ -101,6 +121,9 @@ class MotionServer:
         work.mkdir(parents=True, exist_ok=True)
         site = Path(site_map).resolve() if site_map is not None else None
         environ = dict(os.environ if env is None else env)
+        # a site map without data_dir keeps its files (snapshots, retain, audit) in the
+        # server's own directory, never in one shared with other servers
+        environ["MOTION_SERVER_DATA_DIR"] = str(work.resolve())
         cmd = [sys.executable, "-m", "motion_server.cli", "run"]
         if site is not None:
             cmd.append(str(site))
@@ -299,6 +322,34 @@ class MotionServer:
 
         self._sync(work)
 
+    # -- the fast path: one server, a fresh controller per test ---------------------------
+    def keep_initial_state(self) -> None:
+        """Save the controller as snapshot :data:`RESET_SNAPSHOT` and note the Clock
+        settings, for :meth:`reset` (right after start)."""
+
+        async def work(mc: MotionClient) -> dict[str, Any]:
+            settings = await mc.read_many(list(HOST_SETTINGS))
+            await mc.write("Clock.Snapshot", RESET_SNAPSHOT)
+            await mc.write("Clock.SnapshotSave", True)
+            return settings
+
+        self._initial = self._sync(work)
+
+    def reset(self) -> None:
+        """Back to the state :meth:`keep_initial_state` saw: communication faults off,
+        the Clock settings as they were, the controller restored from its snapshot."""
+        if self._initial is None:
+            raise ServerError("reset() needs keep_initial_state() first")
+        initial = self._initial
+
+        async def work(mc: MotionClient) -> None:
+            await mc.write("Clock.CommFault", 0)
+            await mc.write_many(initial)
+            await mc.write("Clock.Snapshot", RESET_SNAPSHOT)
+            await mc.write("Clock.SnapshotRestore", True)
+
+        self._sync(work)
+
     def comm_fault(
         self, kind: str, delay_ms: int = 0, duration_s: float = 0.0, client_port: int = 0
     ) -> None:
@@ -367,6 +418,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         default="",
     )
     parser.addini(
+        "motion_server_reuse",
+        "test (default): a server per test; module or session: one server per module or "
+        "session, its controller restored to its start-up state before every test",
+        default="test",
+    )
+    parser.addini(
         "motion_server_start_timeout",
         f"seconds a motion_server may take to start (default {START_TIMEOUT:g})",
         default=str(START_TIMEOUT),
@@ -393,12 +450,39 @@ def motion_server_factory(
     factory.close()
 
 
-@pytest.fixture
+def _reuse(config: pytest.Config) -> str:
+    value = str(config.getini("motion_server_reuse") or "test").strip()
+    if value not in REUSE:
+        raise pytest.UsageError(f"motion_server_reuse = {value!r}: one of {', '.join(REUSE)}")
+    return value
+
+
+def _reuse_scope(fixture_name: str, config: pytest.Config) -> Any:
+    """The scope of the shared server and of ``motion_site_map`` (``motion_server_reuse``)."""
+    return REUSE[_reuse(config)]
+
+
+@pytest.fixture(scope=_reuse_scope)
 def motion_site_map(request: pytest.FixtureRequest) -> Path | None:
     """The site map of ``motion_server``: the ini option ``motion_site_map``, else None
-    (the embedded demo map). Override this fixture for a map of your own."""
+    (the embedded demo map). Override this fixture for a map of your own (with
+    ``motion_server_reuse`` = module or session, at that scope or wider)."""
     value = str(request.config.getini("motion_site_map") or "")
     return request.config.rootpath / value if value else None
+
+
+@pytest.fixture(scope=_reuse_scope)
+def motion_server_shared(
+    motion_server_factory: ServerFactory, motion_site_map: Path | None
+) -> Iterator[MotionServer]:
+    """The server the tests of a module (or session) share (``motion_server_reuse``): its
+    start-up state kept as snapshot :data:`RESET_SNAPSHOT`; stopped at the end."""
+    server = motion_server_factory(motion_site_map)
+    server.keep_initial_state()
+    try:
+        yield server
+    finally:
+        server.finish()
 
 
 @pytest.fixture
@@ -407,8 +491,19 @@ def motion_server(
     motion_server_factory: ServerFactory,
     motion_site_map: Path | None,
 ) -> Iterator[MotionServer]:
-    """A server for this test (see the module); stopped after it."""
+    """A server for this test (see the module): started for it and stopped after it, or,
+    with ``motion_server_reuse``, the shared one with its controller as at start-up."""
     marker = request.node.get_closest_marker("motion_server")
+    if marker is None and _reuse(request.config) != "test":
+        server = request.getfixturevalue("motion_server_shared")
+        if server.proc.poll() is not None:
+            raise ServerError(
+                f"the shared motion-server has died (exit status {server.proc.returncode})"
+                f"\n{server.log_tail()}"
+            )
+        server.reset()
+        yield server
+        return
     options: dict[str, Any] = dict(marker.kwargs) if marker is not None else {}
     site_map = options.pop("site_map", motion_site_map)
     server = motion_server_factory(site_map, **options)

@@ -12,7 +12,10 @@ clock's cycle and time, after every cycle.
 
 from __future__ import annotations
 
+import gc
 import json
+import time
+import tracemalloc
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -21,6 +24,8 @@ import numpy as np
 import pytest
 
 from motion_server import config
+from motion_server.instructions import MotionSystem
+from motion_server.kernel import Controller
 from motion_server.runtime import Runtime
 from motion_server.scan import snapshots
 from motion_server.tagmap import Folder
@@ -108,9 +113,19 @@ def after(rt: Runtime, slots: np.ndarray) -> np.ndarray:
     return np.array(rows)
 
 
-@pytest.fixture
-def rt(tmp_path: Path) -> Iterator[Runtime]:
-    yield Runtime(demo_site(tmp_path))
+def build(site: config.SiteMap, lanes: bool | None) -> MotionSystem:
+    """The site's system with the fast lanes forced on or off (None: the kernel's choice;
+    the demo's four axes compose in Python then)."""
+    system = MotionSystem(Controller(site.axis_configs(), site.group_configs(), lanes=lanes))
+    for inst in site.instances():
+        system.add(inst.type, inst.name, inst.operands)
+    return system
+
+
+@pytest.fixture(params=[None, True, False], ids=["lanes-default", "lanes-on", "lanes-off"])
+def rt(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[Runtime]:
+    site = demo_site(tmp_path)
+    yield Runtime(site, build(site, request.param))
 
 
 def test_a_restored_snapshot_runs_on_exactly_as_the_original(rt: Runtime) -> None:
@@ -157,11 +172,17 @@ def test_a_snapshot_restored_after_a_restart(tmp_path: Path) -> None:
     assert np.array_equal(first, second)
 
 
-def _resign(path: Path, change: dict[str, Any]) -> None:
-    doc = json.loads(path.read_text("utf-8"))
-    doc["body"].update(change)
-    doc["sha256"] = snapshots._digest(doc["body"])
-    path.write_text(json.dumps(doc), "utf-8")
+def _resign(site: config.SiteMap, path: Path, change: dict[str, Any]) -> None:
+    """Change header fields and sign the file again with the installation's key (a file
+    this installation made with another version, say)."""
+    data = path.read_bytes()
+    end = data.index(b"\n")
+    head, body = json.loads(data[:end]), data[end + 1 :]
+    head.update(change)
+    del head["hmac"]
+    key = snapshots.installation_key(site, create=False)
+    head["hmac"] = snapshots._mac(key, snapshots._canonical(head), body)
+    path.write_bytes(json.dumps(head).encode() + b"\n" + body)
 
 
 def test_snapshots_of_another_site_map_or_version_are_refused_in_one_line(
@@ -191,12 +212,12 @@ def test_snapshots_of_another_site_map_or_version_are_refused_in_one_line(
     rt2.cycle(K + 10)
     assert "made for another site map" in refusal(rt2)
     # another version
-    _resign(path, {"version": "0.0.1"})
+    _resign(site, path, {"version": "0.0.1"})
     text = refusal(rt)
     assert "made with motion-server 0.0.1" in text and str(path) in text
     # a torn file
-    path.write_text(path.read_text("utf-8")[:-40], "utf-8")
-    assert "corrupt" in refusal(rt)
+    path.write_bytes(path.read_bytes()[:-40])
+    assert "truncated" in refusal(rt)
 
 
 def test_a_refused_restore_over_the_clock_tags_changes_nothing(rt: Runtime) -> None:
@@ -205,3 +226,67 @@ def test_a_refused_restore_over_the_clock_tags_changes_nothing(rt: Runtime) -> N
     assert ticket.ack is not None and ticket.ack.result.name == "REFUSED"
     assert rt.cycle_count == K
     assert rt.image.read("Clock.SnapshotRestore") is False
+
+
+def test_client_writes_are_not_kept(tmp_path: Path) -> None:
+    """The old design kept every applied client write (571 B each) for as long as the
+    server ran. 4,000 writes now leave no trace in the scan's memory."""
+    rt = Runtime(demo_site(tmp_path))
+    rt.image.write("MAJ_1.Speed", 1.0)
+    rt.cycle(1)
+    gc.collect()
+    tracemalloc.start()
+    try:
+        start, _ = tracemalloc.get_traced_memory()
+        for n in range(4000):  # an HMI heartbeat: one write, one cycle
+            rt.image.write("MAJ_1.Speed", float(n % 7))
+            rt.cycle(1)
+        gc.collect()
+        end, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert end - start < 4000 * 571 / 10, f"{end - start} bytes kept after 4,000 writes"
+
+
+def test_a_restore_runs_no_cycle_whatever_the_history(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A restore loads the state: it costs no cycle, however long the server ran (the
+    old design ran every cycle again, inside one cycle of the live scan)."""
+    rt = Runtime(demo_site(tmp_path))
+    before(rt)
+    rt.cycle(20000)
+    rt.scan.save_snapshot("long")
+    calls = 0
+    original = MotionSystem.cycle
+
+    def counted(self: MotionSystem) -> None:
+        nonlocal calls
+        calls += 1
+        original(self)
+
+    monkeypatch.setattr(MotionSystem, "cycle", counted)
+    rt.cycle(5)
+    assert calls == 5
+    rt.scan.restore_snapshot("long")
+    assert calls == 5
+    assert rt.cycle_count == K + 20000
+
+
+def test_a_snapshot_at_cycle_a_billion_restores_at_once(tmp_path: Path) -> None:
+    """A state at cycle 10^9 (the tick that hung the old design) restores in the time of
+    any other: the cycle is a number in the state, not cycles to run."""
+    rt = Runtime(demo_site(tmp_path))
+    before(rt)
+    state = snapshots.capture(rt.scan.system, rt.scan.watchdogs)
+    body = snapshots.encode(state)
+    far = snapshots.decode(rt.site, body, K)
+    far.system.ctl.tick = far.tick = 10**9
+    snapshots.write(rt.site, rt.layout, "far", 10**9, snapshots.encode(far))
+    t0 = time.perf_counter()
+    rt.scan.restore_snapshot("far")
+    assert time.perf_counter() - t0 < 2.0
+    assert rt.cycle_count == 10**9
+    assert rt.image.read("Clock.Cycle") == 10**9
+    rt.cycle(3)
+    assert rt.cycle_count == 10**9 + 3

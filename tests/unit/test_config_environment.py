@@ -131,3 +131,22 @@ def test_transport_limits_must_let_the_chunks_carry_the_largest_message() -> Non
         config.OpcUaSection(max_chunk_size=65535, max_chunk_count=64)
     # asyncua clients ask for a one-hour session (3,600,000 ms): the maximum allows it
     assert defaults.max_session_timeout_s >= 3600.0
+
+
+def test_a_map_without_data_dir_never_uses_the_working_directory() -> None:
+    """The data directory of a map that sets none: $MOTION_SERVER_DATA_DIR, else the
+    user's state directory (XDG), per site; a map's own data_dir is kept."""
+    text = '[site]\nname = "line1"\n[[axes]]\nname = "A"\ntype = "virtual"\n' + (
+        '[[groups]]\nname = "G"\naxes = ["A"]\n'
+    )
+    assert config.parse(text, environ={"HOME": "/h"}).data_dir == (
+        "/h/.local/state/motion-server/line1"
+    )
+    env = {"HOME": "/h", "XDG_STATE_HOME": "/state"}
+    assert config.parse(text, environ=env).data_dir == "/state/motion-server/line1"
+    env = {"HOME": "/h", "XDG_STATE_HOME": "relative"}  # ignored, as XDG says
+    assert config.parse(text, environ=env).data_dir == "/h/.local/state/motion-server/line1"
+    env = {"HOME": "/h", "MOTION_SERVER_DATA_DIR": "/var/lib/ms"}
+    assert config.parse(text, environ=env).data_dir == "/var/lib/ms"
+    assert config.loading.unknown_variables(env) == []
+    assert config.parse('data_dir = "here"\n' + text, environ=env).data_dir == "here"

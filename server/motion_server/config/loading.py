@@ -32,6 +32,7 @@ from ..tagmap.model import TagMap
 from ..textfile import Refusal, TextFileError, read_text_file
 from .checks import Problem, duplicates
 from .schema import (
+    DATA_DIR_ENV,
     DEFAULT_USERS_FILE,
     DEMO_MAP,
     ENV_PREFIX,
@@ -42,12 +43,13 @@ from .schema import (
     SiteMapError,
     UsersFile,
     _Model,
+    default_data_dir,
 )
 
 log = logging.getLogger("motion_server.config")
 
 #: ``MOTION_SERVER_`` variables that are not per-setting overrides
-OTHER_VARIABLES = (MAP_ENV, USERS_FILE_ENV)
+OTHER_VARIABLES = (MAP_ENV, USERS_FILE_ENV, DATA_DIR_ENV)
 #: a site map or users file larger than this is refused unread (10,000 axes take 0.5 MiB)
 MAX_FILE_BYTES = 16 * 2**20
 #: a map with more problems shows this many lines, then how many more there are
@@ -273,6 +275,10 @@ def parse(text: str, source: str = "<memory>", environ: Mapping[str, str] | None
     """Validate a site map text; ``environ`` settings (see :func:`environment_settings`)
     replace the TOML values before validation, so every check sees them."""
     data = _toml(text, source)
+    if "data_dir" not in data:  # never the working directory (see default_data_dir)
+        site_table = data.get("site")
+        name = site_table.get("name", "site") if isinstance(site_table, dict) else "site"
+        data["data_dir"] = default_data_dir(name, os.environ if environ is None else environ)
     overrides = environment_settings(environ or {})
     for (section, key), (_, value) in overrides.items():
         table = data.setdefault(section, {})

@@ -16,6 +16,7 @@ running system from it.
 from __future__ import annotations
 
 import ipaddress
+import os
 import re
 import struct
 import typing
@@ -56,6 +57,8 @@ DEMO_MAP = "demo.toml"
 MAP_ENV = "MOTION_SERVER_MAP"
 #: prefix of the per-setting overrides: MOTION_SERVER_<SECTION>_<FIELD>
 ENV_PREFIX = "MOTION_SERVER_"
+#: environment variable naming the data directory of a site map that sets no ``data_dir``
+DATA_DIR_ENV = "MOTION_SERVER_DATA_DIR"
 NAME_RE = r"^[A-Za-z][A-Za-z0-9_]*$"
 #: the longest name of a site, axis, group, instance or watchdog: a Logix tag name's 40
 #: characters (names become tag names, node ids and the lines of every export)
@@ -618,6 +621,22 @@ class UsersFile(_Model):
     users: list[OpcUaUser] = Field(default_factory=list)
 
 
+def default_data_dir(site_name: str, environ: Mapping[str, str]) -> str:
+    """Where a site keeps its files when its map does not say: ``$MOTION_SERVER_DATA_DIR``,
+    else ``$XDG_STATE_HOME/motion-server/<site>`` (``~/.local/state/motion-server/<site>``).
+    Not the working directory: a server started in a source tree or on a read-only mount
+    would leave its snapshots and key there, or fail to write them."""
+    named = environ.get(DATA_DIR_ENV, "")
+    if named:
+        return named
+    name = site_name if isinstance(site_name, str) and re.match(NAME_RE, site_name) else "site"
+    state = environ.get("XDG_STATE_HOME", "")
+    if not state.startswith("/"):  # unset or relative: ignored, as the XDG spec says
+        home = environ.get("HOME", "") or os.path.expanduser("~")
+        state = os.path.join(home, ".local", "state")
+    return os.path.join(state, "motion-server", name)
+
+
 class SiteMap(_Model):
     site: SiteSection = SiteSection()
     controller: ControllerSection = ControllerSection()
@@ -630,7 +649,9 @@ class SiteMap(_Model):
     cams: list[CamSection] = Field(default_factory=list)
     audit: AuditSection = AuditSection()
     retain: RetainSection = RetainSection()
-    #: directory of the audit log and the retain file (relative: to the working directory)
+    #: directory of the audit log, the retain file and the snapshots (relative: to the
+    #: working directory); a map loaded from a file that sets none gets
+    #: :func:`default_data_dir`, never the working directory
     data_dir: PathText = "."
     #: where the map came from (for messages); not a TOML field
     source: str = Field("<memory>", exclude=True)

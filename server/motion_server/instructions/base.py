@@ -40,6 +40,22 @@ class Outputs(dict[str, Any]):
                 changed.add(self.owner)
         dict.__setitem__(self, key, value)
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # a dict subclass unpickles its items before its slots: the items go in with the
+        # state instead, past __setitem__ (a snapshot marks nothing changed)
+        return _empty_dict, (Outputs,), (dict(self), self.owner, self.changed)
+
+    def __setstate__(self, state: tuple[dict[str, Any], str, set[str] | None]) -> None:
+        values, self.owner, self.changed = state
+        dict.update(self, values)
+
+
+def _empty_dict(cls: type[Outputs | Inputs]) -> Outputs | Inputs:
+    """An :class:`Outputs` or :class:`Inputs` without items or slots yet (snapshots)."""
+    if cls not in (Outputs, Inputs):
+        raise ValueError(f"{cls!r} is not an instance's inputs or outputs")
+    return cls.__new__(cls)
+
 
 _UNSET = object()
 
@@ -76,6 +92,13 @@ class Inputs(dict[str, Any]):
     def __ior__(self, other: Any) -> Inputs:  # type: ignore[override,misc]
         self.update(other)
         return self
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return _empty_dict, (Inputs,), (dict(self), self.owner, self.woken)
+
+    def __setstate__(self, state: tuple[dict[str, Any], Instruction, set[Any] | None]) -> None:
+        values, self.owner, self.woken = state
+        dict.update(self, values)
 
 
 #: (selector operand, the selector values that make an operand count)

@@ -25,6 +25,7 @@ repairs the axes concerned (finite values, at rest) and the controller faults th
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -127,6 +128,14 @@ class DriveModel:
         #: partitions below are recomputed only then (fancy indexing costs on small groups)
         self._version = 0
         self._partitions: dict[int, _Partition] = {}
+
+    def __getstate__(self) -> dict[str, Any]:
+        # the partition cache is keyed by object identity, which a copy does not keep
+        return {k: v for k, v in self.__dict__.items() if k != "_partitions"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._partitions = {}
 
     def switched(self) -> None:
         """A drive switched on or off."""

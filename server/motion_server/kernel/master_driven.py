@@ -45,7 +45,7 @@ from .axis import Axis
 from .enums import AxisType, MasterReference, ProcessKind
 from .errors import ErrorCode, MotionError
 from .processes import Process
-from .profiles import Limits
+from .profiles import Limits, apply_input, capture_input
 from .state import StepContext
 
 #: a slave moving slower than this (units/s) counts as standing still for the master change
@@ -224,6 +224,21 @@ class MasterProfile:
             raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")
         self.duration = float(self._traj.duration)
         self.target_position = position
+        #: what the trajectory was planned from (a snapshot plans it again)
+        self._input = capture_input(inp)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """ruckig's trajectory does not pickle: keep its input (see :meth:`__setstate__`)."""
+        return {k: v for k, v in self.__dict__.items() if k != "_traj"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Plan the trajectory again from the same input: ruckig is deterministic, the same
+        trajectory bit for bit."""
+        self.__dict__.update(state)
+        inp = ruckig.InputParameter(1)
+        apply_input(inp, self._input)
+        self._traj = ruckig.Trajectory(1)
+        ruckig.Ruckig(1).calculate(inp, self._traj)
 
     def at(self, s: float) -> tuple[float, float]:
         """Position and ratio after master travel ``s``."""

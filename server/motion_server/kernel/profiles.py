@@ -47,6 +47,9 @@ class Profile:
         self.finished = False
         self._target_position: float | None = None
         self._target_velocity = 0.0
+        #: the input ruckig last planned from (None: not yet): a snapshot rebuilds the
+        #: trajectory from it (see ``__getstate__``)
+        self._plan: tuple[Any, ...] | None = None
 
     # -- targets --------------------------------------------------------------------------
     def to_position(self, displacement: float, limits: Limits) -> None:
@@ -145,6 +148,8 @@ class Profile:
         if result not in (ruckig.Result.Working, ruckig.Result.Finished):
             raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")
         out = self._out
+        if out.new_calculation:  # planned anew from the input just passed
+            self._plan = capture_input(self._inp)
         self.position = out.new_position[0]
         self.velocity = out.new_velocity[0]
         self.acceleration = out.new_acceleration[0]
@@ -162,6 +167,37 @@ class Profile:
                 self.velocity = self._target_velocity
             self._inp.current_acceleration = [0.0]
 
+    # -- snapshots ------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """ruckig's objects do not pickle: keep the input and the time along the trajectory
+        of the last plan, and this profile's own input (see :meth:`__setstate__`)."""
+        state = {k: v for k, v in self.__dict__.items() if k not in ("_otg", "_inp", "_out")}
+        state["_inp"] = capture_input(self._inp)
+        state["_time"] = float(self._out.time)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Rebuild ruckig exactly where it was: plan again from the same input (ruckig is
+        deterministic: the same trajectory, bit for bit), then advance its clock to the
+        saved time with one more update, so that ruckig's own copy of the current state is
+        what this profile's input holds, and the next update goes on without replanning."""
+        state = dict(state)
+        inp_fields = state.pop("_inp")
+        saved_time = state.pop("_time")
+        self.__dict__.update(state)
+        self._otg = ruckig.Ruckig(1, self._dt)
+        self._out = ruckig.OutputParameter(1)
+        self._inp = ruckig.InputParameter(1)
+        plan = self._plan
+        if plan is not None:
+            first = ruckig.InputParameter(1)
+            apply_input(first, plan)
+            self._otg.update(first, self._out)  # plans; its clock reads one cycle
+            self._out.pass_to_input(first)  # what ruckig now holds as its input
+            self._out.time = time_before(saved_time, self._dt)
+            self._otg.update(first, self._out)  # no new plan: the clock reaches saved_time
+        apply_input(self._inp, inp_fields)
+
     @property
     def dt(self) -> float:
         return self._dt
@@ -173,6 +209,63 @@ class Profile:
     @property
     def target_velocity(self) -> float:
         return self._target_velocity
+
+
+#: the fields of a ruckig input a profile sets (the others keep ruckig's defaults)
+INPUT_FIELDS = (
+    "control_interface",
+    "current_position",
+    "current_velocity",
+    "current_acceleration",
+    "target_position",
+    "target_velocity",
+    "target_acceleration",
+    "max_velocity",
+    "max_acceleration",
+    "min_acceleration",
+    "max_jerk",
+)
+
+
+def capture_input(inp: ruckig.InputParameter) -> tuple[Any, ...]:
+    """The fields of ``inp`` a profile sets, as plain values (the control interface as an
+    int, vectors as tuples of floats)."""
+    out: list[Any] = []
+    for f in INPUT_FIELDS:
+        value = getattr(inp, f)
+        if f == "control_interface":
+            out.append(int(value.value))
+        elif value is None:
+            out.append(None)
+        else:
+            out.append(tuple(float(x) for x in value))
+    return tuple(out)
+
+
+def apply_input(inp: ruckig.InputParameter, fields: tuple[Any, ...]) -> None:
+    """Set the fields :func:`capture_input` captured (ValueError when they do not fit)."""
+    if not isinstance(fields, tuple) or len(fields) != len(INPUT_FIELDS):
+        raise ValueError("a ruckig input of another shape")
+    for f, value in zip(INPUT_FIELDS, fields, strict=True):
+        if f == "control_interface":
+            inp.control_interface = ruckig.ControlInterface(int(value))
+        elif value is not None:
+            vector = [float(x) for x in value]
+            if len(vector) != 1:
+                raise ValueError(f"ruckig {f} of {len(vector)} values")
+            setattr(inp, f, vector)
+
+
+def time_before(t: float, dt: float) -> float:
+    """A time ``u`` with ``u + dt == t`` exactly in floating point (ruckig advances its
+    clock by ``+= dt``): ``t - dt`` nudged by an ulp or two when rounding needs it."""
+    u = t - dt
+    for _ in range(8):
+        total = u + dt
+        if total == t:
+            return u
+        u = math.nextafter(u, math.inf if total < t else -math.inf)
+    return t - dt
 
 
 #: a process's profile: ruckig's when jerk-limited, the closed form when trapezoidal

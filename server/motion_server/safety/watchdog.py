@@ -103,6 +103,18 @@ class Watchdog:
         self.beats: dict[str, tuple[int, int]] = {}
         self.stop: GroupStop | None = None
 
+    # -- snapshots ------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, object]:
+        """Its state without its configuration (the site map's: a restore attaches it
+        again with :meth:`configure`)."""
+        return {k: v for k, v in self.__dict__.items() if k != "config"}
+
+    def configure(self, config: WatchdogSection) -> None:
+        """Attach the configuration of a watchdog loaded from a snapshot."""
+        if config.name != self.name:
+            raise ValueError(f"watchdog {self.name} is not {config.name}")
+        self.config = config
+
     # -- events ---------------------------------------------------------------------------
     def fire(self, event: WatchdogEvent) -> WatchdogState:
         nxt = TRANSITIONS.get((self.state, event))

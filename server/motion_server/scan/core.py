@@ -33,12 +33,12 @@ then the retained state is saved and :attr:`Scan.finished` becomes true.
 
 from __future__ import annotations
 
-import contextlib
-import copy
 import logging
+import os
 import time
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -56,7 +56,7 @@ from ..safety import retain
 from ..safety.client import writing_as
 from ..safety.watchdog import Watchdog
 from ..scheduling import LOAD_WINDOW
-from ..tagmap import ClockMode, CommFault, TagAccessError, TagImage, build_tagmap
+from ..tagmap import ClockMode, CommFault, Folder, TagAccessError, TagImage, build_tagmap
 from ..tagmap.image import CommSettings, Getter, Setter
 from ..tagmap.judge import Judge
 from . import snapshots
@@ -73,8 +73,20 @@ MANUAL_CHUNK = 200
 FAST_SLICE = 0.001
 #: stop cycles run per pass
 STOP_CHUNK = 50
+#: seconds between two looks at a snapshot file being read or written
+JOB_POLL = 0.002
 
 RetainSink = Callable[[dict[str, Any]], None]
+
+
+@dataclass
+class _Served:
+    """A system with everything the scan needs to serve it (see :meth:`Scan._serving`)."""
+
+    system: MotionSystem
+    watchdogs: dict[str, Watchdog]
+    image: TagImage
+    filler: ImageFiller
 
 
 class Scan:
@@ -83,7 +95,9 @@ class Scan:
     ``buffer``: the shared memory of the image (the scan's side maps it writable); a
     private one when None. ``retain_sink``: where retained state goes (the supervisor
     writes the file); when None the scan writes the file itself. ``system``: a system
-    built from ``site`` (tests pass one they prepared).
+    built from ``site`` (tests pass one they prepared). ``background``: snapshot files are
+    written and read in a thread of their own while the cycles go on (the scan's
+    process); else at once, inside the write that asked (the in-process runtime).
     """
 
     def __init__(
@@ -94,22 +108,20 @@ class Scan:
         buffer: Any = None,
         fresh: bool = False,
         retain_sink: RetainSink | None = None,
+        background: bool = False,
     ) -> None:
         self.site = site
         self.system = system or site.build()
         self.ctl = self.system.ctl
         self.retain_file = retain.retain_path(site) if site.retain.enabled else None
         self._retain_sink = retain_sink
-        base: dict[str, Any] | None = None
         if self.retain_file is not None and not fresh:
             payload = retain.load(self.retain_file, site.site.name)
             if payload is not None:
-                base = copy.deepcopy(dict(payload))
                 for note in retain.restore(self.system, payload):
                     log.warning("retain: %s", note)
                 log.info("retained state restored from %s", self.retain_file)
-        #: what made the controller state (snapshots replay it)
-        self.inputs = snapshots.InputLog(base)
+        self.background = background
         ctl_cfg = site.controller
         self.mode = ClockMode[ctl_cfg.clock.upper()]
         self.scale = ctl_cfg.scale
@@ -135,8 +147,11 @@ class Scan:
         #: monotonic time the communication fault ends (None: none, or until cleared)
         self.comm_until: float | None = None
         self._comm_written = False
-        #: a snapshot command to carry out once its batch is applied: (kind, name, loaded)
-        self._snapshot_op: tuple[str, str, snapshots.Snapshot | None] | None = None
+        #: a snapshot command to carry out once its batch is applied: (kind, name)
+        self._snapshot_op: tuple[str, str] | None = None
+        #: the snapshot being written or read, and the write to answer once it is done
+        self._job: snapshots.Job | None = None
+        self._job_ack: tuple[Channel, int] | None = None
         # the image
         self.tagmap = build_tagmap(site)
         self.layout = ImageLayout(self.tagmap)
@@ -174,25 +189,45 @@ class Scan:
             for t in self.tagmap.owned_by("Clock")
             if t.field in ("SnapshotSave", "SnapshotRestore", "CommFault")
         ]
+        #: the tags the scan (the host) answers, not the controller: a restore refreshes them
+        self._host_tags = [
+            t for t in self.layout.tags if t.folder in (Folder.CLOCK, Folder.DIAGNOSTICS)
+        ]
 
     def _install(self, system: MotionSystem) -> None:
-        """Serve ``system``: its watchdogs, its tag image and the image filler (at start,
-        and when a restore replaced it)."""
-        old = getattr(self, "image", None)
-        self.system = system
-        self.ctl = system.ctl
-        self.watchdogs = {w.name: Watchdog(w, self.ctl) for w in self.site.watchdogs}
+        """Serve ``system`` (at start)."""
+        self._serve(self._serving(system, None, fill=False))
+
+    def _serving(
+        self, system: MotionSystem, watchdogs: dict[str, Watchdog] | None, fill: bool = True
+    ) -> _Served:
+        """What serving ``system`` takes: its watchdogs (new ones unless given), its tag
+        image and the image filler, every slot filled. Touches nothing live: a restore
+        builds it off the cycle, in the thread that read the file (it takes most of the
+        time on a large map: thousands of bindings)."""
+        if watchdogs is None:
+            watchdogs = {w.name: Watchdog(w, system.ctl) for w in self.site.watchdogs}
         bindings: dict[str, tuple[Getter, Setter | None]] = {}
-        for wd in self.watchdogs.values():
+        for wd in watchdogs.values():
             bindings |= wd.bindings()
-        self.image = TagImage(
-            self.tagmap, system, self, bindings, Judge.for_system(self.tagmap, system)
-        )
+        image = TagImage(self.tagmap, system, self, bindings, Judge.for_system(self.tagmap, system))
+        filler = ImageFiller(image, self.layout)
+        if fill:
+            filler.fill_all()
+        return _Served(system, watchdogs, image, filler)
+
+    def _serve(self, served: _Served) -> None:
+        """Serve what :meth:`_serving` built (between two cycles)."""
+        old = getattr(self, "image", None)
+        self.system = served.system
+        self.ctl = served.system.ctl
+        self.watchdogs = served.watchdogs
+        self.image = served.image
         if old is not None:  # the Clock's command state is the host's, not the controller's
             self.image.step = old.step
             self.image.step_cycles = old.step_cycles
             self.image.observers = old.observers
-        self.filler = ImageFiller(self.image, self.layout)
+        self.filler = served.filler
 
     # -- set-up ---------------------------------------------------------------------------
     def attach(self, channel: Channel) -> None:
@@ -266,16 +301,19 @@ class Scan:
     def snapshot(self, kind: str) -> None:
         """(Host protocol) a rising edge of ``Clock.SnapshotSave`` / ``SnapshotRestore``:
         checked now (a refusal refuses the write), done once the batch is applied."""
+        if self._job is not None or self._snapshot_op is not None:
+            raise TagAccessError(
+                f"snapshot {self._job.name if self._job else self.snapshot_number} is "
+                "being saved or restored: one at a time"
+            )
         name = str(self.snapshot_number)
-        loaded = None
         try:
-            if kind == "restore":
-                loaded = snapshots.load(self.site, self.layout, name)
-            else:
-                snapshots.path_of(self.site, name)
+            path = snapshots.path_of(self.site, name)
+            if kind == "restore" and not os.path.lexists(path):
+                raise snapshots.SnapshotError(f"{path}: no such snapshot")
         except snapshots.SnapshotError as exc:
             raise TagAccessError(str(exc)) from None
-        self._snapshot_op = (kind, name, loaded)
+        self._snapshot_op = (kind, name)
 
     def comm_changed(self) -> None:
         """(Host protocol) a ``Clock.Comm...`` tag was written."""
@@ -283,83 +321,106 @@ class Scan:
 
     # -- snapshots ------------------------------------------------------------------------
     def save_snapshot(self, name: str) -> Path:
-        """Save the controller state as snapshot ``name`` (SnapshotError); its file."""
-        path = snapshots.save(self.site, self.layout, name, self.ctl.tick, self.inputs)
-        log.info("snapshot %s saved at cycle %d (%s)", name, self.ctl.tick, path)
+        """Save the controller state as snapshot ``name`` now (SnapshotError); its file."""
+        path = snapshots.path_of(self.site, name)
+        tick, body = self._capture()
+        snapshots.write(self.site, self.layout, name, tick, body)
+        log.info("snapshot %s saved at cycle %d (%s)", name, tick, path)
         return path
 
     def restore_snapshot(self, name: str) -> None:
-        """Restore snapshot ``name`` (SnapshotError in one line: nothing changed)."""
-        self._restore(snapshots.load(self.site, self.layout, name))
-
-    def _restore(self, snap: snapshots.Snapshot) -> None:
+        """Restore snapshot ``name`` now (SnapshotError in one line: nothing changed)."""
         t0 = time.perf_counter()
-        system = self.site.build()
-        if snap.log.base is not None:
-            try:
-                retain.restore(system, copy.deepcopy(snap.log.base), snap.path)
-            except retain.RetainError as exc:
-                raise snapshots.SnapshotError(f"{snap.path}: its retained state: {exc}") from None
-        previous = self.system
-        self._install(system)
-        try:
-            tags = self.layout.tags
-            by_name = {t.name: t for t in tags}
-            for record in snap.log.records:
-                self._replay_until(record.tick)
-                # the log holds applied batches only: refused now means refused then
-                with writing_as(record.client), contextlib.suppress(TagAccessError):
-                    self.image.write_many((by_name[n], v) for n, v in record.items)
-            self._replay_until(snap.tick)
-        except Exception:
-            self._install(previous)
-            raise
-        self.inputs = snapshots.InputLog(snap.log.base, list(snap.log.records))
-        self.heartbeat = snap.tick & 0xFFFFFFFF
-        self.filler.fill_all()
+        self._swap(self._prepare(snapshots.load(self.site, self.layout, name)), t0)
+        self._publish()
+
+    def _capture(self) -> tuple[int, bytes]:
+        """The cycle and the bytes of the controller's state (pickled at once: the only
+        part of a save done in the cycle; the file is written off it)."""
+        state = snapshots.capture(self.system, self.watchdogs)
+        return state.tick, snapshots.encode(state)
+
+    def _prepare(self, loaded: snapshots.Loaded) -> tuple[snapshots.Loaded, _Served]:
+        """A snapshot read and checked, made ready to serve (off the cycle)."""
+        return loaded, self._serving(loaded.state.system, loaded.state.watchdogs)
+
+    def _swap(self, ready: tuple[snapshots.Loaded, _Served], started: float) -> None:
+        """Serve the state of a snapshot read, checked and prepared whole (between two
+        cycles: an assignment, and the host's own tags refreshed)."""
+        loaded, served = ready
+        if self.state != ScanState.RUNNING:
+            raise snapshots.SnapshotError(f"{loaded.path}: not restored: the server is stopping")
+        t0 = time.perf_counter()
+        state = loaded.state
+        self._serve(served)
+        self.heartbeat = state.tick & 0xFFFFFFFF
+        self.filler.refresh(self._host_tags)
         self._refill = False
         self._dirty = True
+        # a step asked of the timeline left behind is not run; the schedule starts again
+        # from now (the restore is not a late cycle: no overrun, nothing dropped)
+        self._pending_cycles = 0
+        self._ack_waiting(wire.Result.NOT_RUN)
+        self._reschedule = True
         log.info(
-            "snapshot %s restored: cycle %d (%d writes replayed in %.2f s)",
-            snap.name,
-            snap.tick,
-            len(snap.log.records),
-            time.perf_counter() - t0,
+            "snapshot %s restored: cycle %d (read and checked in %.3f s, swapped in %.1f ms)",
+            loaded.name,
+            state.tick,
+            t0 - started,
+            (time.perf_counter() - t0) * 1000,
         )
 
-    def _replay_until(self, tick: int) -> None:
-        """Run cycles until ``tick`` as the scan ran them (watchdogs, then the system)."""
-        system, watchdogs = self.system, list(self.watchdogs.values())
-        ctl = self.ctl
-        with ctl.batch():
-            while ctl.tick < tick:
-                for wd in watchdogs:
-                    wd.check()
-                try:
-                    system.cycle()
-                except Exception:  # as the scan contains it (logged the first time round)
-                    self.kernel_failures += 1
-                system.internal_errors.clear()
-                ctl.take_internal_errors()
-
-    def _carry_out_snapshot(self, ch: Channel, seq: int) -> bool:
-        """The snapshot command of the batch just applied; False when it failed."""
+    def _start_snapshot(self, ch: Channel, seq: int) -> None:
+        """Begin the snapshot command of the batch just applied; it is answered once the
+        file is written, or read, checked and swapped in (:meth:`_finish_snapshot`)."""
         op, self._snapshot_op = self._snapshot_op, None
         assert op is not None
-        kind, name, loaded = op
-        try:
-            if kind == "save":
-                self.save_snapshot(name)
-            else:
-                assert loaded is not None
-                self._restore(loaded)
-            ok = True
-        except snapshots.SnapshotError as exc:
-            log.warning("%s channel: snapshot %s not %s: %s", ch.name, name, kind + "d", exc)
-            ok = False
+        kind, name = op
+        site, layout = self.site, self.layout
+        work: Callable[[], Any]
+        error: snapshots.SnapshotError | None = None
+        if kind == "save":
+            try:
+                tick, body = self._capture()
+            except snapshots.SnapshotError as exc:
+                tick, body, error = 0, b"", exc
+
+            def work() -> Any:
+                if error is not None:
+                    raise error
+                snapshots.write(site, layout, name, tick, body)
+                return tick
+
+        else:
+
+            def work() -> Any:
+                return self._prepare(snapshots.load(site, layout, name))
+
+        self._job_ack = (ch, seq)
+        self._job = snapshots.Job(kind, name, work, self.background)
+        if self._job.done:
+            self._finish_snapshot()
+
+    def _finish_snapshot(self) -> None:
+        job, self._job = self._job, None
+        assert job is not None and self._job_ack is not None
+        ch, seq = self._job_ack
+        self._job_ack = None
+        error = job.error
+        if error is None and job.kind == "restore":
+            try:
+                self._swap(job.result, job.started)
+            except snapshots.SnapshotError as exc:
+                error = exc
+        elif error is None:
+            log.info("snapshot %s saved at cycle %d", job.name, job.result)
+        if error is not None:
+            log.warning("%s channel: snapshot %s not %sd: %s", ch.name, job.name, job.kind, error)
         self.snapshot_save = self.snapshot_restore = False  # the command bits read 0 again
-        self._refill_clock = True
-        return ok
+        self.filler.refresh(self._clock_commands)
+        self._refill = True
+        self._dirty = True
+        self._ack(ch, seq, wire.Result.APPLIED if error is None else wire.Result.FAILED)
 
     def _comm_update(self, now: float) -> None:
         """A Comm tag was written: the fault (re)starts now, for its duration."""
@@ -395,6 +456,8 @@ class Scan:
         """Do what is due at ``now`` (monotonic seconds); return when to be called next
         (None: only when a packet arrives)."""
         self._receive()
+        if self._job is not None and self._job.done:
+            self._finish_snapshot()
         if self._stop_requested and self.state == ScanState.RUNNING:
             self._begin_stop()
         if self.state == ScanState.STOPPING:
@@ -414,6 +477,8 @@ class Scan:
             # a write just switched the clock: the new mode's schedule starts now, not at
             # the old one's next wake-up (a manual clock's: a timer up to a second away)
             return now
+        if self._job is not None:  # a snapshot file being read or written: look again soon
+            timer = now + JOB_POLL if timer is None else min(timer, now + JOB_POLL)
         if wake is None:
             return timer
         return wake if timer is None else min(wake, timer)
@@ -422,6 +487,8 @@ class Scan:
         """Run ``count`` cycles now, whatever the clock mode (tests, tools); the writes
         waiting are applied first and the image is published after each cycle."""
         self._receive()
+        if self._job is not None and self._job.done:
+            self._finish_snapshot()
         with self.ctl.batch():
             for _ in range(count):
                 self._apply_queued()
@@ -626,7 +693,6 @@ class Scan:
                 return
             updates.append((tags[slot], value))
         before = self._pending_cycles
-        tick = self.ctl.tick
         try:
             with writing_as(batch.client):
                 self.image.write_many(updates)
@@ -637,12 +703,7 @@ class Scan:
             self.meta[Meta.APPLIED + ch.number] = batch.seq
             self._ack(ch, batch.seq, wire.Result.REFUSED)
             return
-        self.inputs.add(
-            tick, batch.client, [(t.name, v) for t, v in updates if snapshots.logged(t.folder)]
-        )
-        result = wire.Result.APPLIED
-        if self._snapshot_op is not None and not self._carry_out_snapshot(ch, batch.seq):
-            result = wire.Result.FAILED
+        snapshot = self._snapshot_op is not None
         if self._comm_written:
             self._comm_update(time.monotonic())
         if self._refill_clock:
@@ -653,8 +714,8 @@ class Scan:
         self.meta[Meta.APPLIED + ch.number] = batch.seq
         self.writes_applied += 1
         self._dirty = True
-        if result != wire.Result.APPLIED:
-            self._ack(ch, batch.seq, result)
+        if snapshot:
+            self._start_snapshot(ch, batch.seq)  # answered once done
         elif self._pending_cycles > before and self.state == ScanState.STOPPING:
             # a Clock.Step while the programmed stop runs: no cycles for clients any more
             self._pending_cycles = 0

@@ -94,7 +94,7 @@ def main() -> int:
     try:
         site = spec.site_map()
         image = map_shared(spec.image_fd, spec.image_size, writable=True)
-        scan = Scan(site, buffer=image, fresh=spec.fresh, retain_sink=send_retain)
+        scan = Scan(site, buffer=image, fresh=spec.fresh, retain_sink=send_retain, background=True)
     except (SiteMapError, RetainError) as exc:
         print(f"motion-server: {exc}", file=sys.stderr)
         return 2

@@ -58,6 +58,19 @@ class Lane:
         #: membership changed since the last rebuild
         self.changed = False
 
+    # -- snapshots: ``_slot`` is keyed by object identity, which a copy does not keep ------
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_slot"] = [
+            (i, self._slot[id(p)]) for i, p in enumerate(self.members) if id(p) in self._slot
+        ]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        slots = state.pop("_slot")
+        self.__dict__.update(state)
+        self._slot = {id(self.members[i]): k for i, k in slots}
+
     def _empty(self, field: str) -> np.ndarray:
         width = self.WIDTHS.get(field)
         shape = (0,) if width is None else (0, width)
