@@ -21,7 +21,6 @@ from motion_server import config
 from motion_server.safety.audit import AuditLog
 from tests.opcua_support import SITE, running
 
-pytestmark = pytest.mark.asyncio
 #: a NodeId whose UTF-8 is broken: 0xFF, 0xFE and a lone continuation byte 0x80
 BAD_BYTES = b"\xff\xfe\x80"
 BAD_ID = "Instructions.MAG_1." + BAD_BYTES.decode("utf-8", "surrogateescape")
