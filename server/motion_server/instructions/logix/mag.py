@@ -71,6 +71,16 @@ RATIO_SCALE = 100_000
 RATIO_STEPS = (1, 999_999)
 
 
+#: MAG's Direction, which MAPC and MATC share (RM002: the same four values)
+DIRECTION = Operand(
+    "Direction",
+    TagType.DINT,
+    GearDirection.SAME,
+    enum=GearDirection,
+    description="0 same, 1 opposite, 2 reverse current, 3 unchanged",
+)
+
+
 def resolve_direction(selection: GearDirection, current: int) -> int:
     """+1 (same) or -1 (opposite) from the Direction operand and the current direction."""
     if selection == GearDirection.SAME:
@@ -101,13 +111,7 @@ class MAG(ProcessInstruction):
     OPERANDS = (
         SLAVE_AXIS,
         MASTER_AXIS,
-        Operand(
-            "Direction",
-            TagType.DINT,
-            GearDirection.SAME,
-            enum=GearDirection,
-            description="0 same, 1 opposite, 2 reverse current, 3 unchanged",
-        ),
+        DIRECTION,
         Operand(
             "Ratio",
             TagType.REAL,

@@ -61,7 +61,7 @@ from ..logix_common import ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
 from ..schema import Operand, Quantity, StatusField, TagType
-from .mag import GearDirection, resolve_direction
+from .mag import DIRECTION, GearDirection, resolve_direction
 from .mccp import CAM_PROFILE
 
 LOCKS = {
@@ -119,13 +119,7 @@ class MAPC(CamInstruction):
     OPERANDS = (
         SLAVE_AXIS,
         MASTER_AXIS,
-        Operand(
-            "Direction",
-            TagType.DINT,
-            GearDirection.SAME,
-            enum=GearDirection,
-            description="0 same, 1 opposite, 2 reverse, 3 unchanged",
-        ),
+        DIRECTION,
         CAM_PROFILE,
         Operand("SlaveScaling", TagType.REAL, 1.0, description="scales the slave values"),
         Operand("MasterScaling", TagType.REAL, 1.0, description="scales the master distance"),

@@ -44,7 +44,7 @@ from ..cam_common import ExecutionSchedule, calculated_profile, queue_pending, t
 from ..operands import AXIS
 from ..registry import register
 from ..schema import Operand, TagType
-from .mag import GearDirection, resolve_direction
+from .mag import DIRECTION, GearDirection, resolve_direction
 from .mapc import CamInstruction, scaling
 from .mccp import CAM_PROFILE
 
@@ -56,13 +56,7 @@ class MATC(CamInstruction):
     MOTION_CONTROL_INDEX = 1
     OPERANDS = (
         AXIS,
-        Operand(
-            "Direction",
-            TagType.DINT,
-            GearDirection.SAME,
-            enum=GearDirection,
-            description="0 same, 1 opposite, 2 reverse, 3 unchanged",
-        ),
+        DIRECTION,
         CAM_PROFILE,
         Operand("DistanceScaling", TagType.REAL, 1.0, description="scales the distance"),
         Operand("TimeScaling", TagType.REAL, 1.0, description="scales the time (s per unit)"),
