@@ -116,7 +116,10 @@ def after(rt: Runtime, slots: np.ndarray) -> np.ndarray:
 def build(site: config.SiteMap, lanes: bool | None) -> MotionSystem:
     """The site's system with the fast lanes forced on or off (None: the kernel's choice;
     the demo's four axes compose in Python then)."""
-    system = MotionSystem(Controller(site.axis_configs(), site.group_configs(), lanes=lanes))
+    ctl = Controller(
+        site.axis_configs(), site.group_configs(), lanes=lanes, cams=site.cam_configs()
+    )
+    system = MotionSystem(ctl)
     for inst in site.instances():
         system.add(inst.type, inst.name, inst.operands)
     return system
