@@ -67,11 +67,16 @@ def test_a_pipelined_flood_delays_another_client_by_one_turn_not_by_the_flood() 
         flood.join()
         poller.close()
     assert flood_seconds, "the flood was not answered"
-    # while the flood lasted, the poller kept being served, each read within a small
-    # share of the flood's duration (a turn is REQUESTS_PER_TURN requests)
+    # while the flood lasted, the poller kept being served, its reads within a small
+    # share of the flood's duration (a turn is REQUESTS_PER_TURN requests). Before the
+    # turns one read waited about half the flood. The server runs in a thread of this
+    # process: on a loaded machine one read may be preempted, so the bound is on the 95th
+    # percentile, and the worst read still within a quarter of the flood.
     assert len(latencies) >= 10, (latencies, flood_seconds)
-    worst = max(latencies[:-1])  # the last read may have started after the flood ended
-    assert worst < 0.1 * flood_seconds[0], (worst, flood_seconds[0], len(latencies))
+    reads = sorted(latencies[:-1])  # the last read may have started after the flood ended
+    p95 = reads[int(0.95 * (len(reads) - 1))]
+    assert p95 < 0.1 * flood_seconds[0], (p95, flood_seconds[0], len(latencies))
+    assert reads[-1] < 0.25 * flood_seconds[0], (reads[-1], flood_seconds[0])
 
 
 class _Transport(asyncio.Transport):
