@@ -57,6 +57,7 @@ from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
 from .state import AxisArrays, MasterArrays
+from .stop_plan import stop_axes
 
 #: a redefined position may be at most this many encoder counts from zero (float64 holds
 #: every integer up to 2**53: beyond, positions could not be quantised to single counts)
@@ -611,6 +612,43 @@ class Controller:
         """
         g = self.group(ref)
         handle = GroupStop(g, owner)
+        if not self.lanes_enabled:
+            return self._group_stop_by_axis(g, forced, handle)
+        if self.mdsc.linked:
+            for ax in g.axes:
+                self.mdsc.break_axis(ax, AbortReason.STOPPED, hold_active=True)
+        # the ramps of consecutive axes are planned together (:mod:`.stop_plan`), in axis
+        # order: a shutdown, which releases the followers of its axis, comes after the
+        # ramps of the axes before it, as it does axis by axis
+        ramping: list[tuple[Axis, AfterStop]] = []
+        for ax in g.axes:
+            if ax.type == AxisType.FEEDBACK_ONLY:
+                continue
+            mode = ax.programmed_stop_mode if forced is None else forced
+            if mode == ProgrammedStopMode.HARD_SHUTDOWN:
+                self._ramp_to_rest(g, ramping, handle)
+                self.shutdown(ax)
+            elif mode == ProgrammedStopMode.HARD_DISABLE:
+                self._ramp_to_rest(g, ramping, handle)
+                self.servo_off(ax)
+            elif ax.state == AxisState.SERVO_CONTROL:
+                ramping.append((ax, AFTER_FAST_STOP[mode]))
+                continue  # latched with its ramp
+            elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
+                self._ramp_to_rest(g, ramping, handle)
+                self.shutdown(ax)
+            # StoppingStatus until the axis is at rest (coasting axes have no ramp)
+            ax.stop_latch = handle
+        self._ramp_to_rest(g, ramping, handle)
+        g.stops.append(handle)
+        return handle
+
+    def _group_stop_by_axis(
+        self, g: MotionGroup, forced: ProgrammedStopMode | None, handle: GroupStop
+    ) -> GroupStop:
+        """:meth:`group_stop` one axis after the other: the reference the planned path
+        is tested against (``Controller(lanes=False)``)."""
+        owner = handle.owner
         for ax in g.axes:
             self.mdsc.break_axis(ax, AbortReason.STOPPED, hold_active=True)
         for ax in g.axes:
@@ -627,10 +665,34 @@ class Controller:
                 g.after_stops = True
             elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
                 self.shutdown(ax)
-            # StoppingStatus until the axis is at rest (coasting axes have no ramp)
             ax.stop_latch = handle
         g.stops.append(handle)
         return handle
+
+    def _ramp_to_rest(
+        self, g: MotionGroup, ramping: list[tuple[Axis, AfterStop]], handle: GroupStop
+    ) -> None:
+        """The group stop ramps of the axes in ``ramping`` (in Servo Control, with the
+        action after their stop), then empty the list: planned as one batch
+        (:func:`.stop_plan.stop_axes`), or axis by axis with the lanes off (the
+        reference) or when the batch would refuse one (then this raises where the
+        reference raises)."""
+        if not ramping:
+            return
+        axes = [ax for ax, _ in ramping]
+        owner = handle.owner
+        if stop_axes(self.motion, axes, owner) is None:
+            for ax, action in ramping:
+                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
+                ax.after_stop = action
+                g.after_stops = True
+                ax.stop_latch = handle
+        else:
+            for ax, action in ramping:
+                ax.after_stop = action
+                ax.stop_latch = handle
+            g.after_stops = True
+        ramping.clear()
 
     def group_stopping(self, ax: Axis) -> bool:
         """True while a group stop (MGS, leaving run mode) is bringing ``ax``'s group to

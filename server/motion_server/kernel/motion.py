@@ -112,7 +112,14 @@ class Motion:
             order: list[Axis] = []
             placed: set[int] = set()
             for ax in g.axes:
-                self._visit(ax, g.number, order, placed, ())
+                procs = ax.processes
+                if not procs or (len(procs) == 1 and not procs[0].masters):
+                    # reads no master: where _visit would place it, without the call
+                    if ax.index not in placed:
+                        order.append(ax)
+                        placed.add(ax.index)
+                else:
+                    self._visit(ax, g.number, order, placed, ())
             g.order = order
             self.lanes[g.number].dirty = True
         self.order_dirty = False

@@ -162,6 +162,33 @@ class StopLane(Lane):
         assert isinstance(p, StopRamp)
         return (ax.base, p.position, p.velocity, p.acceleration, p.limits.deceleration)
 
+    def admit_batch(
+        self, joining: list[tuple[StopRamp, Axis]], velocity: list[float], decel: list[float]
+    ) -> None:
+        """Admit new ramps (position 0, no acceleration) with their velocity and
+        deceleration as lists: the next rebuild takes them as arrays (a group stop,
+        :mod:`..stop_plan`). The same as admitting them one by one, in order."""
+        empty = not self._joining
+        for p, _ in joining:
+            p.lane = self
+        self._joining.extend(joining)
+        self._batch = (joining[0][0], velocity, decel) if empty else None
+        self.changed = True
+        self._owner.dirty = True
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        batch = self._batch
+        if batch is None or not joining or joining[0][0] is not batch[0]:
+            return None
+        velocity, decel = batch[1], batch[2]
+        if len(velocity) != len(joining):
+            return None
+        n = len(joining)
+        # FIELDS: base (read now, as _load would), pos, vel, acc, decel
+        base = np.array([ax.base for _, ax in joining], dtype=float)
+        return [base, np.zeros(n), np.array(velocity, dtype=float), np.zeros(n),
+                np.array(decel, dtype=float)]  # fmt: skip
+
     def _store(self, p: Process, k: int) -> None:
         a = self.arrays
         p.position = float(a["pos"][k])
