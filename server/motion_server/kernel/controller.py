@@ -392,9 +392,15 @@ class Controller:
         axis that follows it (master-driven motion, gearing) is released: see
         :meth:`release_followers`.
         """
+        self._shutdown(ax, None)
+
+    def _shutdown(self, ax: Axis, followers: dict[int, list[Axis]] | None) -> None:
+        """:meth:`shutdown`; ``followers``: :meth:`Motion.followers
+        <.motion.Motion.followers>` taken before a series of shutdowns (a group stop)."""
         self.mdsc.break_axis(ax, AbortReason.SHUTDOWN)
         self.power.fire(ax, PowerEvent.SHUTDOWN)
-        self.release_followers(ax, AbortReason.SHUTDOWN)
+        among = None if followers is None else followers.get(ax.number, [])
+        self.motion.release_followers(ax, AbortReason.SHUTDOWN, among)
 
     def shutdown_reset(self, ax: Axis) -> None:
         """MASR: from Axis Shutdown (or faulted) to Axis Ready, faults cleared."""
@@ -621,13 +627,20 @@ class Controller:
         # order: a shutdown, which releases the followers of its axis, comes after the
         # ramps of the axes before it, as it does axis by axis
         ramping: list[tuple[Axis, AfterStop]] = []
+        # who reads each master, found once for all the shutdowns of this stop
+        followers: dict[int, list[Axis]] | None = None
         for ax in g.axes:
             if ax.type == AxisType.FEEDBACK_ONLY:
                 continue
             mode = ax.programmed_stop_mode if forced is None else forced
+            shuts = mode == ProgrammedStopMode.HARD_SHUTDOWN or (
+                mode == ProgrammedStopMode.FAST_SHUTDOWN and ax.state != AxisState.SERVO_CONTROL
+            )
+            if shuts and followers is None:
+                followers = self.motion.followers()
             if mode == ProgrammedStopMode.HARD_SHUTDOWN:
                 self._ramp_to_rest(g, ramping, handle)
-                self.shutdown(ax)
+                self._shutdown(ax, followers)
             elif mode == ProgrammedStopMode.HARD_DISABLE:
                 self._ramp_to_rest(g, ramping, handle)
                 self.servo_off(ax)
@@ -636,7 +649,7 @@ class Controller:
                 continue  # latched with its ramp
             elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
                 self._ramp_to_rest(g, ramping, handle)
-                self.shutdown(ax)
+                self._shutdown(ax, followers)
             # StoppingStatus until the axis is at rest (coasting axes have no ramp)
             ax.stop_latch = handle
         self._ramp_to_rest(g, ramping, handle)
