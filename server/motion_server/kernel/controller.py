@@ -26,7 +26,7 @@ import functools
 import math
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -65,6 +65,8 @@ MAX_POSITION_COUNTS = 2.0**53
 
 __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArrays"]
 
+#: a ramped stop mode (as a plain int: hashed in C) -> what follows the ramp
+_AFTER_RAMP = {int(mode): action for mode, action in AFTER_FAST_STOP.items()}
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 # read every cycle, as a module constant (see .enums)
 _RUN = OperatingMode.RUN
@@ -142,6 +144,11 @@ class Controller:
         #: depth of :meth:`batch` blocks entered
         self._batched = 0
         self.mode = OperatingMode.RUN
+        #: per group: its axes that are not feedback only (those a group stop stops)
+        self._motion_axes = {
+            g.number: [ax for ax in g.axes if ax.type != AxisType.FEEDBACK_ONLY]
+            for g in self.groups
+        }
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
         #: the groups whose processes may join fast lanes (the others' lanes stay empty)
@@ -626,7 +633,13 @@ class Controller:
         # the ramps of consecutive axes are planned together (:mod:`.stop_plan`), in axis
         # order: a shutdown, which releases the followers of its axis, comes after the
         # ramps of the axes before it, as it does axis by axis
-        ramping: list[tuple[Axis, AfterStop]] = []
+        ramping = self._all_ramping(g, forced)
+        if ramping is not None:
+            # the common case: every axis ramps
+            self._ramp_to_rest(g, ramping, handle)
+            g.stops.append(handle)
+            return handle
+        ramping = []
         # who reads each master, found once for all the shutdowns of this stop
         followers: dict[int, list[Axis]] | None = None
         for ax in g.axes:
@@ -655,6 +668,24 @@ class Controller:
         self._ramp_to_rest(g, ramping, handle)
         g.stops.append(handle)
         return handle
+
+    def _all_ramping(
+        self, g: MotionGroup, forced: ProgrammedStopMode | None
+    ) -> list[tuple[Axis, AfterStop]] | None:
+        """If every driven axis of ``g`` is in Servo Control and stops with a ramp
+        (Fast Stop, Fast Disable, Fast Shutdown): each with its action after the stop,
+        found with array operations; else None (the axes are then sorted one by one)."""
+        idx = g.motion_idx
+        if not (self.arrays.axis_state[idx] == AxisState.SERVO_CONTROL).all():
+            return None
+        axes = self._motion_axes[g.number]
+        if forced is not None:
+            action = _AFTER_RAMP.get(int(forced))
+            return None if action is None else [(ax, action) for ax in axes]
+        actions = [_AFTER_RAMP.get(int(ax.config.programmed_stop_mode)) for ax in axes]
+        if None in actions:
+            return None
+        return list(zip(axes, cast(list[AfterStop], actions), strict=True))
 
     def _group_stop_by_axis(
         self, g: MotionGroup, forced: ProgrammedStopMode | None, handle: GroupStop
@@ -687,9 +718,8 @@ class Controller:
     ) -> None:
         """The group stop ramps of the axes in ``ramping`` (in Servo Control, with the
         action after their stop), then empty the list: planned as one batch
-        (:func:`.stop_plan.stop_axes`), or axis by axis with the lanes off (the
-        reference) or when the batch would refuse one (then this raises where the
-        reference raises)."""
+        (:func:`.stop_plan.stop_axes`), or axis by axis when the batch would refuse one
+        (then this raises where :meth:`_group_stop_by_axis` raises)."""
         if not ramping:
             return
         axes = [ax for ax, _ in ramping]

@@ -146,7 +146,9 @@ class Lane:
         """Drop evicted members (keeping the others' array values) and add the new ones."""
         if not self.changed:
             return
-        keep = [k for k, p in enumerate(self.members) if self._slot.get(id(p)) == k]
+        slot = self._slot
+        # (a lane emptied at once, evict_all, has no slots left: nothing to look up)
+        keep = [k for k, p in enumerate(self.members) if slot.get(id(p)) == k] if slot else []
         members = [self.members[k] for k in keep]
         axes = [self.axes[k] for k in keep]
         admitted = len(self._joining)
