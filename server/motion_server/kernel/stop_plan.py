@@ -37,7 +37,7 @@ import numpy as np
 from .axis import Axis
 from .enums import AbortReason, ProcessState
 from .limits import Limits
-from .processes import StopRamp
+from .processes import Process, StopRamp
 from .trapezoid import MAX_DURATION, TrapezoidProfile
 
 if TYPE_CHECKING:
@@ -46,6 +46,8 @@ if TYPE_CHECKING:
 _ACTIVE = ProcessState.ACTIVE
 _DONE = ProcessState.DONE
 _NO_ABORT = AbortReason.NONE
+_ABORTED = ProcessState.ABORTED
+_abort = Process.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
 
@@ -182,7 +184,12 @@ def stop_axes(
         base = ax.base
         for p in procs:
             if p.state is _ACTIVE:
-                p.abort(reason)
+                if type(p).abort is _abort:
+                    # Process.abort, inlined (the process left its lane above)
+                    p.state = _ABORTED
+                    p.abort_reason = reason
+                else:
+                    p.abort(reason)
             if p.state is not _ACTIVE:
                 base += p.position
         ax.base = base
