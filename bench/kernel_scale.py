@@ -31,10 +31,13 @@ axes under 25 % in every case but ``s-curve``); then the CPU time of the command
 and of the cycle that executes it (the command and the first step after it), with its
 share of the period (the targets of issue 25: the command cycle and the step's p99
 within 25 % of the period at 256 axes, 100 % at 1024). ``--repeats R`` runs each case R
-times: the steps of all runs are pooled, the command figures are medians. Each case
-runs twice in the same process, side by side: with the fast lanes (the
-default, ``kernel/lanes/``) and with every axis composed in Python
-(``Controller(lanes=False)``, the reference the lanes are tested against bit for bit).
+times: the steps of all runs are pooled, the command figures are medians. As the scan
+process does after its start-up, the heap built by the set-up is frozen
+(``gc.freeze``) before the command, so that the collector does not scan it again. Each
+case runs twice in the same process, side by side: with the fast lanes (the default,
+``kernel/lanes/``, group stops planned as one batch: ``kernel/stop_plan.py``) and with
+every axis composed in Python and stopped one by one (``Controller(lanes=False)``, the
+reference the lanes are tested against bit for bit).
 After each pair it prints whether the two agree: the commanded positions at the end
 (``numpy.array_equal``) and the commanded position, velocity and acceleration of every
 axis after every measured step (a digest taken outside the timed part); the script exits
@@ -49,6 +52,7 @@ command, after the first measured step and after the last.
 from __future__ import annotations
 
 import argparse
+import gc
 import hashlib
 import os
 import statistics
@@ -220,6 +224,8 @@ class Run:
         ctl = controller(n_axes, lanes)
         setup(ctl)
         ctl.run(150)  # jogs at speed, gears locked
+        gc.collect()
+        gc.freeze()
         c0 = time.thread_time()
         command(ctl)
         self.command_cpu = time.thread_time() - c0
