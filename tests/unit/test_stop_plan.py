@@ -193,36 +193,27 @@ def command(names: tuple[str, ...]) -> st.SearchStrategy[Command]:
     )
 
 
-@settings(max_examples=150, deadline=None)
-@given(
-    modes=st.lists(st.sampled_from(MODES), min_size=N_AXES, max_size=N_AXES),
-    before=st.lists(
-        st.tuples(st.lists(command(NAMES), min_size=1, max_size=8), st.integers(0, 40)),
-        min_size=1,
-        max_size=4,
-    ),
-    stop=command(STOPS),
-    after=st.lists(st.tuples(st.lists(command(NAMES), max_size=3), st.integers(1, 40)),
-                   max_size=3),
-)  # fmt: skip
-def test_a_group_stop_planned_as_arrays_equals_the_stop_axis_by_axis(
+def run_side_by_side(
     modes: list[ProgrammedStopMode],
     before: list[tuple[list[Command], int]],
     stop: Command,
     after: list[tuple[list[Command], int]],
 ) -> None:
+    """Random motion (commands issued in the same scan, then cycles), the stop (with the
+    commands of its scan after it), then more commands and cycles until all rest; both
+    controllers compared after every command batch and every cycle."""
     fast, ref = pair(modes)
     fp: list[Process] = []
     rp: list[Process] = []
     fs: list[Any] = []
     rs: list[Any] = []
-    # random motion, commands issued in the same scan, then cycles; the stop (with the
-    # commands of its scan after it), then more commands and cycles until all rest
     script = [*before, ([stop], 0), *after, ([], 150)]
     for i, (cmds, cycles) in enumerate(script):
         if i == len(before):
             laned = sum(p.lane is not None for ax in fast.axes for p in ax.processes)
             event(f"processes in a lane when the stop comes: {laned if laned < 3 else '3 or more'}")
+            on = all(ax.servo_on for ax in fast.axes[: N_AXES - 1])
+            event(f"every driven axis in Servo Control when the stop comes: {on}")
         for cmd in cmds:
             assert apply(fast, cmd, fp, fs) == apply(ref, cmd, rp, rs), f"{i}: {cmd}"
         assert_same(fast, ref, fp, rp, fs, rs, f"after the commands of step {i}")
@@ -234,6 +225,58 @@ def test_a_group_stop_planned_as_arrays_equals_the_stop_axis_by_axis(
             fast.step()
             ref.step()
             assert_same(fast, ref, fp, rp, fs, rs, f"step {i} ({cmds}), cycle {k}")
+
+
+def scans(names: tuple[str, ...], most: int) -> st.SearchStrategy[list[tuple[list[Command], int]]]:
+    return st.lists(
+        st.tuples(st.lists(command(names), min_size=1, max_size=8), st.integers(0, 40)),
+        min_size=1,
+        max_size=most,
+    )
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    modes=st.lists(st.sampled_from(MODES), min_size=N_AXES, max_size=N_AXES),
+    before=scans(NAMES, 4),
+    stop=command(STOPS),
+    after=st.lists(st.tuples(st.lists(command(NAMES), max_size=3), st.integers(1, 40)),
+                   max_size=3),
+)  # fmt: skip
+def test_a_group_stop_planned_as_arrays_equals_the_stop_axis_by_axis(
+    modes: list[ProgrammedStopMode],
+    before: list[tuple[list[Command], int]],
+    stop: Command,
+    after: list[tuple[list[Command], int]],
+) -> None:
+    run_side_by_side(modes, before, stop, after)
+
+
+#: commands that leave every axis in Servo Control
+MOVING = tuple(n for n in NAMES if n not in ("off", "on"))
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    mode=st.sampled_from(MODES),
+    before=scans(MOVING, 3),
+    forced=st.sampled_from([-1.0, 0.0, 1.0, 2.0, 3.0, 4.0]),
+    program=st.booleans(),
+    after=st.lists(st.tuples(st.lists(command(MOVING), max_size=3), st.integers(1, 40)),
+                   max_size=2),
+)  # fmt: skip
+def test_a_group_in_servo_control_stops_in_one_batch_as_axis_by_axis(
+    mode: ProgrammedStopMode,
+    before: list[tuple[list[Command], int]],
+    forced: float,
+    program: bool,
+    after: list[tuple[list[Command], int]],
+) -> None:
+    """Every axis in Servo Control with one programmed stop mode, the stop forced to any
+    mode or programmed (MGS), or leaving run mode: the group is stopped in one batch
+    (ramps, or every drive off at once for Hard Disable and Hard Shutdown)."""
+    stop = ("program", 0, 0, 0.0) if program else ("mgs", 0, 0, forced)
+    run_side_by_side([mode] * N_AXES, before, stop, after)
 
 
 def test_the_planned_ramp_is_the_constructed_ramp() -> None:

@@ -57,7 +57,7 @@ from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
 from .state import AxisArrays, MasterArrays
-from .stop_plan import stop_axes
+from .stop_plan import power_off_axes, stop_axes
 
 #: a redefined position may be at most this many encoder counts from zero (float64 holds
 #: every integer up to 2**53: beyond, positions could not be quantised to single counts)
@@ -67,6 +67,7 @@ __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArra
 
 #: a ramped stop mode (as a plain int: hashed in C) -> what follows the ramp
 _AFTER_RAMP = {int(mode): action for mode, action in AFTER_FAST_STOP.items()}
+_SERVO_CONTROL = AxisState.SERVO_CONTROL
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 # read every cycle, as a module constant (see .enums)
 _RUN = OperatingMode.RUN
@@ -639,6 +640,14 @@ class Controller:
             self._ramp_to_rest(g, ramping, handle)
             g.stops.append(handle)
             return handle
+        hard = self._all_hard(g, forced)
+        if hard is not None:
+            # every axis in Servo Control, all Hard Disable or all Hard Shutdown
+            self._power_off(g, hard)
+            for ax in self._motion_axes[g.number]:
+                ax.stop_latch = handle
+            g.stops.append(handle)
+            return handle
         ramping = []
         # who reads each master, found once for all the shutdowns of this stop
         followers: dict[int, list[Axis]] | None = None
@@ -686,6 +695,53 @@ class Controller:
         if None in actions:
             return None
         return list(zip(axes, cast(list[AfterStop], actions), strict=True))
+
+    def _all_hard(
+        self, g: MotionGroup, forced: ProgrammedStopMode | None
+    ) -> ProgrammedStopMode | None:
+        """Hard Disable or Hard Shutdown if that is the mode of every driven axis of
+        ``g`` and all are in Servo Control (and, for a shutdown, no MDAC link is left to
+        break); else None."""
+        axes = self._motion_axes[g.number]
+        if not axes or not (self.arrays.axis_state[g.motion_idx] == _SERVO_CONTROL).all():
+            return None
+        if forced is None:
+            modes = {int(ax.config.programmed_stop_mode) for ax in axes}
+            if len(modes) != 1:
+                return None
+            mode = ProgrammedStopMode(modes.pop())
+        else:
+            mode = ProgrammedStopMode(forced)
+        if mode == ProgrammedStopMode.HARD_DISABLE:
+            return mode
+        if mode == ProgrammedStopMode.HARD_SHUTDOWN and not self.mdsc.linked:
+            return mode
+        return None
+
+    def _power_off(self, g: MotionGroup, mode: ProgrammedStopMode) -> None:
+        """Every driven axis of ``g`` off at once (:func:`.stop_plan.power_off_axes`),
+        in axis order: Hard Disable (:meth:`servo_off` of each) or Hard Shutdown
+        (:meth:`shutdown` of each: its followers are released before the next axis)."""
+        axes = self._motion_axes[g.number]
+        motion = self.motion
+        if mode == ProgrammedStopMode.HARD_DISABLE:
+            power_off_axes(
+                motion, axes, AxisState.AXIS_READY, PowerEvent.SERVO_OFF, self.drive.switched
+            )
+            return
+        followers = motion.followers()
+
+        def release(ax: Axis) -> None:
+            motion.release_followers(ax, AbortReason.SHUTDOWN, followers.get(ax.number, []))
+
+        power_off_axes(
+            motion,
+            axes,
+            AxisState.AXIS_SHUTDOWN,
+            PowerEvent.SHUTDOWN,
+            self.drive.switched,
+            release,
+        )
 
     def _group_stop_by_axis(
         self, g: MotionGroup, forced: ProgrammedStopMode | None, handle: GroupStop

@@ -22,6 +22,11 @@ batch of axes:
 4. the ramps join the group's :class:`~.lanes.ramps.StopLane` as one batch, their lane
    state already in arrays, so the next rebuild loads no member one by one.
 
+A group stop in Hard Disable or Hard Shutdown of a group whose axes are all in Servo
+Control switches them off the same way (:func:`power_off_axes`): lanes written back at
+once, each axis's processes ended and its power state changed inline, in axis order (a
+shutdown releases its axis's followers before the next axis, as axis by axis).
+
 The result is bit-identical to the reference path: the same process objects in the same
 states, the same axis bases, status arrays and lane membership (tested side by side in
 ``tests/unit/test_stop_plan.py``). ``Controller(lanes=False)`` keeps the reference path.
@@ -29,18 +34,20 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .axis import Axis
-from .enums import AbortReason, ProcessState
+from .enums import AbortReason, AfterStop, AxisState, ProcessState
 from .limits import Limits
+from .power import ABORT_REASON, PowerEvent
 from .processes import Process, StopRamp
 from .trapezoid import MAX_DURATION, TrapezoidProfile
 
 if TYPE_CHECKING:
+    from .lanes import GroupLanes
     from .motion import Motion
 
 _ACTIVE = ProcessState.ACTIVE
@@ -91,6 +98,96 @@ def ramp(
     return r
 
 
+def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> GroupLanes:
+    """Evict, lane by lane, every lane of the axes' group whose processes are all on
+    ``axes`` (the others' members leave one by one as their axes are settled); the
+    group's lanes."""
+    lanes = motion.lanes[axes[0].group]
+    if len(lanes):
+        batch = {ax.index for ax in axes}
+        for whole in lanes.all:
+            if len(whole) and whole.within(batch):
+                whole.evict_all()
+    return lanes
+
+
+def power_off_axes(
+    motion: Motion,
+    axes: Sequence[Axis],
+    state: AxisState,
+    event: PowerEvent,
+    switched: Callable[[], None],
+    after: Callable[[Axis], None] | None = None,
+) -> None:
+    """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
+    Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
+    <.power.Power.fire>` does axis by axis (a group stop's Hard Disable and Hard
+    Shutdown): every process ends at once (:meth:`Motion.abort <.motion.Motion.abort>`
+    with the event's abort reason), the after-stop action and the latch are dropped,
+    the drive goes off (``switched``: the drive model's). The lanes are written back
+    lane by lane, the processes' bookkeeping is inline. ``after(ax)`` runs after each
+    axis (a shutdown releases the axis's followers there, before the next axis)."""
+    if not axes:
+        return
+    reason = ABORT_REASON[event]
+    _empty_lanes(motion, axes)
+    s = motion.s
+    busy = s.scalars.busy
+    dirty = s.dirty
+    drive_on = s.drive_on
+    code = int(event)
+    coupling = False
+    for ax in axes:
+        procs = ax.processes
+        for p in procs:
+            lane = p.lane
+            if lane is not None:
+                lane.evict(p)
+        for p in ax.preloaded_cams:
+            lane = p.lane
+            if lane is not None:
+                lane.evict(p)
+        ax.power_event = code
+        # Motion.abort: Motion.retire of every process
+        if ax.preloaded_cams:
+            for p in ax.preloaded_cams:
+                p.abort(reason)
+            ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
+        if procs:
+            base = ax.base
+            for p in procs:
+                if p.state is _ACTIVE:
+                    if type(p).abort is _abort:
+                        p.state = _ABORTED
+                        p.abort_reason = reason
+                    else:
+                        p.abort(reason)
+                if p.state is not _ACTIVE:
+                    base += p.position
+            ax.base = base
+            keep = [p for p in procs if p.state is _ACTIVE]
+            if len(keep) != len(procs):
+                ax.processes = keep
+                coupling = True
+        i = ax.index
+        busy[i] = any(p.state is _ACTIVE for p in ax.processes)
+        dirty.add(i)
+        if ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        ax.stop_latch = None
+        # Power._enter
+        ax.after_stop = AfterStop.NOTHING
+        ax.state = state
+        if drive_on.item(i):
+            switched()
+        drive_on[i] = False
+        if after is not None:
+            after(ax)
+    if coupling:
+        motion.coupling_changed()
+
+
 def _refused(v: np.ndarray, d: np.ndarray) -> bool:
     """True if a ramp's constructor would refuse one of these (velocity, deceleration):
     ``Limits.validated`` (finite and positive limits) or ``judge_ramp`` (a ramp no plan
@@ -125,12 +222,7 @@ def stop_axes(
     the caller then stops them one by one, which raises as it always did."""
     if not axes:
         return []
-    lanes = motion.lanes[axes[0].group]
-    if len(lanes):
-        batch = {ax.index for ax in axes}
-        for whole in lanes.all:
-            if len(whole) and whole.within(batch):
-                whole.evict_all()
+    lanes = _empty_lanes(motion, axes)
     n = len(axes)
     vs = [0.0] * n
     accels = [0.0] * n
