@@ -45,6 +45,10 @@ class Lane:
     DTYPES: ClassVar[dict[str, Any]] = {}
     #: fields with one row of this many values per member
     WIDTHS: ClassVar[dict[str, int]] = {}
+    #: what a lane keeps of a batch admitted to an empty ``_joining`` (see
+    #: :meth:`_batch_columns`); dropped at the rebuild (a class default as well, for
+    #: lanes restored from state saved before batches existed)
+    _batch: Any = None
 
     def __init__(self, owner: LaneOwner) -> None:
         self._owner = owner
@@ -57,9 +61,7 @@ class Lane:
         self.arrays: dict[str, np.ndarray] = {f: self._empty(f) for f in self.FIELDS}
         #: membership changed since the last rebuild
         self.changed = False
-        #: what a lane keeps of a batch admitted to an empty ``_joining`` (see
-        #: :meth:`_batch_columns`); dropped at the rebuild
-        self._batch: Any = None
+        self._batch = None
 
     def _empty(self, field: str) -> np.ndarray:
         width = self.WIDTHS.get(field)
