@@ -320,20 +320,43 @@ class Controller:
             self._overtravel(g)
         if g.after_stops:
             due, g.after_stops = after_stops_due(s, g, dt)
-            for ax in due:
-                action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
-                if ax.state != AxisState.SERVO_CONTROL:
-                    continue  # (leaving Servo Control drops the action; kept for safety)
-                event = (
-                    PowerEvent.STOPPED_DISABLE
-                    if action == AfterStop.DISABLE
-                    else PowerEvent.STOPPED_SHUTDOWN
-                )
-                self.power.fire(ax, event)
+            if len(due) > 1 and self.lanes_enabled:
+                self._after_stops(due)
+            else:
+                for ax in due:
+                    action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
+                    if ax.state != AxisState.SERVO_CONTROL:
+                        continue  # (leaving Servo Control drops the action; kept for safety)
+                    event = (
+                        PowerEvent.STOPPED_DISABLE
+                        if action == AfterStop.DISABLE
+                        else PowerEvent.STOPPED_SHUTDOWN
+                    )
+                    self.power.fire(ax, event)
         if g.stops:
             for stop in g.stops:
                 stop.update(s)
             g.stops = [stop for stop in g.stops if not stop.complete]
+
+    def _after_stops(self, due: list[Axis]) -> None:
+        """The after-stop actions of ``due`` (axes of one group come to rest after a
+        fast disable or shutdown), the drives off in two batches
+        (:func:`.stop_plan.power_off_axes`): each axis's event concerns it alone, so
+        the order of the axes does not matter."""
+        disable: list[Axis] = []
+        shutdown: list[Axis] = []
+        for ax in due:
+            action = ax.after_stop
+            ax.after_stop = AfterStop.NOTHING
+            if ax.state == AxisState.SERVO_CONTROL:
+                (disable if action == AfterStop.DISABLE else shutdown).append(ax)
+        switched = self.drive.switched
+        power_off_axes(
+            self.motion, disable, AxisState.AXIS_READY, PowerEvent.STOPPED_DISABLE, switched
+        )
+        power_off_axes(
+            self.motion, shutdown, AxisState.AXIS_SHUTDOWN, PowerEvent.STOPPED_SHUTDOWN, switched
+        )
 
     def _numeric_fault(self, ax: Axis, where: str, problem: str) -> None:
         self.motion.internal_errors.append((ax.name, where, FloatingPointError(problem)))
