@@ -219,6 +219,8 @@ class LevelledLane(Lane):
 
     def order(self, levels: list[int]) -> None:
         """Sort the members by ``levels`` (one per member, in member order)."""
+        if not self.members and not self.levels:
+            return  # empty and already ordered: what the sort below would leave
         perm = sorted(range(len(self.members)), key=levels.__getitem__)
         sel = np.array(perm, dtype=np.intp)
         for f in self.FIELDS:
