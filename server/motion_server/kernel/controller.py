@@ -26,7 +26,7 @@ import functools
 import math
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -57,6 +57,7 @@ from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
 from .state import AxisArrays, MasterArrays
+from .stop_plan import power_off_axes, stop_axes
 
 #: a redefined position may be at most this many encoder counts from zero (float64 holds
 #: every integer up to 2**53: beyond, positions could not be quantised to single counts)
@@ -64,6 +65,9 @@ MAX_POSITION_COUNTS = 2.0**53
 
 __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArrays"]
 
+#: a ramped stop mode (as a plain int: hashed in C) -> what follows the ramp
+_AFTER_RAMP = {int(mode): action for mode, action in AFTER_FAST_STOP.items()}
+_SERVO_CONTROL = AxisState.SERVO_CONTROL
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 # read every cycle, as a module constant (see .enums)
 _RUN = OperatingMode.RUN
@@ -141,6 +145,11 @@ class Controller:
         #: depth of :meth:`batch` blocks entered
         self._batched = 0
         self.mode = OperatingMode.RUN
+        #: per group: its axes that are not feedback only (those a group stop stops)
+        self._motion_axes = {
+            g.number: [ax for ax in g.axes if ax.type != AxisType.FEEDBACK_ONLY]
+            for g in self.groups
+        }
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
         #: the groups whose processes may join fast lanes (the others' lanes stay empty)
@@ -311,20 +320,43 @@ class Controller:
             self._overtravel(g)
         if g.after_stops:
             due, g.after_stops = after_stops_due(s, g, dt)
-            for ax in due:
-                action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
-                if ax.state != AxisState.SERVO_CONTROL:
-                    continue  # (leaving Servo Control drops the action; kept for safety)
-                event = (
-                    PowerEvent.STOPPED_DISABLE
-                    if action == AfterStop.DISABLE
-                    else PowerEvent.STOPPED_SHUTDOWN
-                )
-                self.power.fire(ax, event)
+            if len(due) > 1 and self.lanes_enabled:
+                self._after_stops(due)
+            else:
+                for ax in due:
+                    action, ax.after_stop = ax.after_stop, AfterStop.NOTHING
+                    if ax.state != AxisState.SERVO_CONTROL:
+                        continue  # (leaving Servo Control drops the action; kept for safety)
+                    event = (
+                        PowerEvent.STOPPED_DISABLE
+                        if action == AfterStop.DISABLE
+                        else PowerEvent.STOPPED_SHUTDOWN
+                    )
+                    self.power.fire(ax, event)
         if g.stops:
             for stop in g.stops:
                 stop.update(s)
             g.stops = [stop for stop in g.stops if not stop.complete]
+
+    def _after_stops(self, due: list[Axis]) -> None:
+        """The after-stop actions of ``due`` (axes of one group come to rest after a
+        fast disable or shutdown), the drives off in two batches
+        (:func:`.stop_plan.power_off_axes`): each axis's event concerns it alone, so
+        the order of the axes does not matter."""
+        disable: list[Axis] = []
+        shutdown: list[Axis] = []
+        for ax in due:
+            action = ax.after_stop
+            ax.after_stop = AfterStop.NOTHING
+            if ax.state == AxisState.SERVO_CONTROL:
+                (disable if action == AfterStop.DISABLE else shutdown).append(ax)
+        switched = self.drive.switched
+        power_off_axes(
+            self.motion, disable, AxisState.AXIS_READY, PowerEvent.STOPPED_DISABLE, switched
+        )
+        power_off_axes(
+            self.motion, shutdown, AxisState.AXIS_SHUTDOWN, PowerEvent.STOPPED_SHUTDOWN, switched
+        )
 
     def _numeric_fault(self, ax: Axis, where: str, problem: str) -> None:
         self.motion.internal_errors.append((ax.name, where, FloatingPointError(problem)))
@@ -391,9 +423,15 @@ class Controller:
         axis that follows it (master-driven motion, gearing) is released: see
         :meth:`release_followers`.
         """
+        self._shutdown(ax, None)
+
+    def _shutdown(self, ax: Axis, followers: dict[int, list[Axis]] | None) -> None:
+        """:meth:`shutdown`; ``followers``: :meth:`Motion.followers
+        <.motion.Motion.followers>` taken before a series of shutdowns (a group stop)."""
         self.mdsc.break_axis(ax, AbortReason.SHUTDOWN)
         self.power.fire(ax, PowerEvent.SHUTDOWN)
-        self.release_followers(ax, AbortReason.SHUTDOWN)
+        among = None if followers is None else followers.get(ax.number, [])
+        self.motion.release_followers(ax, AbortReason.SHUTDOWN, among)
 
     def shutdown_reset(self, ax: Axis) -> None:
         """MASR: from Axis Shutdown (or faulted) to Axis Ready, faults cleared."""
@@ -611,6 +649,129 @@ class Controller:
         """
         g = self.group(ref)
         handle = GroupStop(g, owner)
+        if not self.lanes_enabled:
+            return self._group_stop_by_axis(g, forced, handle)
+        if self.mdsc.linked:
+            for ax in g.axes:
+                self.mdsc.break_axis(ax, AbortReason.STOPPED, hold_active=True)
+        # the ramps of consecutive axes are planned together (:mod:`.stop_plan`), in axis
+        # order: a shutdown, which releases the followers of its axis, comes after the
+        # ramps of the axes before it, as it does axis by axis
+        ramping = self._all_ramping(g, forced)
+        if ramping is not None:
+            # the common case: every axis ramps
+            self._ramp_to_rest(g, ramping, handle)
+            g.stops.append(handle)
+            return handle
+        hard = self._all_hard(g, forced)
+        if hard is not None:
+            # every axis in Servo Control, all Hard Disable or all Hard Shutdown
+            self._power_off(g, hard)
+            for ax in self._motion_axes[g.number]:
+                ax.stop_latch = handle
+            g.stops.append(handle)
+            return handle
+        ramping = []
+        # who reads each master, found once for all the shutdowns of this stop
+        followers: dict[int, list[Axis]] | None = None
+        for ax in g.axes:
+            if ax.type == AxisType.FEEDBACK_ONLY:
+                continue
+            mode = ax.programmed_stop_mode if forced is None else forced
+            shuts = mode == ProgrammedStopMode.HARD_SHUTDOWN or (
+                mode == ProgrammedStopMode.FAST_SHUTDOWN and ax.state != AxisState.SERVO_CONTROL
+            )
+            if shuts and followers is None:
+                followers = self.motion.followers()
+            if mode == ProgrammedStopMode.HARD_SHUTDOWN:
+                self._ramp_to_rest(g, ramping, handle)
+                self._shutdown(ax, followers)
+            elif mode == ProgrammedStopMode.HARD_DISABLE:
+                self._ramp_to_rest(g, ramping, handle)
+                self.servo_off(ax)
+            elif ax.state == AxisState.SERVO_CONTROL:
+                ramping.append((ax, AFTER_FAST_STOP[mode]))
+                continue  # latched with its ramp
+            elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
+                self._ramp_to_rest(g, ramping, handle)
+                self._shutdown(ax, followers)
+            # StoppingStatus until the axis is at rest (coasting axes have no ramp)
+            ax.stop_latch = handle
+        self._ramp_to_rest(g, ramping, handle)
+        g.stops.append(handle)
+        return handle
+
+    def _all_ramping(
+        self, g: MotionGroup, forced: ProgrammedStopMode | None
+    ) -> list[tuple[Axis, AfterStop]] | None:
+        """If every driven axis of ``g`` is in Servo Control and stops with a ramp
+        (Fast Stop, Fast Disable, Fast Shutdown): each with its action after the stop,
+        found with array operations; else None (the axes are then sorted one by one)."""
+        idx = g.motion_idx
+        if not (self.arrays.axis_state[idx] == AxisState.SERVO_CONTROL).all():
+            return None
+        axes = self._motion_axes[g.number]
+        if forced is not None:
+            action = _AFTER_RAMP.get(int(forced))
+            return None if action is None else [(ax, action) for ax in axes]
+        actions = [_AFTER_RAMP.get(int(ax.config.programmed_stop_mode)) for ax in axes]
+        if None in actions:
+            return None
+        return list(zip(axes, cast(list[AfterStop], actions), strict=True))
+
+    def _all_hard(
+        self, g: MotionGroup, forced: ProgrammedStopMode | None
+    ) -> ProgrammedStopMode | None:
+        """Hard Disable or Hard Shutdown if that is the mode of every driven axis of
+        ``g`` and all are in Servo Control (and, for a shutdown, no MDAC link is left to
+        break); else None."""
+        axes = self._motion_axes[g.number]
+        if not axes or not (self.arrays.axis_state[g.motion_idx] == _SERVO_CONTROL).all():
+            return None
+        if forced is None:
+            modes = {int(ax.config.programmed_stop_mode) for ax in axes}
+            if len(modes) != 1:
+                return None
+            mode = ProgrammedStopMode(modes.pop())
+        else:
+            mode = ProgrammedStopMode(forced)
+        if mode == ProgrammedStopMode.HARD_DISABLE:
+            return mode
+        if mode == ProgrammedStopMode.HARD_SHUTDOWN and not self.mdsc.linked:
+            return mode
+        return None
+
+    def _power_off(self, g: MotionGroup, mode: ProgrammedStopMode) -> None:
+        """Every driven axis of ``g`` off at once (:func:`.stop_plan.power_off_axes`),
+        in axis order: Hard Disable (:meth:`servo_off` of each) or Hard Shutdown
+        (:meth:`shutdown` of each: its followers are released before the next axis)."""
+        axes = self._motion_axes[g.number]
+        motion = self.motion
+        if mode == ProgrammedStopMode.HARD_DISABLE:
+            power_off_axes(
+                motion, axes, AxisState.AXIS_READY, PowerEvent.SERVO_OFF, self.drive.switched
+            )
+            return
+        followers = motion.followers()
+
+        def release(ax: Axis) -> None:
+            motion.release_followers(ax, AbortReason.SHUTDOWN, followers.get(ax.number, []))
+
+        power_off_axes(
+            motion,
+            axes,
+            AxisState.AXIS_SHUTDOWN,
+            PowerEvent.SHUTDOWN,
+            self.drive.switched,
+            release,
+        )
+
+    def _group_stop_by_axis(
+        self, g: MotionGroup, forced: ProgrammedStopMode | None, handle: GroupStop
+    ) -> GroupStop:
+        """:meth:`group_stop` one axis after the other: the reference the planned path
+        is tested against (``Controller(lanes=False)``)."""
+        owner = handle.owner
         for ax in g.axes:
             self.mdsc.break_axis(ax, AbortReason.STOPPED, hold_active=True)
         for ax in g.axes:
@@ -627,10 +788,33 @@ class Controller:
                 g.after_stops = True
             elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
                 self.shutdown(ax)
-            # StoppingStatus until the axis is at rest (coasting axes have no ramp)
             ax.stop_latch = handle
         g.stops.append(handle)
         return handle
+
+    def _ramp_to_rest(
+        self, g: MotionGroup, ramping: list[tuple[Axis, AfterStop]], handle: GroupStop
+    ) -> None:
+        """The group stop ramps of the axes in ``ramping`` (in Servo Control, with the
+        action after their stop), then empty the list: planned as one batch
+        (:func:`.stop_plan.stop_axes`), or axis by axis when the batch would refuse one
+        (then this raises where :meth:`_group_stop_by_axis` raises)."""
+        if not ramping:
+            return
+        axes = [ax for ax, _ in ramping]
+        owner = handle.owner
+        if stop_axes(self.motion, axes, owner) is None:
+            for ax, action in ramping:
+                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
+                ax.after_stop = action
+                g.after_stops = True
+                ax.stop_latch = handle
+        else:
+            for ax, action in ramping:
+                ax.after_stop = action
+                ax.stop_latch = handle
+            g.after_stops = True
+        ramping.clear()
 
     def group_stopping(self, ax: Axis) -> bool:
         """True while a group stop (MGS, leaving run mode) is bringing ``ax``'s group to

@@ -387,6 +387,11 @@ class MasterDrivenControl:
         link.state = LinkState.ENABLED
         self._links[link.slave] = [*(lk for lk in links if lk not in replaced), link]
 
+    @property
+    def linked(self) -> bool:
+        """Some link or pending reassignment exists (else there is nothing to break)."""
+        return bool(self._links or self._pending)
+
     # -- breaking links ---------------------------------------------------------------------
     def break_slave(self, slave: Axis, reason: AbortReason, hold_active: bool = False) -> None:
         """Break every link (and the pending one) where ``slave`` is the slave."""

@@ -112,7 +112,14 @@ class Motion:
             order: list[Axis] = []
             placed: set[int] = set()
             for ax in g.axes:
-                self._visit(ax, g.number, order, placed, ())
+                procs = ax.processes
+                if not procs or (len(procs) == 1 and not procs[0].masters):
+                    # reads no master: where _visit would place it, without the call
+                    if ax.index not in placed:
+                        order.append(ax)
+                        placed.add(ax.index)
+                else:
+                    self._visit(ax, g.number, order, placed, ())
             g.order = order
             self.lanes[g.number].dirty = True
         self.order_dirty = False
@@ -288,13 +295,31 @@ class Motion:
         ax.motion_changed()
         self.offer(ax)
 
-    def release_followers(self, master: Axis, reason: AbortReason) -> None:
+    def release_followers(
+        self, master: Axis, reason: AbortReason, among: Sequence[Axis] | None = None
+    ) -> None:
         """Release every process on another axis that reads ``master`` (its ``masters``):
-        a shut-down master no longer drives anything (see :meth:`release`)."""
-        for ax in self.axes:
+        a shut-down master no longer drives anything (see :meth:`release`). ``among``:
+        the only axes that may have such a process, in axis order (:meth:`followers`);
+        by default every axis is searched."""
+        for ax in self.axes if among is None else among:
             if ax is not master:
                 hit = [p for p in ax.processes if p.active and master.number in p.masters]
                 self.release(ax, hit, reason)
+
+    def followers(self) -> dict[int, list[Axis]]:
+        """Master axis number -> the axes (in axis order) with a process that reads it:
+        for shutting down many masters in a row (a group stop) without searching every
+        axis for each (no process that reads a master starts meanwhile)."""
+        out: dict[int, list[Axis]] = {}
+        for ax in self.axes:
+            seen: set[int] = set()
+            for p in ax.processes:
+                for m in p.masters:
+                    if m not in seen:
+                        seen.add(m)
+                        out.setdefault(m, []).append(ax)
+        return out
 
     # -- composition ----------------------------------------------------------------------
     def compose(self, ax: Axis, dt: float) -> None:

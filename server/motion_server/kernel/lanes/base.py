@@ -10,8 +10,8 @@ composes the axis in Python, through the process's own code, in the same step.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any, ClassVar, Protocol
+from collections.abc import Callable, Collection, Sequence
+from typing import Any, ClassVar, Protocol, cast
 
 import numpy as np
 
@@ -45,6 +45,10 @@ class Lane:
     DTYPES: ClassVar[dict[str, Any]] = {}
     #: fields with one row of this many values per member
     WIDTHS: ClassVar[dict[str, int]] = {}
+    #: what a lane keeps of a batch admitted to an empty ``_joining`` (see
+    #: :meth:`_batch_columns`); dropped at the rebuild (a class default as well, for
+    #: lanes restored from state saved before batches existed)
+    _batch: Any = None
 
     def __init__(self, owner: LaneOwner) -> None:
         self._owner = owner
@@ -57,6 +61,7 @@ class Lane:
         self.arrays: dict[str, np.ndarray] = {f: self._empty(f) for f in self.FIELDS}
         #: membership changed since the last rebuild
         self.changed = False
+        self._batch = None
 
     # -- snapshots: ``_slot`` is keyed by object identity, which a copy does not keep ------
     def __getstate__(self) -> dict[str, Any]:
@@ -85,6 +90,7 @@ class Lane:
         raise NotImplementedError
 
     def admit(self, p: Process, ax: Axis) -> None:
+        self._batch = None
         p.lane = self
         self._joining.append((p, ax))
         self.changed = True
@@ -99,6 +105,39 @@ class Lane:
         k = self._slot.pop(id(p), None)
         if k is not None:
             self._store(p, k)
+        self.changed = True
+        self._owner.dirty = True
+
+    def within(self, indices: Collection[int]) -> bool:
+        """Every process in the lane (members and those joining) is on an axis whose
+        index is in ``indices``."""
+        return all(i in indices for i in self.idx.tolist()) and all(
+            ax.index in indices for _, ax in self._joining
+        )
+
+    def evict_all(self) -> None:
+        """:meth:`evict` every process in the lane, at once (a group stop empties the
+        lanes of its group): the lane's columns are read as Python lists while the
+        members are stored (``_store`` reads the same values, without a numpy scalar
+        per field)."""
+        slot = self._slot
+        if slot:
+            arrays = self.arrays
+            self.arrays = cast(dict[str, np.ndarray], {f: a.tolist() for f, a in arrays.items()})
+            try:
+                for p in self.members:
+                    k = slot.get(id(p))
+                    if k is not None and p.lane is self:
+                        p.lane = None
+                        p.offer_pending = True
+                        self._store(p, k)
+            finally:
+                self.arrays = arrays
+            self._slot = {}
+        for p, _ in self._joining:
+            if p.lane is self:
+                p.lane = None
+                p.offer_pending = True
         self.changed = True
         self._owner.dirty = True
 
@@ -122,16 +161,24 @@ class Lane:
         """Drop evicted members (keeping the others' array values) and add the new ones."""
         if not self.changed:
             return
-        keep = [k for k, p in enumerate(self.members) if self._slot.get(id(p)) == k]
+        slot = self._slot
+        # (a lane emptied at once, evict_all, has no slots left: nothing to look up)
+        keep = [k for k, p in enumerate(self.members) if slot.get(id(p)) == k] if slot else []
         members = [self.members[k] for k in keep]
         axes = [self.axes[k] for k in keep]
+        admitted = len(self._joining)
         joining = [(p, ax) for p, ax in self._joining if p.lane is self]
         self._joining = []
-        rows = [self._load(p, ax) for p, ax in joining]
+        # a batch admitted alone and left whole: its columns are ready (no row by row)
+        columns = self._batch_columns(joining) if len(joining) == admitted else None
+        self._batch = None
+        rows = [] if columns is not None else [self._load(p, ax) for p, ax in joining]
         sel = np.array(keep, dtype=np.intp)
         for j, f in enumerate(self.FIELDS):
             old = self.arrays[f][sel]
-            if rows:
+            if columns is not None:
+                self.arrays[f] = np.concatenate((old, columns[j]))
+            elif rows:
                 new = np.array([r[j] for r in rows], dtype=self.DTYPES.get(f, float))
                 self.arrays[f] = np.concatenate((old, new.reshape((len(rows), *old.shape[1:]))))
             else:
@@ -150,6 +197,12 @@ class Lane:
 
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         raise NotImplementedError
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The ``FIELDS`` of ``joining`` (every member admitted since the last rebuild,
+        none evicted) as arrays, if they joined as one batch whose state the lane kept;
+        None: load them one by one (:meth:`_load`)."""
+        return None
 
     def _store(self, p: Process, k: int) -> None:
         raise NotImplementedError
@@ -179,6 +232,8 @@ class LevelledLane(Lane):
 
     def order(self, levels: list[int]) -> None:
         """Sort the members by ``levels`` (one per member, in member order)."""
+        if not self.members and not self.levels:
+            return  # empty and already ordered: what the sort below would leave
         perm = sorted(range(len(self.members)), key=levels.__getitem__)
         sel = np.array(perm, dtype=np.intp)
         for f in self.FIELDS:

@@ -11,10 +11,13 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..axis import Axis
+from ..enums import ProcessState
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from ..trapezoid import SEGMENTS, TrapezoidProfile
 from .base import Compose, Lane
+
+_DONE = ProcessState.DONE
 
 
 class CruiseLane(Lane):
@@ -162,6 +165,33 @@ class StopLane(Lane):
         assert isinstance(p, StopRamp)
         return (ax.base, p.position, p.velocity, p.acceleration, p.limits.deceleration)
 
+    def admit_batch(
+        self, joining: list[tuple[StopRamp, Axis]], velocity: list[float], decel: list[float]
+    ) -> None:
+        """Admit new ramps (position 0, no acceleration) with their velocity and
+        deceleration as lists: the next rebuild takes them as arrays (a group stop,
+        :mod:`..stop_plan`). The same as admitting them one by one, in order."""
+        empty = not self._joining
+        for p, _ in joining:
+            p.lane = self
+        self._joining.extend(joining)
+        self._batch = (joining[0][0], velocity, decel) if empty else None
+        self.changed = True
+        self._owner.dirty = True
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        batch = self._batch
+        if batch is None or not joining or joining[0][0] is not batch[0]:
+            return None
+        velocity, decel = batch[1], batch[2]
+        if len(velocity) != len(joining):
+            return None
+        n = len(joining)
+        # FIELDS: base (read now, as _load would), pos, vel, acc, decel
+        base = np.array([ax.base for _, ax in joining], dtype=float)
+        return [base, np.zeros(n), np.array(velocity, dtype=float), np.zeros(n),
+                np.array(decel, dtype=float)]  # fmt: skip
+
     def _store(self, p: Process, k: int) -> None:
         a = self.arrays
         p.position = float(a["pos"][k])
@@ -175,8 +205,15 @@ class StopLane(Lane):
         v0 = a["vel"]
         dv = a["decel"] * dt
         ending = np.abs(v0) <= dv * (1.0 + 1e-9)
-        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
         v1 = v0 - np.copysign(dv, v0)
+        resting: list[int] = []
+        movers: list[Axis] = []
+        if ending.any():
+            rows = np.flatnonzero(ending)
+            resting, odd = self._resting(rows)
+            if odd:
+                movers = self.move_out(odd)
+            v1[rows] = 0.0  # the ramp's last step: to rest exactly
         pos = a["pos"]
         pos += 0.5 * (v0 + v1) * dt
         acc = (v1 - v0) / dt
@@ -185,5 +222,54 @@ class StopLane(Lane):
         s.cmd_pos[at] = a["base"] + pos
         s.cmd_vel[at] = v1
         s.cmd_acc[at] = acc
+        if resting:
+            self._come_to_rest(s, resting)
         for ax in movers:
             compose(ax)
+
+    def _resting(self, rows: np.ndarray) -> tuple[list[int], list[int]]:
+        """The rows whose ramp reaches rest this step, split into those the lane ends
+        itself (the ramp is its axis's only process, nothing buffered: the usual case)
+        and the others, which their axes' composition ends in Python."""
+        resting, odd = [], []
+        for k in rows.tolist():
+            p, ax = self.members[k], self.axes[k]
+            procs = ax.processes
+            if len(procs) == 1 and procs[0] is p and ax.buffered is None:
+                resting.append(k)
+            else:
+                odd.append(k)
+        return resting, odd
+
+    def _come_to_rest(self, s: AxisArrays, rows: list[int]) -> None:
+        """End the ramps at ``rows``, stepped to rest by the lane: what composing their
+        axes does for a ramp that finishes (``StopRamp.step``, then ``Motion.compose``:
+        the ramp is done and leaves the axis, its displacement folded into the base,
+        the command is the base at rest, the axis no longer busy), without the calls."""
+        a = self.arrays
+        rows_arr = np.array(rows, dtype=np.intp)
+        positions = a["pos"][rows_arr].tolist()
+        accelerations = a["acc"][rows_arr].tolist()
+        r = s.scalars
+        dirty = s.dirty
+        slot = self._slot
+        for k, x, acc in zip(rows, positions, accelerations, strict=True):
+            p, ax = self.members[k], self.axes[k]
+            # leaves the lane (nothing to store: its state is set here)
+            p.lane = None
+            p.offer_pending = True
+            slot.pop(id(p), None)
+            p.position = x
+            p.velocity = 0.0
+            p.acceleration = acc
+            p.state = _DONE
+            ax.base += x
+            ax.processes = []
+            i = ax.index
+            r.cmd_pos[i] = ax.base + 0.0
+            r.cmd_vel[i] = 0.0
+            r.cmd_acc[i] = 0.0
+            r.busy[i] = False
+            dirty.add(i)
+        self.changed = True
+        self._owner.dirty = True

@@ -1,0 +1,316 @@
+"""Group stops planned as arrays: the stop ramps of many axes in one pass.
+
+A group stop (MGS in every mode that ramps, leaving run mode) replaces every process of
+every axis of the group by one trapezoidal :class:`~.processes.StopRamp` from the summed
+velocity of what it replaces, at the axis's maximum deceleration (steeper from beyond the
+Maximum Speed: :func:`.limits.group_stop_deceleration`). Done axis by axis
+(:meth:`Controller.stop <.controller.Controller.stop>` through :meth:`Motion.start
+<.motion.Motion.start>`) that costs some 90 Python calls per axis, most of them
+bookkeeping that is the same for every axis. :func:`stop_axes` does the same work for a
+batch of axes:
+
+1. every process in a fast lane is written back into its object (lane by lane), and the
+   velocity and acceleration of each axis's active processes are summed, in the order
+   :meth:`Motion.start` sums them;
+2. the decelerations and the checks a ramp's constructor makes (``Limits.validated``,
+   :func:`.trapezoid.judge_ramp`) are computed for all axes at once, with the very same
+   floating-point operations; if any axis would be refused, nothing has changed (the
+   evictions of step 1 move nothing) and the caller takes the reference path, which
+   raises exactly where it always did;
+3. each axis's processes are aborted and folded into its base in order, and its ramp is
+   built from a template (the attributes the constructor sets, :func:`ramp`);
+4. the ramps join the group's :class:`~.lanes.ramps.StopLane` as one batch, their lane
+   state already in arrays, so the next rebuild loads no member one by one.
+
+A group stop in Hard Disable or Hard Shutdown of a group whose axes are all in Servo
+Control switches them off the same way (:func:`power_off_axes`): lanes written back at
+once, each axis's processes ended and its power state changed inline, in axis order (a
+shutdown releases its axis's followers before the next axis, as axis by axis).
+
+The result is bit-identical to the reference path: the same process objects in the same
+states, the same axis bases, status arrays and lane membership (tested side by side in
+``tests/unit/test_stop_plan.py``). ``Controller(lanes=False)`` keeps the reference path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .axis import Axis
+from .enums import AbortReason, AfterStop, AxisState, ProcessState
+from .limits import Limits
+from .power import ABORT_REASON, PowerEvent
+from .processes import Process, StopRamp
+from .trapezoid import MAX_DURATION, TrapezoidProfile
+
+if TYPE_CHECKING:
+    from .lanes import GroupLanes
+    from .motion import Motion
+
+_ACTIVE = ProcessState.ACTIVE
+_DONE = ProcessState.DONE
+_NO_ABORT = AbortReason.NONE
+_ABORTED = ProcessState.ABORTED
+_abort = Process.abort
+
+_set = object.__setattr__  # Limits is a frozen dataclass
+
+
+def ramp(
+    dt: float, deceleration: float, velocity: float, owner: object, limits: Limits | None = None
+) -> StopRamp:
+    """``StopRamp(dt, deceleration, 0.0, velocity, acceleration, owner)`` for arguments
+    its constructor accepts (checked by the caller), without the constructor's calls: the
+    same attributes with the same values (``limits``: equal limits to share, if the
+    caller has them). A ramp from rest with no acceleration to inherit is done at once:
+    the caller finishes it."""
+    if limits is None:
+        limits = Limits.__new__(Limits)
+        _set(limits, "velocity", max(abs(velocity), 1e-9) * 2.0)
+        _set(limits, "acceleration", deceleration)
+        _set(limits, "deceleration", deceleration)
+        _set(limits, "jerk", 0.0)
+    prof = TrapezoidProfile.__new__(TrapezoidProfile)
+    prof._dt = dt
+    prof.position = 0.0
+    prof.velocity = float(velocity)
+    prof.acceleration = 0.0
+    prof.finished = False
+    prof.cycles = 0
+    prof.plan = None
+    prof._target_position = None
+    prof._target_velocity = 0.0
+    r = StopRamp.__new__(StopRamp)
+    r.owner = owner
+    r.state = _ACTIVE
+    r.abort_reason = _NO_ABORT
+    r.error_code = 0
+    r.position = 0.0
+    r.velocity = velocity
+    r.acceleration = 0.0
+    r.stopping = True
+    r.landing = None
+    r.limits = limits
+    r.profile = prof
+    return r
+
+
+def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> GroupLanes:
+    """Evict, lane by lane, every lane of the axes' group whose processes are all on
+    ``axes`` (the others' members leave one by one as their axes are settled); the
+    group's lanes."""
+    lanes = motion.lanes[axes[0].group]
+    if len(lanes):
+        batch = {ax.index for ax in axes}
+        for whole in lanes.all:
+            if len(whole) and whole.within(batch):
+                whole.evict_all()
+    return lanes
+
+
+def power_off_axes(
+    motion: Motion,
+    axes: Sequence[Axis],
+    state: AxisState,
+    event: PowerEvent,
+    switched: Callable[[], None],
+    after: Callable[[Axis], None] | None = None,
+) -> None:
+    """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
+    Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
+    <.power.Power.fire>` does axis by axis (a group stop's Hard Disable and Hard
+    Shutdown): every process ends at once (:meth:`Motion.abort <.motion.Motion.abort>`
+    with the event's abort reason), the after-stop action and the latch are dropped,
+    the drive goes off (``switched``: the drive model's). The lanes are written back
+    lane by lane, the processes' bookkeeping is inline. ``after(ax)`` runs after each
+    axis (a shutdown releases the axis's followers there, before the next axis)."""
+    if not axes:
+        return
+    reason = ABORT_REASON[event]
+    _empty_lanes(motion, axes)
+    s = motion.s
+    busy = s.scalars.busy
+    dirty = s.dirty
+    drive_on = s.drive_on
+    code = int(event)
+    coupling = False
+    for ax in axes:
+        procs = ax.processes
+        for p in procs:
+            lane = p.lane
+            if lane is not None:
+                lane.evict(p)
+        for p in ax.preloaded_cams:
+            lane = p.lane
+            if lane is not None:
+                lane.evict(p)
+        ax.power_event = code
+        # Motion.abort: Motion.retire of every process
+        if ax.preloaded_cams:
+            for p in ax.preloaded_cams:
+                p.abort(reason)
+            ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
+        if procs:
+            base = ax.base
+            for p in procs:
+                if p.state is _ACTIVE:
+                    if type(p).abort is _abort:
+                        p.state = _ABORTED
+                        p.abort_reason = reason
+                    else:
+                        p.abort(reason)
+                if p.state is not _ACTIVE:
+                    base += p.position
+            ax.base = base
+            keep = [p for p in procs if p.state is _ACTIVE]
+            if len(keep) != len(procs):
+                ax.processes = keep
+                coupling = True
+        i = ax.index
+        busy[i] = any(p.state is _ACTIVE for p in ax.processes)
+        dirty.add(i)
+        if ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        ax.stop_latch = None
+        # Power._enter
+        ax.after_stop = AfterStop.NOTHING
+        ax.state = state
+        if drive_on.item(i):
+            switched()
+        drive_on[i] = False
+        if after is not None:
+            after(ax)
+    if coupling:
+        motion.coupling_changed()
+
+
+def _refused(v: np.ndarray, d: np.ndarray) -> bool:
+    """True if a ramp's constructor would refuse one of these (velocity, deceleration):
+    ``Limits.validated`` (finite and positive limits) or ``judge_ramp`` (a ramp no plan
+    could hold)."""
+    with np.errstate(all="ignore"):
+        big = np.maximum(np.abs(v), 1e-9) * 2.0
+        duration = np.abs(v) / d
+        ok = (
+            np.isfinite(v)
+            & np.isfinite(big)
+            & np.isfinite(d)
+            & (d > 0.0)
+            & np.isfinite(duration)
+            & (duration <= MAX_DURATION)
+            & np.isfinite(duration * v)
+        )
+    return not bool(ok.all())
+
+
+def stop_axes(
+    motion: Motion,
+    axes: Sequence[Axis],
+    owner: object,
+    reason: AbortReason = AbortReason.STOPPED,
+) -> list[StopRamp] | None:
+    """Replace every process of each of ``axes`` (driven axes in Servo Control, in
+    group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
+    maximum deceleration, bounded as a group stop bounds it; cancel what is buffered.
+
+    Returns the ramps, or None without having changed anything if an axis's ramp would
+    be refused (a non-finite velocity, a deceleration out of range, a ramp too long):
+    the caller then stops them one by one, which raises as it always did."""
+    if not axes:
+        return []
+    lanes = _empty_lanes(motion, axes)
+    n = len(axes)
+    vs = [0.0] * n
+    accels = [0.0] * n
+    for k, ax in enumerate(axes):
+        # settle (lanes write their state back) and sum what the ramp inherits, in the
+        # order Motion.start sums it
+        v = a = 0.0
+        for p in ax.processes:
+            lane = p.lane
+            if lane is not None:
+                lane.evict(p)
+            if p.state is _ACTIVE:
+                v += p.velocity
+                a += p.acceleration
+        vs[k] = v
+        accels[k] = a
+        for p in ax.preloaded_cams:
+            lane = p.lane
+            if lane is not None:
+                lane.evict(p)
+    v_arr = np.array(vs, dtype=float)
+    dec = np.array([ax.config.max_deceleration for ax in axes], dtype=float)
+    vmax = np.array([ax.config.max_velocity for ax in axes], dtype=float)
+    with np.errstate(all="ignore"):
+        absv = np.abs(v_arr)
+        # group_stop_deceleration, element by element
+        d_arr = np.where(absv <= vmax, dec, dec * (absv / vmax))
+    if not (np.isfinite(dec) & (dec > 0.0)).all() or _refused(v_arr, d_arr):
+        return None
+    ds = d_arr.tolist()
+    s = motion.s
+    busy = s.scalars.busy
+    dirty = s.dirty
+    ramps: list[StopRamp] = []
+    admit: list[tuple[StopRamp, Axis]] = []
+    admit_vel: list[float] = []
+    admit_decel: list[float] = []
+    offered = motion.offers(axes[0].group)
+    drive_on = s.drive_on
+    coupling = False
+    # equal limits are shared by the ramps of this batch (they are immutable)
+    shared: dict[tuple[float, float], Limits] = {}
+    for k, ax in enumerate(axes):
+        procs = ax.processes
+        if not procs:
+            lanes.dirty = True
+        if ax.preloaded_cams:
+            for p in ax.preloaded_cams:
+                p.abort(reason)
+            ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
+        base = ax.base
+        for p in procs:
+            if p.state is _ACTIVE:
+                if type(p).abort is _abort:
+                    # Process.abort, inlined (the process left its lane above)
+                    p.state = _ABORTED
+                    p.abort_reason = reason
+                else:
+                    p.abort(reason)
+            if p.state is not _ACTIVE:
+                base += p.position
+        ax.base = base
+        if procs:
+            coupling = True
+        if ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        v = vs[k]
+        d = ds[k]
+        key = (v, d)
+        limits = shared.get(key)
+        r = ramp(ax.period, d, v, owner, limits)
+        if limits is None:
+            shared[key] = r.limits
+        if v == 0.0 and accels[k] == 0.0:
+            r.state = _DONE
+        ax.processes = [r]
+        ramps.append(r)
+        i = ax.index
+        busy[i] = r.state is _ACTIVE
+        dirty.add(i)
+        if offered and r.state is _ACTIVE and drive_on.item(i):
+            r.offer_pending = False
+            admit.append((r, ax))
+            admit_vel.append(v)
+            admit_decel.append(ds[k])
+    if coupling:
+        motion.coupling_changed()
+    if admit:
+        lanes.stops.admit_batch(admit, admit_vel, admit_decel)
+    return ramps

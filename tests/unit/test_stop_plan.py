@@ -1,0 +1,347 @@
+"""Group stops planned as arrays (:mod:`motion_server.kernel.stop_plan`) change nothing
+but speed: a controller with the fast lanes (which plans a group stop's ramps in one
+batch) and one without (``lanes=False``: the stop axis by axis, the reference), given the
+same random motion on many axes and then the same group stop, in any mode, at a random
+moment, agree bit for bit after every cycle on every array, every axis and every process
+ever started, its state, abort reason and kinematics (a laned process is read through
+its lane's sync, which leaves it in the lane)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import event, given, settings
+from hypothesis import strategies as st
+
+from motion_server.kernel import (
+    AxisConfig,
+    AxisType,
+    Controller,
+    GroupConfig,
+    JogProcess,
+    Limits,
+    MotionError,
+    MoveProcess,
+    ProcessKind,
+    ProgrammedStopMode,
+)
+from motion_server.kernel.cam_profile import SegmentType, compute_profile
+from motion_server.kernel.cams import CamMode, CamProcess, LockDirection
+from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference, RateRamp
+from motion_server.kernel.group import OperatingMode
+from motion_server.kernel.processes import Process, StopRamp
+from motion_server.kernel.stop_plan import ramp
+
+DT = 0.002
+N_AXES = 16
+ARRAYS = ("cmd_pos", "cmd_vel", "cmd_acc", "act_x", "act_pos", "act_vel", "drive_on")
+MODES = list(ProgrammedStopMode)
+PROFILE = compute_profile(
+    (0.0, 90.0, 180.0, 270.0, 360.0), (0.0, 0.0, 5.0, 10.0, 10.0), [SegmentType.CUBIC] * 5
+)
+
+
+def configs(modes: list[ProgrammedStopMode]) -> list[AxisConfig]:
+    """Virtual axes 1-4, servo axes 5-15 (some rotary, a low Maximum Speed on every third: a
+    geared or superimposed velocity beyond it makes the stop steeper), a feedback-only
+    axis 16; each axis's programmed stop mode drawn."""
+    out = []
+    for k in range(N_AXES):
+        n = k + 1
+        kind = AxisType.VIRTUAL if n <= 4 else AxisType.SERVO
+        if n == N_AXES:
+            kind = AxisType.FEEDBACK_ONLY
+        out.append(
+            AxisConfig(
+                n,
+                f"A{n}",
+                kind,
+                max_velocity=60.0 if n % 3 == 0 else 1000.0,
+                max_acceleration=3000.0 + 100.0 * n,
+                max_deceleration=2500.0 + 150.0 * n,
+                rollover=360.0 if n % 7 == 0 else 0.0,
+                following_error_limit=1e6,
+                programmed_stop_mode=modes[k],
+            )
+        )
+    return out
+
+
+def pair(modes: list[ProgrammedStopMode]) -> tuple[Controller, Controller]:
+    out = []
+    for lanes in (True, False):
+        cfg = configs(modes)
+        ctl = Controller(cfg, [GroupConfig(1, "G", tuple(a.number for a in cfg), DT)], lanes)
+        for ax in ctl.axes[: N_AXES - 1]:
+            ctl.servo_on(ax)
+        out.append(ctl)
+    return out[0], out[1]
+
+
+# -- commands: (name, axis, master, value) applied to one controller --------------------
+Command = tuple[str, int, int, float]
+
+
+def apply(ctl: Controller, cmd: Command, started: list[Process], stops: list[Any]) -> str:
+    """Apply ``cmd``; what it raised (for both controllers to agree on), or ""."""
+    name, n, m, x = cmd
+    ax, master = ctl.axes[n], ctl.axes[m]
+    lim = Limits(abs(x) + 1.0, 2000.0 + x, 1500.0 + x, 0.0)
+    try:
+        if name == "jog":
+            started.append(
+                ctl.start(ax, lambda v, a: JogProcess(DT, x, lim, v, a), (ProcessKind.JOG,))
+            )
+        elif name == "move":
+            started.append(ctl.start(ax, lambda v, a: MoveProcess(DT, x / 3.0, lim, v, a), ()))
+        elif name in ("gear", "clutch"):
+            ref = MasterReference.COMMAND if x > 0 else MasterReference.ACTUAL
+            term = GearTerm(master.number, ref, int(abs(x)) % 7 + 1, 4)
+            clutch = RateRamp(1000.0) if name == "clutch" else None
+
+            def make(v: float, a: float) -> GearProcess:
+                return GearProcess(ctl, ax, (term,), clutch, v, a)
+
+            if n != m and not ctl.would_cycle(ax.number, (master.number,)):
+                started.append(ctl.start(ax, make, (ProcessKind.GEAR,)))
+                ctl.coupling_changed()
+        elif name == "cam":
+
+            def make_cam(v: float, a: float) -> CamProcess:
+                return CamProcess(
+                    ctl, PROFILE, CamMode.CONTINUOUS, 1.0, 0.1, 0.0, master=master.index,
+                    source=MasterReference.COMMAND, master_number=master.number,
+                    lock=LockDirection.IMMEDIATE, rollover=master.config.rollover,
+                )  # fmt: skip
+
+            if n != m and not ctl.would_cycle(ax.number, (master.number,)):
+                started.append(ctl.start(ax, make_cam, ()))
+                ctl.coupling_changed()
+        elif name == "mas":
+            started.append(ctl.stop(ax, None, 500.0 + abs(x)))
+        elif name == "off":
+            ctl.servo_off(ax)
+        elif name == "on":
+            ctl.servo_on(ax)
+        elif name == "mgs":
+            forced = None if x < 0 else MODES[int(x) % len(MODES)]
+            stops.append(ctl.group_stop(1, forced, owner="MGS"))
+        elif name == "program":
+            stops.extend(ctl.set_mode(OperatingMode.PROGRAM))
+            ctl.set_mode(OperatingMode.RUN)
+    except MotionError as exc:
+        return f"{exc.code}"
+    return ""
+
+
+def process_state(p: Process) -> tuple[Any, ...]:
+    """What a process is: its kind, state and kinematics; a stop ramp's limits and
+    profile too (the lanes' bookkeeping, ``lane`` and ``offer_pending``, left out)."""
+    if p.lane is not None:
+        p.lane.sync(p)
+    out: tuple[Any, ...] = (
+        type(p).__name__,
+        p.state,
+        p.abort_reason,
+        p.error_code,
+        p.position,
+        p.velocity,
+        p.acceleration,
+        p.stopping,
+        p.owner,
+    )
+    if isinstance(p, StopRamp):
+        out += (p.limits, vars(p.profile))
+    return out
+
+
+def assert_same(fast: Controller, ref: Controller, fp: list[Process], rp: list[Process],
+                fs: list[Any], rs: list[Any], where: str) -> None:  # fmt: skip
+    for name in ARRAYS:
+        a, b = getattr(fast, name), getattr(ref, name)
+        assert np.array_equal(a, b), f"{where}: {name}"
+    for x, y in zip(fast.status_arrays(), ref.status_arrays(), strict=True):
+        assert np.array_equal(x, y), where
+    for af, ar in zip(fast.axes, ref.axes, strict=True):
+        assert (af.state, af.base, af.after_stop, af.stop_latch is None, af.buffered) == (
+            ar.state, ar.base, ar.after_stop, ar.stop_latch is None, ar.buffered,
+        ), f"{where}: {af.name}"  # fmt: skip
+        assert [process_state(p) for p in af.processes] == [
+            process_state(p) for p in ar.processes
+        ], f"{where}: {af.name} processes"
+    assert [process_state(p) for p in fp] == [process_state(p) for p in rp], where
+    assert [(s.initiated, s.complete) for s in fs] == [(s.initiated, s.complete) for s in rs]
+    assert fast.groups[0].after_stops == ref.groups[0].after_stops, where
+
+
+NAMES = ("jog", "jog", "jog", "move", "gear", "gear", "clutch", "cam", "mas", "off", "on")
+STOPS = ("mgs", "mgs", "mgs", "program")
+
+
+def command(names: tuple[str, ...]) -> st.SearchStrategy[Command]:
+    return st.tuples(
+        st.sampled_from(names),
+        st.integers(0, N_AXES - 1),
+        st.integers(0, N_AXES - 1),
+        st.one_of(
+            st.sampled_from([-1.0, 0.0, 1.0, 2.0, 3.0, 4.0, 50.0, -80.0, 150.0]),
+            st.floats(-300.0, 300.0, allow_nan=False),
+        ),
+    )
+
+
+def run_side_by_side(
+    modes: list[ProgrammedStopMode],
+    before: list[tuple[list[Command], int]],
+    stop: Command,
+    after: list[tuple[list[Command], int]],
+) -> None:
+    """Random motion (commands issued in the same scan, then cycles), the stop (with the
+    commands of its scan after it), then more commands and cycles until all rest; both
+    controllers compared after every command batch and every cycle."""
+    fast, ref = pair(modes)
+    fp: list[Process] = []
+    rp: list[Process] = []
+    fs: list[Any] = []
+    rs: list[Any] = []
+    script = [*before, ([stop], 0), *after, ([], 150)]
+    for i, (cmds, cycles) in enumerate(script):
+        if i == len(before):
+            laned = sum(p.lane is not None for ax in fast.axes for p in ax.processes)
+            event(f"processes in a lane when the stop comes: {laned if laned < 3 else '3 or more'}")
+            on = all(ax.servo_on for ax in fast.axes[: N_AXES - 1])
+            event(f"every driven axis in Servo Control when the stop comes: {on}")
+        for cmd in cmds:
+            assert apply(fast, cmd, fp, fs) == apply(ref, cmd, rp, rs), f"{i}: {cmd}"
+        assert_same(fast, ref, fp, rp, fs, rs, f"after the commands of step {i}")
+        # every process on an axis now (the stop ramps too) is followed to its end
+        for ctl, procs in ((fast, fp), (ref, rp)):
+            seen = {id(p) for p in procs}
+            procs.extend(p for ax in ctl.axes for p in ax.processes if id(p) not in seen)
+        for k in range(cycles + 1):
+            fast.step()
+            ref.step()
+            assert_same(fast, ref, fp, rp, fs, rs, f"step {i} ({cmds}), cycle {k}")
+
+
+def scans(names: tuple[str, ...], most: int) -> st.SearchStrategy[list[tuple[list[Command], int]]]:
+    return st.lists(
+        st.tuples(st.lists(command(names), min_size=1, max_size=8), st.integers(0, 40)),
+        min_size=1,
+        max_size=most,
+    )
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    modes=st.lists(st.sampled_from(MODES), min_size=N_AXES, max_size=N_AXES),
+    before=scans(NAMES, 4),
+    stop=command(STOPS),
+    after=st.lists(st.tuples(st.lists(command(NAMES), max_size=3), st.integers(1, 40)),
+                   max_size=3),
+)  # fmt: skip
+def test_a_group_stop_planned_as_arrays_equals_the_stop_axis_by_axis(
+    modes: list[ProgrammedStopMode],
+    before: list[tuple[list[Command], int]],
+    stop: Command,
+    after: list[tuple[list[Command], int]],
+) -> None:
+    run_side_by_side(modes, before, stop, after)
+
+
+#: commands that leave every axis in Servo Control
+MOVING = tuple(n for n in NAMES if n not in ("off", "on"))
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    mode=st.sampled_from(MODES),
+    before=scans(MOVING, 3),
+    forced=st.sampled_from([-1.0, 0.0, 1.0, 2.0, 3.0, 4.0]),
+    program=st.booleans(),
+    after=st.lists(st.tuples(st.lists(command(MOVING), max_size=3), st.integers(1, 40)),
+                   max_size=2),
+)  # fmt: skip
+def test_a_group_in_servo_control_stops_in_one_batch_as_axis_by_axis(
+    mode: ProgrammedStopMode,
+    before: list[tuple[list[Command], int]],
+    forced: float,
+    program: bool,
+    after: list[tuple[list[Command], int]],
+) -> None:
+    """Every axis in Servo Control with one programmed stop mode, the stop forced to any
+    mode or programmed (MGS), or leaving run mode: the group is stopped in one batch
+    (ramps, or every drive off at once for Hard Disable and Hard Shutdown)."""
+    stop = ("program", 0, 0, 0.0) if program else ("mgs", 0, 0, forced)
+    run_side_by_side([mode] * N_AXES, before, stop, after)
+
+
+def test_the_planned_ramp_is_the_constructed_ramp() -> None:
+    """:func:`ramp` sets the attributes ``StopRamp.__init__`` sets, to the same values."""
+    for v, d in ((100.0, 2000.0), (-3.5, 10.0), (1e-12, 5.0), (-0.0, 1.0)):
+        built = ramp(DT, d, v, "owner")
+        if v == 0.0:
+            built.finish()  # from rest, nothing inherited: the caller finishes it
+        made = StopRamp(DT, d, 0.0, v, 0.0, owner="owner")
+        a, b = dict(vars(built)), dict(vars(made))
+        assert vars(a.pop("profile")) == vars(b.pop("profile"))
+        assert a == b
+
+
+def test_a_group_stop_with_the_lanes_builds_no_ramp_axis_by_axis(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The point of the batch: with the lanes, a group stop of 14 jogging axes neither
+    calls the ramp's constructor nor Controller.stop once (the reference does both per
+    axis), and every ramp joins the stop lane."""
+    fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
+    for ctl in (fast, ref):
+        for ax in ctl.axes[: N_AXES - 2]:
+            ctl.start(ax, lambda v, a: JogProcess(DT, 50.0, Limits(50.0, 5e3, 5e3), v, a))
+        ctl.run(20)
+    calls: list[str] = []
+    init: Callable[..., None] = StopRamp.__init__
+    stop = Controller.stop
+
+    def counted_init(self: StopRamp, *args: Any, **kwargs: Any) -> None:
+        calls.append("init")
+        init(self, *args, **kwargs)
+
+    def counted_stop(self: Controller, *args: Any, **kwargs: Any) -> StopRamp:
+        calls.append("stop")
+        return stop(self, *args, **kwargs)
+
+    monkeypatch.setattr(StopRamp, "__init__", counted_init)
+    monkeypatch.setattr(Controller, "stop", counted_stop)
+    fast.group_stop(1, ProgrammedStopMode.FAST_STOP)
+    assert calls == []
+    ref.group_stop(1, ProgrammedStopMode.FAST_STOP)
+    assert calls.count("stop") == N_AXES - 1  # the servo and virtual axes
+    fast.step()
+    ref.step()
+    ramps = [ax.processes[0] for ax in fast.axes[: N_AXES - 2]]
+    assert all(r.lane is fast.motion.lanes[1].stops for r in ramps)
+    assert np.array_equal(fast.cmd_pos, ref.cmd_pos)
+
+
+def test_a_ramp_the_batch_would_refuse_is_refused_as_axis_by_axis() -> None:
+    """A stop longer than any profile (Maximum Speed / Maximum Deceleration beyond
+    7,600 s) is refused (PROFILE_FAILED) by both paths alike, leaving the same state."""
+    out = []
+    for lanes in (True, False):
+        cfg = [
+            AxisConfig(n, f"A{n}", AxisType.VIRTUAL, max_velocity=1e6, max_deceleration=1e-3)
+            for n in range(1, 11)
+        ]
+        ctl = Controller(cfg, [GroupConfig(1, "G", tuple(range(1, 11)), DT)], lanes)
+        for ax in ctl.axes:
+            ctl.servo_on(ax)
+            ctl.start(ax, lambda v, a: JogProcess(DT, 20.0, Limits(20.0, 1e4, 1e4), v, a))
+        ctl.run(5)
+        with pytest.raises(MotionError) as exc:
+            ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+        out.append((exc.value.code, [[process_state(p) for p in ax.processes] for ax in ctl.axes]))
+    assert out[0] == out[1]
