@@ -345,7 +345,11 @@ class SCurveProfile:
             self.position = prof.position
             self.velocity = prof.velocity
             self.acceleration = prof.acceleration
-            self.finished = prof.finished
+            if prof.finished:
+                # from here on the held velocity is integrated here, as ruckig's profile
+                # would (a lane may then take the process and write ``position``)
+                self.finished = True
+                self.ruckig = None
             return
         plan = self.plan
         if self.finished or plan is None:
