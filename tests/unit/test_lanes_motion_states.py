@@ -139,3 +139,64 @@ def test_each_motion_state_runs_in_its_lane_and_matches_the_reference() -> None:
     for name, inst in fast.instances.items():
         assert not inst.outputs.get("ER", False), name
         assert not inst.outputs.get("Error", False), name
+
+
+#: jerk-limited variants of the operands: every profile an S-curve, jerks in units/s³
+S_CURVE: dict[str, st.SearchStrategy[object]] = {
+    "Profile": st.just(1),
+    "Jerk": st.sampled_from([2e4, 1e5, 1e6]) | st.floats(1e3, 1e6),
+    "AccelJerk": st.sampled_from([2e4, 1e5]) | st.floats(1e3, 1e6),
+    "DecelJerk": st.sampled_from([2e4, 1e5]) | st.floats(1e3, 1e6),
+    "JerkUnits": st.just(0),
+    "ChangeDecelJerk": st.sampled_from([0, 1]),
+    "ChangeAccelJerk": st.sampled_from([0, 1]),
+}
+
+
+@st.composite
+def s_curve_command(draw: st.DrawFn) -> tuple[str, dict[str, object], int]:
+    type_name, ops, cycles = draw(command())
+    cls = instruction_type(type_name)
+    for op in cls.OPERANDS:
+        if op.name in S_CURVE:
+            ops[op.name] = draw(S_CURVE[op.name])
+    return type_name, ops, cycles
+
+
+@settings(max_examples=60, deadline=None)
+@given(script=st.lists(s_curve_command(), min_size=1, max_size=10))
+def test_random_jerk_limited_commands_match_the_reference(script: Script) -> None:
+    """The same mixes with every profile jerk-limited: jogs, speed changes, MCD, paused
+    moves and jerk-limited stops on their closed-form S-curves (``SCurveLane``)."""
+    fast, ref = pair()
+    run_pair(fast, ref, PREAMBLE, prefix="P")
+    run_pair(fast, ref, script)
+
+
+def test_jerk_limited_ramps_run_in_their_lane_and_match_the_reference() -> None:
+    """A scripted tour of the S-curve lane: jogs from rest and reversing, a speed change by
+    MCD in the middle of a ramp, a jerk-limited MAS, MC_MoveVelocity and MC_Halt, a
+    follower geared to an S-curve master (it stays in its lane)."""
+    fast, ref = pair()
+    s_curve = {"Profile": 1, "AccelJerk": 20_000.0, "DecelJerk": 10_000.0, "JerkUnits": 0}
+    slow = {"AccelRate": 500.0, "DecelRate": 800.0, **s_curve}
+    script: Script = [
+        ("MAJ", {"Axis": 1, "Speed": 100.0, **slow}, 40),
+        ("MAG", {"SlaveAxis": 3, "MasterAxis": 1, "Ratio": 0.5, "MasterReference": 1,
+                 "Clutch": 1}, 60),
+        ("MAJ", {"Axis": 2, "Direction": 1, "Speed": 60.0, **slow}, 20),
+        ("MCD", {"Axis": 2, "MotionType": 0, "ChangeSpeed": 1, "Speed": 150.0,
+                 "ChangeAccel": 1, "AccelRate": 900.0}, 80),
+        ("MAJ", {"Axis": 1, "Direction": 1, "Speed": 80.0, **slow}, 150),  # reversal
+        ("MAS", {"Axis": 2, "StopType": 0, "ChangeDecel": 1, "DecelRate": 700.0,
+                 "ChangeDecelJerk": 1, "DecelJerk": 5_000.0, "JerkUnits": 0}, 120),
+        ("MC_MoveVelocity", {"Axis": 5, "Velocity": 40.0, "Acceleration": 400.0,
+                             "Deceleration": 600.0, "Jerk": 8_000.0}, 80),
+        ("MC_Halt", {"Axis": 5, "Deceleration": 300.0, "Jerk": 4_000.0}, 150),
+    ]  # fmt: skip
+    seen = run_recording(fast, ref, script)
+    assert seen["SCurveLane"] > 100, seen
+    assert seen["GearLane"] > 10, seen
+    for name, inst in fast.instances.items():
+        assert not inst.outputs.get("ER", False), name
+        assert not inst.outputs.get("Error", False), name

@@ -56,6 +56,7 @@ from .override import Override
 from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
+from .scurve import FALLBACKS
 from .state import AxisArrays, MasterArrays
 from .stop_plan import power_off_axes, stop_axes
 
@@ -219,6 +220,12 @@ class Controller:
     @property
     def time(self) -> float:
         return self.tick * self.period
+
+    @property
+    def profile_fallbacks(self) -> int:
+        """Jerk-limited velocity targets the closed form left to ruckig (:mod:`.scurve`),
+        counted in this OS process since it started (the scan runs one controller)."""
+        return FALLBACKS.count
 
     def axis(self, ref: int | str) -> Axis:
         ax = self._by_number.get(ref) if isinstance(ref, int) else self._by_name.get(ref)

@@ -5,9 +5,9 @@ two phases:
 
 - **catching up** (the Logix clutch, the PLCopen catch-up): the slave's gear velocity
   ramps from what it inherited to the velocity the masters imply (ratio x master
-  velocity), trapezoidal at a rate (:class:`RateRamp`) or jerk-limited through ruckig
-  (:class:`JerkRamp`); the position is integrated from that velocity. When the speeds
-  match, the gear locks.
+  velocity), trapezoidal at a rate (:class:`RateRamp`) or jerk-limited (:class:`JerkRamp`,
+  ruckig's velocity interface in closed form); the position is integrated from that
+  velocity. When the speeds match, the gear locks.
 - **locked**: slave displacement = displacement at lock + ratio x (master position -
   master position at lock), from the *absolute* master displacement since lock, never a
   running sum of increments. Fraction ratios (MAG ``RatioFormat`` fraction) are exact in
@@ -44,7 +44,7 @@ from .axis import Axis
 from .enums import AxisType, MasterReference, ProcessKind
 from .errors import ErrorCode, MotionError
 from .processes import Process
-from .profiles import Limits, Profile
+from .profiles import Limits, SCurveProfile
 from .state import StepContext
 
 #: the master reference of a gear: the one :class:`~.enums.MasterReference` (Logix
@@ -271,10 +271,11 @@ class RateRamp(CatchUp):
 
 
 class JerkRamp(CatchUp):
-    """Jerk-limited catch-up through ruckig (velocity interface, re-planned when the
-    target moves). Caught up when ruckig reaches the target; while the target keeps
-    moving (an accelerating master) also when the velocity gap fits in one cycle and the
-    target's acceleration is within one cycle's jerk of the slave's."""
+    """Jerk-limited catch-up: ruckig's velocity interface in closed form
+    (:class:`~.scurve.SCurveProfile`, re-planned when the target moves). Caught up when the
+    profile reaches the target; while the target keeps moving (an accelerating master)
+    also when the velocity gap fits in one cycle and the target's acceleration is within
+    one cycle's jerk of the slave's."""
 
     def __init__(self, dt: float, accel: float, decel: float, jerk: float) -> None:
         super().__init__()
@@ -283,20 +284,20 @@ class JerkRamp(CatchUp):
         self.decel = decel
         self.jerk = jerk
         self._dt = dt
-        self._profile = Profile(dt)
+        self._profile = SCurveProfile(dt)
         self._target: float | None = None
 
     def start(self, velocity: float, acceleration: float) -> None:
         super().start(velocity, acceleration)
         lim = min(self.accel, self.decel)
         a0 = max(-lim, min(lim, acceleration))
-        self._profile = Profile(self._dt, velocity, a0)
+        self._profile = SCurveProfile(self._dt, velocity, a0)
         self._target = None
 
     def judge(self, target_v: float) -> None:
         """Plan the first step's profile on a copy (ruckig refuses limits such as a jerk
         of 1e-300 only when it plans)."""
-        prof = Profile(self._dt, self._profile.velocity, self._profile.acceleration)
+        prof = SCurveProfile(self._dt, self._profile.velocity, self._profile.acceleration)
         big = 2.0 * max(abs(target_v), abs(prof.velocity)) + 1.0
         prof.to_velocity(target_v, Limits(big, self.accel, self.decel, self.jerk))
 

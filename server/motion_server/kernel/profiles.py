@@ -1,11 +1,14 @@
-"""One-axis profiles: jerk-limited through ruckig (one online update per cycle), trapezoidal
-in closed form (:mod:`.trapezoid`).
+"""One-axis profiles: trapezoidal in closed form (:mod:`.trapezoid`), jerk-limited velocity
+targets in closed form (:mod:`.scurve`), jerk-limited position targets through ruckig (one
+online update per cycle, :class:`Profile`).
 
 A profile plans in displacement from its own origin, so a process can add its position to
 the others (superposition). Inputs are validated here before ruckig sees them: ruckig
 raises on bad input, and a controller must answer ER instead. Jerk 0 (or infinite) means a
 trapezoidal velocity profile: :func:`profile_for` then gives a
-:class:`~.trapezoid.TrapezoidProfile`, which the fast lanes can sample as arrays.
+:class:`~.trapezoid.TrapezoidProfile`; otherwise a :class:`~.scurve.SCurveProfile`, which
+hands position targets to a :class:`Profile`. The fast lanes sample both closed forms as
+arrays.
 ``intermediate_positions`` is never set.
 """
 
@@ -20,9 +23,18 @@ import ruckig
 
 from .errors import ErrorCode, MotionError
 from .limits import INF, Limits
+from .scurve import SCurveProfile
 from .trapezoid import TrapezoidProfile
 
-__all__ = ["INF", "Limits", "OnlineProfile", "Profile", "TrapezoidProfile", "profile_for"]
+__all__ = [
+    "INF",
+    "Limits",
+    "OnlineProfile",
+    "Profile",
+    "SCurveProfile",
+    "TrapezoidProfile",
+    "profile_for",
+]
 
 
 class Profile:
@@ -268,8 +280,9 @@ def time_before(t: float, dt: float) -> float:
     return t - dt
 
 
-#: a process's profile: ruckig's when jerk-limited, the closed form when trapezoidal
-OnlineProfile = Profile | TrapezoidProfile
+#: a process's profile: the closed forms, trapezoidal or jerk-limited (ruckig inside for
+#: position targets); a bare ruckig profile where a caller builds one
+OnlineProfile = Profile | TrapezoidProfile | SCurveProfile
 
 
 def profile_for(
@@ -279,7 +292,8 @@ def profile_for(
     acceleration: float = 0.0,
     position: float = 0.0,
 ) -> OnlineProfile:
-    """The profile that plans ``limits``: trapezoidal in closed form, else ruckig."""
+    """The profile that plans ``limits``: trapezoidal in closed form, else jerk-limited
+    (velocity targets in closed form, position targets through ruckig)."""
     if limits.trapezoidal:
         return TrapezoidProfile(dt, velocity, acceleration, position)
-    return Profile(dt, velocity, acceleration, position)
+    return SCurveProfile(dt, velocity, acceleration, position)

@@ -7,12 +7,14 @@ objects' floating-point operations in the same order, so the results are bit-ide
 
 - time-driven (:mod:`.ramps`): jogs at speed; trapezoidal jogs and moves on their way
   (accelerating, cruising, decelerating, reversing); trapezoidal stop ramps (MGS, MAS,
-  MC_Stop, MC_Halt and the ramp of a failed process);
+  MC_Stop, MC_Halt and the ramp of a failed process); (:mod:`.scurve`) jerk-limited
+  ramps to a velocity (jogs, speed changes, paused moves, jerk-limited stops);
 - followers on one master (:mod:`.gears`): locked gears with a real or a fraction ratio,
   and gears catching up at a rate (the MAG clutch, the trapezoidal PLCopen catch-up).
 
-Jerk-limited profiles (ruckig), two-master gears, MC_GearInPos, master-driven motion,
-axes with more than one process or a buffered command stay in Python.
+Jerk-limited position targets (ruckig), jerk-limited catch-up ramps, two-master gears,
+MC_GearInPos, master-driven motion, axes with more than one process or a buffered command
+stay in Python.
 
 Membership:
 

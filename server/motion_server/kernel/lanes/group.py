@@ -1,9 +1,9 @@
 """The lanes of one motion group, their order, and the axes left to compose in Python.
 
-Order, masters before slaves: time-driven lanes (jogs, profiles, stop ramps) read no other
-axis and step first; followers on an actual position read feedback, which composition
-never changes, and step next; followers on a command position read their master's
-command of this cycle, so they step by level: level 0 when the master is in a time lane,
+Order, masters before slaves: time-driven lanes (jogs, profiles, stop ramps, S-curve
+ramps) read no other axis and step first; followers on an actual position read feedback,
+which composition never changes, and step next; followers on a command position read their
+master's command of this cycle, so they step by level: level 0 when the master is in a time lane,
 in an actual-position lane, in another group or has no motion; level k + 1 when the master
 is a command follower at level k. A follower whose master is composed in Python leaves its
 lane (it is composed in Python after its master). Axes a lane moves out in a step are
@@ -25,6 +25,7 @@ from .base import Compose, Lane, LevelledLane
 from .cams import CamLane
 from .gears import CatchUpLane, FractionLane, GearLane, gear_source
 from .ramps import CruiseLane, ProfileLane, StopLane
+from .scurve import SCurveLane
 
 
 class GroupLanes:
@@ -35,6 +36,7 @@ class GroupLanes:
         self.cruise = CruiseLane(self)
         self.profiles = ProfileLane(self)
         self.stops = StopLane(self)
+        self.scurves = SCurveLane(self)
         self.followers: dict[MasterReference, tuple[LevelledLane, ...]] = {
             src: (
                 GearLane(self, src),
@@ -48,6 +50,7 @@ class GroupLanes:
             self.cruise,
             self.profiles,
             self.stops,
+            self.scurves,
             *self.followers[MasterReference.ACTUAL],
             *self.followers[MasterReference.COMMAND],
         )
@@ -71,12 +74,18 @@ class GroupLanes:
                 self.cruise.admit(p, ax)
             elif ProfileLane.accepts(p):
                 self.profiles.admit(p, ax)
+            elif SCurveLane.accepts(p):
+                self.scurves.admit(p, ax)
         elif kind is MoveProcess:
             if ProfileLane.accepts(p):
                 self.profiles.admit(p, ax)
+            elif SCurveLane.accepts(p):
+                self.scurves.admit(p, ax)
         elif kind is StopRamp:
             if StopLane.accepts(p):
                 self.stops.admit(p, ax)
+            elif SCurveLane.accepts(p):
+                self.scurves.admit(p, ax)
         elif kind is GearProcess:
             self._offer_follower(p, ax)
         elif kind is CamProcess:
@@ -142,7 +151,13 @@ class GroupLanes:
         for lane in lanes:
             for p, ax in zip(lane.members, lane.axes, strict=True):
                 by_axis[id(ax)] = (lane, p)
-        first = (self.cruise, self.profiles, self.stops, *self.followers[MasterReference.ACTUAL])
+        first = (
+            self.cruise,
+            self.profiles,
+            self.stops,
+            self.scurves,
+            *self.followers[MasterReference.ACTUAL],
+        )
         stepped_first = {id(ax) for lane in first for ax in lane.axes}
         memo: dict[int, int | None] = {}
 
@@ -188,5 +203,7 @@ class GroupLanes:
             self.profiles.step(s, compose)
         if self.stops.members:
             self.stops.step(s, dt, compose)
+        if self.scurves.members:
+            self.scurves.step(s, compose)
         for lane, level in self.schedule:
             lane.step(s, level, dt, compose)

@@ -1,0 +1,113 @@
+"""Jerk-limited ramps to a velocity on their way: jogs and speed changes (MAJ,
+MC_MoveVelocity, MCD, overrides), paused moves and jerk-limited stops (MAS with DecelJerk,
+MC_Stop / MC_Halt with Jerk), all planned in closed form (:class:`~..scurve.SCurveProfile`,
+``JerkPlan.sample``); the sample that ends the plan is the process's own (moved out).
+
+Like the other time-driven lanes it reads no other axis, so it steps first. Position
+targets (ruckig's) and fallbacks stay in Python.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..axis import Axis
+from ..processes import JogProcess, MoveProcess, Process, StopRamp
+from ..scurve import SEGMENTS, SCurveProfile
+from ..state import AxisArrays
+from .base import Compose, Lane
+
+#: the per-segment fields of a plan (one row of SEGMENTS values per member)
+PLAN_FIELDS = ("start", "seg_pos", "seg_vel", "seg_acc", "half", "jerk", "jhalf", "jsixth")
+
+
+class SCurveLane(Lane):
+    """Jerk-limited velocity ramps within their plan, stepped as arrays with the
+    operations of ``SCurveProfile.step``, in the same order."""
+
+    FIELDS = ("base", "cycles", "dt", "done", *PLAN_FIELDS, "pos", "vel", "acc")
+    WIDTHS: ClassVar[dict[str, int]] = dict.fromkeys(PLAN_FIELDS, SEGMENTS)
+
+    def __init__(self, owner: Any) -> None:
+        super().__init__(owner)
+        self._rows = np.zeros(0, dtype=np.intp)
+
+    @staticmethod
+    def accepts(p: Process) -> bool:
+        kind = type(p)
+        if kind is not JogProcess and kind is not MoveProcess and kind is not StopRamp:
+            return False
+        prof = p.profile  # type: ignore[attr-defined]
+        return (
+            isinstance(prof, SCurveProfile)
+            and prof.plan is not None
+            and prof.ruckig is None
+            and not prof.finished
+        )
+
+    def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
+        assert isinstance(p, JogProcess | MoveProcess | StopRamp)
+        prof = p.profile
+        assert isinstance(prof, SCurveProfile) and prof.plan is not None
+        plan = prof.plan
+        return (
+            ax.base,
+            float(prof.cycles),
+            prof.dt,
+            plan.done,
+            plan.start,
+            plan.pos,
+            plan.vel,
+            plan.acc,
+            plan.half,
+            plan.jerk,
+            plan.jhalf,
+            plan.jsixth,
+            p.position,
+            p.velocity,
+            p.acceleration,
+        )
+
+    def _store(self, p: Process, k: int) -> None:
+        assert isinstance(p, JogProcess | MoveProcess | StopRamp)
+        prof = p.profile
+        assert isinstance(prof, SCurveProfile)
+        a = self.arrays
+        prof.cycles = int(a["cycles"][k])
+        prof.position = p.position = float(a["pos"][k])
+        prof.velocity = p.velocity = float(a["vel"][k])
+        prof.acceleration = p.acceleration = float(a["acc"][k])
+
+    def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
+        super()._set_members(members, axes)
+        self._rows = np.arange(len(members), dtype=np.intp)
+
+    def step(self, s: AxisArrays, compose: Compose) -> None:
+        if not self.members:
+            return
+        a = self.arrays
+        cycles = a["cycles"]
+        t = (cycles + 1.0) * a["dt"]
+        ending = t >= a["done"]
+        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
+        cycles += 1.0
+        st = a["start"]
+        seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
+        rows = self._rows
+        tau = t - st[rows, seg]
+        v0 = a["seg_vel"][rows, seg]
+        a0 = a["seg_acc"][rows, seg]
+        pos = a["seg_pos"][rows, seg] + tau * (
+            v0 + tau * (a["half"][rows, seg] + tau * a["jsixth"][rows, seg])
+        )
+        vel = v0 + tau * (a0 + tau * a["jhalf"][rows, seg])
+        acc = a0 + tau * a["jerk"][rows, seg]
+        a["pos"], a["vel"], a["acc"] = pos, vel, acc
+        at = self.at
+        s.cmd_pos[at] = a["base"] + pos
+        s.cmd_vel[at] = vel
+        s.cmd_acc[at] = acc
+        for ax in movers:
+            compose(ax)

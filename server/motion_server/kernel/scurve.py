@@ -1,0 +1,386 @@
+"""Jerk-limited velocity profiles (S-curves) in closed form, planned once and sampled per cycle.
+
+A jog, a change of its speed (MAJ, MC_MoveVelocity, MCD, an override), a jerk-limited
+stop (MAS with DecelJerk, MC_Stop / MC_Halt with Jerk) and a jerk-limited catch-up ramp
+all ask for the same thing: from the current velocity and acceleration, reach a target
+velocity with zero acceleration in the least time, the acceleration within
+[``a_min``, ``a_max``] and the jerk within ``jerk``. This is ruckig's third-order velocity
+interface (``VelocityThirdOrderStep1`` and the velocity brake of ``BrakeProfile``), which
+this module reproduces in closed form so that the fast lanes can sample many profiles at
+once with the same floating-point operations (:mod:`.lanes.scurve`):
+
+1. **Brake.** An acceleration beyond its limit (``a0 > a_max`` or ``a0 < a_min``) is first
+   brought back onto the limit at full jerk (ruckig's ``get_velocity_brake_trajectory``).
+2. **Three phases or two.** From (v, a) to the target: jerk up (or down) to a peak
+   acceleration, hold it, jerk back to zero. The peak is the acceleration limit of the
+   direction of the velocity change (``a_max`` toward a higher velocity, ``a_min`` toward a
+   lower one: ruckig's ``max_acceleration`` and ``min_acceleration`` of the velocity
+   interface, which bound the acceleration itself whatever the sign of the velocity);
+   when the limit is not reached the hold vanishes and the peak is ``sqrt(a^2/2 + j dv)``.
+   When the current acceleration would overshoot the target even if it were brought to
+   zero at once, the profile jerks through zero to the other side (ruckig tries the
+   opposite direction next, in the same order).
+
+Which limit is ``a_max`` and which ``a_min`` for a Logix acceleration / deceleration pair is
+decided by the caller (:meth:`SCurveProfile.to_velocity`) exactly as
+:class:`~.profiles.Profile` decides it for ruckig: on the direction of the target velocity
+(of the current velocity when the target is rest), one limit pair per plan.
+
+The plan is sampled at t = k·dt, k the cycles since the plan (no running sum), with
+ruckig's integration formula. A sample within :data:`~.trapezoid.END_TOLERANCE` of a period
+before the end counts as the end: from there on the target velocity is held by
+integrating it, as ruckig's profile does once finished. A plan longer than
+:data:`~.trapezoid.MAX_DURATION` or with a non-finite number is refused
+(``PROFILE_FAILED``), as ruckig refuses it. A case no candidate covers within ruckig's
+own acceptance tests (the acceleration limits with a few ulps more room than ruckig's
+absolute 1e-12, which is less than an ulp of 1e5) is planned by ruckig instead and
+counted in :data:`FALLBACKS`; position targets are ruckig's (:class:`~.profiles.Profile`).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from .errors import ErrorCode, MotionError
+from .limits import Limits
+from .trapezoid import END_TOLERANCE, MAX_DURATION
+
+if TYPE_CHECKING:
+    from .profiles import Profile
+
+#: every plan has this many segments of constant jerk (unused ones have zero duration):
+#: the brake, jerk toward the peak, the hold, jerk back to zero
+SEGMENTS = 4
+#: ruckig's acceptance tolerances of a velocity profile (``Profile::check_for_velocity``)
+_A_EPS = 1e-12
+_V_PRECISION = 1e-8
+_A_PRECISION = 1e-10
+_T_EPS = sys.float_info.epsilon
+
+
+class Fallbacks:
+    """How many velocity targets the closed form left to ruckig, since the process
+    started (one scan process runs one controller: ``Controller.profile_fallbacks``)."""
+
+    count = 0
+
+
+#: the process-wide count of velocity plans handed to ruckig
+FALLBACKS = Fallbacks()
+
+
+@dataclass(frozen=True, slots=True)
+class JerkPlan:
+    """Four segments of constant jerk from the plan's origin (t = 0), then the end.
+
+    ``start[s]`` is the time segment ``s`` begins (``start[0]`` = 0, non-decreasing),
+    ``pos``, ``vel``, ``acc`` the state there, ``jerk`` its jerk; ``half`` = acc / 2,
+    ``jhalf`` = jerk / 2 and ``jsixth`` = jerk / 6 (the factors of ruckig's integration,
+    computed once). A sample at t >= ``done`` is the end: ``end_position`` and
+    ``end_velocity`` are reached at ``end``.
+    """
+
+    start: tuple[float, float, float, float]
+    pos: tuple[float, float, float, float]
+    vel: tuple[float, float, float, float]
+    acc: tuple[float, float, float, float]
+    half: tuple[float, float, float, float]
+    jerk: tuple[float, float, float, float]
+    jhalf: tuple[float, float, float, float]
+    jsixth: tuple[float, float, float, float]
+    end: float
+    done: float
+    end_position: float
+    end_velocity: float
+
+    def segment(self, t: float) -> int:
+        """The segment a sample at ``t`` < ``done`` falls in."""
+        st = self.start
+        return (t >= st[1]) + (t >= st[2]) + (t >= st[3])
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        """Position, velocity and acceleration at ``t`` (before ``done``)."""
+        s = self.segment(t)
+        tau = t - self.start[s]
+        v = self.vel[s]
+        a = self.acc[s]
+        p = self.pos[s] + tau * (v + tau * (self.half[s] + tau * self.jsixth[s]))
+        return p, v + tau * (a + tau * self.jhalf[s]), a + tau * self.jerk[s]
+
+
+def _accepted(
+    ts: tuple[float, float, float], a0: float, v0: float, vf: float, jf: float, lo: float, hi: float
+) -> bool:
+    """ruckig's ``check_for_velocity`` (UDDU) of the phases ``ts`` with jerk ``jf``."""
+    t0, t1, t2 = ts
+    if not (t0 >= 0.0 and t1 >= 0.0 and t2 >= 0.0):
+        return False
+    # ruckig's 1e-12 is a few ulps of an acceleration of 1e4: a peak computed to land on
+    # the limit may round beyond it by more; allow those few ulps too
+    a_eps = _A_EPS + 8.0 * math.ulp(max(hi, -lo))
+    j0 = jf if t0 > 0.0 else 0.0
+    j2 = -jf if t2 > 0.0 else 0.0
+    a1 = a0 + t0 * j0
+    v1 = v0 + t0 * (a0 + t0 * j0 / 2)
+    v2 = v1 + t1 * a1
+    a3 = a1 + t2 * j2
+    v3 = v2 + t2 * (a1 + t2 * j2 / 2)
+    return (
+        abs(v3 - vf) < _V_PRECISION
+        and abs(a3) < _A_PRECISION
+        and lo - a_eps <= a1 <= hi + a_eps
+        and lo - a_eps <= a3 <= hi + a_eps
+    )
+
+
+def _phases(
+    a0: float, v0: float, vf: float, a_max: float, a_min: float, jerk: float
+) -> tuple[float, float, float, float] | None:
+    """(t0, t1, t2, jerk of phase 0) from (v0, a0), a0 within the limits, to vf at rest
+    acceleration: the first profile ruckig's ``VelocityThirdOrderStep1`` accepts, tried in
+    its order; None when none is accepted."""
+    vd = vf - v0
+    if vd >= 0.0:
+        order = ((a_max, jerk), (a_min, -jerk))
+    else:
+        order = ((a_min, -jerk), (a_max, jerk))
+    for peak, j in order:
+        # no acceleration hold: the peak is where the two jerk phases meet
+        h1 = a0 * a0 / 2 + j * vd
+        if h1 >= 0.0:
+            h = math.sqrt(h1)
+            for ts in ((-(a0 + h) / j, 0.0, -h / j), ((-a0 + h) / j, 0.0, h / j)):
+                if _accepted(ts, a0, v0, vf, j, a_min, a_max):
+                    return (*ts, j)
+        # the acceleration limit held between the two jerk phases
+        t1 = a0 * a0 / (2 * peak * j) - peak / j + vd / peak
+        ts = ((peak - a0) / j, t1, peak / j)
+        if t1 >= _T_EPS and _accepted(ts, a0, v0, vf, j, a_min, a_max):
+            return (*ts, j)
+    return None
+
+
+def _too_long(duration: float) -> MotionError:
+    return MotionError(
+        ErrorCode.PROFILE_FAILED,
+        f"the profile would last {duration:g} s (more than {MAX_DURATION:g} s) for these limits",
+    )
+
+
+def plan_jerk_velocity(
+    dt: float,
+    p0: float,
+    v0: float,
+    a0: float,
+    target: float,
+    a_max: float,
+    a_min: float,
+    jerk: float,
+) -> JerkPlan | None:
+    """Ramp from (``p0``, ``v0``, ``a0``) to the velocity ``target`` at zero acceleration,
+    the acceleration within [``a_min``, ``a_max``] (``a_min`` < 0 < ``a_max``), the jerk
+    within ``jerk`` (> 0, finite). None when the closed form does not cover the case
+    (ruckig plans it then); MotionError(PROFILE_FAILED) when no plan can hold it."""
+    segments: list[tuple[float, float]] = []
+    if a0 > a_max:
+        segments.append(((a0 - a_max) / jerk, -jerk))
+    elif a0 < a_min:
+        segments.append(((a_min - a0) / jerk, jerk))
+    else:
+        segments.append((0.0, 0.0))
+    tb, jb = segments[0]
+    ab = a0 + tb * jb
+    vb = v0 + tb * (a0 + tb * jb / 2)
+    if tb > 0.0:
+        ab = a_max if jb < 0.0 else a_min  # exactly on the limit the brake aimed at
+    if not (math.isfinite(tb) and math.isfinite(vb)):
+        if not math.isfinite(tb):
+            raise _too_long(tb)
+        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
+    phases = _phases(ab, vb, target, a_max, a_min, jerk)
+    if phases is None:
+        return None
+    t0, t1, t2, j = phases
+    segments += [(t0, j), (t1, 0.0), (t2, -j)]
+    return _build(dt, p0, v0, a0, segments, target)
+
+
+def _build(
+    dt: float, p0: float, v0: float, a0: float, segments: list[tuple[float, float]], vf: float
+) -> JerkPlan:
+    """Integrate ``segments`` ((duration, jerk)) from (p0, v0, a0) as ruckig does."""
+    start, pos, vel, acc, half, jerk, jhalf, jsixth = ([] for _ in range(8))
+    t, p, v, a = 0.0, p0, v0, a0
+    for duration, j in segments:
+        start.append(t)
+        pos.append(p)
+        vel.append(v)
+        acc.append(a)
+        half.append(a / 2)
+        jerk.append(j)
+        jhalf.append(j / 2)
+        jsixth.append(j / 6)
+        p = p + duration * (v + duration * (a / 2 + duration * j / 6))
+        v = v + duration * (a + duration * j / 2)
+        a = a + duration * j
+        t = t + duration
+    if not math.isfinite(t) or t > MAX_DURATION:
+        raise _too_long(t)
+    if not all(math.isfinite(x) for x in (p, v, *pos, *vel, *acc)):
+        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
+
+    def four(xs: list[float]) -> tuple[float, float, float, float]:
+        return (xs[0], xs[1], xs[2], xs[3])
+
+    return JerkPlan(
+        four(start),
+        four(pos),
+        four(vel),
+        four(acc),
+        four(half),
+        four(jerk),
+        four(jhalf),
+        four(jsixth),
+        t,
+        t - END_TOLERANCE * dt,
+        p,
+        vf,
+    )
+
+
+def limit_pair(direction: float, acceleration: float, deceleration: float) -> tuple[float, float]:
+    """(``a_max``, ``a_min``) for travel in ``direction``: what :class:`~.profiles.Profile`
+    gives ruckig as ``max_acceleration`` and ``min_acceleration``."""
+    if direction >= 0.0:
+        return acceleration, -deceleration
+    return deceleration, -acceleration
+
+
+class SCurveProfile:
+    """A jerk-limited profile with the interface of :class:`~.profiles.Profile`: velocity
+    targets in closed form (``plan``), position targets (and velocity targets the closed
+    form leaves over) through ruckig (``ruckig``).
+
+    ``position`` is the displacement from the profile's origin; ``cycles`` counts the
+    samples since the current closed-form plan.
+    """
+
+    def __init__(
+        self, dt: float, velocity: float = 0.0, acceleration: float = 0.0, position: float = 0.0
+    ) -> None:
+        self._dt = dt
+        self.position = float(position)
+        self.velocity = float(velocity)
+        self.acceleration = float(acceleration)
+        self.finished = False
+        self.cycles = 0
+        self.plan: JerkPlan | None = None
+        #: the ruckig profile that plans a position target (or a fallback), else None
+        self.ruckig: Profile | None = None
+        self._target_position: float | None = None
+        self._target_velocity = 0.0
+
+    # -- targets --------------------------------------------------------------------------
+    def to_position(self, displacement: float, limits: Limits) -> None:
+        """Plan to rest at ``displacement`` from the origin (through ruckig). If it cannot
+        be planned nothing changes and MotionError is raised."""
+        from .profiles import Profile
+
+        prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
+        prof.to_position(displacement, limits)
+        self._use_ruckig(prof, float(displacement), 0.0)
+
+    def to_velocity(self, velocity: float, limits: Limits) -> None:
+        """Ramp to a constant ``velocity`` (signed) and hold it. If it cannot be planned
+        nothing changes and MotionError is raised."""
+        if not math.isfinite(velocity):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
+        limits = limits.validated()
+        target = float(velocity)
+        plan = None
+        if not limits.trapezoidal:
+            direction = target if target != 0.0 else self.velocity
+            a_max, a_min = limit_pair(direction, limits.acceleration, limits.deceleration)
+            plan = plan_jerk_velocity(
+                self._dt,
+                self.position,
+                self.velocity,
+                self.acceleration,
+                target,
+                a_max,
+                a_min,
+                limits.jerk,
+            )
+        if plan is None:
+            from .profiles import Profile
+
+            prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
+            prof.to_velocity(target, limits)
+            FALLBACKS.count += 1
+            self._use_ruckig(prof, None, target)
+            return
+        self.plan = plan
+        self.ruckig = None
+        self.cycles = 0
+        self.finished = False
+        self._target_position = None
+        self._target_velocity = target
+
+    def _use_ruckig(self, prof: Profile, target_position: float | None, velocity: float) -> None:
+        self.ruckig = prof
+        self.plan = None
+        self.cycles = 0
+        self.finished = False
+        self._target_position = target_position
+        self._target_velocity = velocity
+
+    # -- stepping -------------------------------------------------------------------------
+    def step(self) -> None:
+        prof = self.ruckig
+        if prof is not None:
+            prof.step()
+            self.position = prof.position
+            self.velocity = prof.velocity
+            self.acceleration = prof.acceleration
+            if prof.finished:
+                # from here on the held velocity is integrated here, as ruckig's profile
+                # would (a lane may then take the process and write ``position``)
+                self.finished = True
+                self.ruckig = None
+            return
+        plan = self.plan
+        if self.finished or plan is None:
+            # holding the target velocity: integrate it (no plan needed)
+            self.acceleration = 0.0
+            self.position += self.velocity * self._dt
+            return
+        self.cycles += 1
+        t = self.cycles * self._dt
+        if t >= plan.done:
+            self.finish_plan(t)
+            return
+        self.position, self.velocity, self.acceleration = plan.sample(t)
+
+    def finish_plan(self, t: float) -> None:
+        """The sample at ``t`` (>= ``plan.done``) ends the plan."""
+        plan = self.plan
+        assert plan is not None
+        self.finished = True
+        self.acceleration = 0.0
+        self.velocity = plan.end_velocity
+        self.position = plan.end_position + max(t - plan.end, 0.0) * plan.end_velocity
+
+    @property
+    def dt(self) -> float:
+        return self._dt
+
+    @property
+    def target_position(self) -> float | None:
+        return self._target_position
+
+    @property
+    def target_velocity(self) -> float:
+        return self._target_velocity
