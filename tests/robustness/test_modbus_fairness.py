@@ -14,20 +14,26 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import multiprocessing
 import socket
 import struct
 import threading
 import time
+from multiprocessing.queues import Queue
+from multiprocessing.synchronize import Event
+from pathlib import Path
 
 from motion_server.frontends.modbus_protocol import ModbusConnection
-from tests.modbus_support import ServerThread, modbus_site
+from tests.served import Served
 
 FLOOD = 50_000
 REQUEST = struct.Struct(">HHHBBHH")
 ANSWER_BYTES = 11  # MBAP 7 + function code + byte count + one register
 
 
-def _flood(port: int, seconds: list[float], started: threading.Event) -> None:
+def _flood(port: int, seconds: Queue[float], started: Event) -> None:
+    """The flooding client, in a process of its own (so that it takes no turn of the
+    poller's interpreter)."""
     sock = socket.create_connection(("127.0.0.1", port), timeout=60)
     frames = b"".join(REQUEST.pack(i & 0xFFFF, 0, 6, 1, 3, 0, 1) for i in range(FLOOD))
     want, got = FLOOD * ANSWER_BYTES, 0
@@ -39,20 +45,26 @@ def _flood(port: int, seconds: list[float], started: threading.Event) -> None:
         chunk = sock.recv(1 << 20)
         assert chunk, "the server closed the flood's connection"
         got += len(chunk)
-    seconds.append(time.perf_counter() - t0)
+    seconds.put(time.perf_counter() - t0)
     sender.join()
     sock.close()
 
 
-def test_a_pipelined_flood_delays_another_client_by_one_turn_not_by_the_flood() -> None:
-    with ServerThread(modbus_site()) as srv:
-        poller = socket.create_connection(("127.0.0.1", srv.port), timeout=60)
+def test_a_pipelined_flood_delays_another_client_by_one_turn_not_by_the_flood(
+    tmp_path: Path,
+) -> None:
+    # the server in processes of its own, as users run it (a server thread in this
+    # process would share the interpreter's lock with the two clients and time them)
+    with Served(tmp_path, opcua=False) as srv:
+        port = srv.modbus_port
+        poller = socket.create_connection(("127.0.0.1", port), timeout=60)
         poller.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        flood_seconds: list[float] = []
-        started = threading.Event()
-        flood = threading.Thread(target=_flood, args=(srv.port, flood_seconds, started))
+        ctx = multiprocessing.get_context("fork")
+        results: Queue[float] = ctx.Queue()
+        started = ctx.Event()
+        flood = ctx.Process(target=_flood, args=(port, results, started))
         flood.start()
-        started.wait(10)
+        assert started.wait(30), "the flood did not start"
         latencies: list[float] = []
         tid = 0
         while flood.is_alive():
@@ -64,19 +76,21 @@ def test_a_pipelined_flood_delays_another_client_by_one_turn_not_by_the_flood() 
                 answer += poller.recv(64)
             latencies.append(time.perf_counter() - t0)
             assert struct.unpack(">H", answer[:2])[0] == tid
+        flood_seconds = [results.get(timeout=60)]
         flood.join()
         poller.close()
     assert flood_seconds, "the flood was not answered"
-    # while the flood lasted, the poller kept being served, its reads within a small
-    # share of the flood's duration (a turn is REQUESTS_PER_TURN requests). Before the
-    # turns one read waited about half the flood. The server runs in a thread of this
-    # process: on a loaded machine one read may be preempted, so the bound is on the 95th
-    # percentile, and the worst read still within a quarter of the flood.
-    assert len(latencies) >= 10, (latencies, flood_seconds)
+    # while the flood lasted, the poller kept being served, most of its reads within a
+    # small share of the flood's duration (a turn is REQUESTS_PER_TURN requests). Before
+    # the turns a read waited for the connection's whole chunk of the flood: a few reads
+    # got through, each about half the flood late. The server runs in
+    # processes, where a loaded machine may preempt any one read: the bounds are on the
+    # 95th percentile and on the worst read's share of the flood.
+    assert len(latencies) >= 5, (latencies, flood_seconds)
     reads = sorted(latencies[:-1])  # the last read may have started after the flood ended
     p95 = reads[int(0.95 * (len(reads) - 1))]
     assert p95 < 0.1 * flood_seconds[0], (p95, flood_seconds[0], len(latencies))
-    assert reads[-1] < 0.25 * flood_seconds[0], (reads[-1], flood_seconds[0])
+    assert reads[-1] < 0.4 * flood_seconds[0], (reads[-1], flood_seconds[0])
 
 
 class _Transport(asyncio.Transport):
