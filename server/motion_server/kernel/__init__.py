@@ -3,10 +3,11 @@
 ``Controller.step()`` advances one cycle; same inputs give bit-identical traces.
 
 Imports point one way, from the leaves up: ``enums``, ``errors``, ``config``, ``limits``
--> ``trapezoid``, ``profiles``, ``state``, ``sensors`` -> ``processes`` -> ``override``
--> ``axis`` -> ``gearing``, ``gear_in_pos``, ``master_driven``, ``group`` -> ``lanes``
--> ``drive``, ``motion`` -> ``redefine`` -> ``homing``, ``power`` -> ``mdac_links``
--> ``controller``.
+-> ``trapezoid``, ``ruckig_profile`` -> ``scurve`` -> ``profiles``, ``state``,
+``sensors``, ``cam_profile`` -> ``cam_tables``, ``processes`` -> ``override`` -> ``axis``
+-> ``gearing``, ``gear_in_pos`` -> ``cams``, ``master_driven``, ``group`` -> ``lanes``
+-> ``drive``, ``motion`` -> ``redefine`` -> ``homing``, ``power`` -> ``stop_plan``,
+``mdac_links`` -> ``controller`` (a test checks that no import closes a loop).
 """
 
 from .axis import Axis

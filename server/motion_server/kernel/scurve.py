@@ -42,14 +42,11 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from .errors import ErrorCode, MotionError
 from .limits import Limits
+from .ruckig_profile import Profile
 from .trapezoid import END_TOLERANCE, MAX_DURATION
-
-if TYPE_CHECKING:
-    from .profiles import Profile
 
 #: every plan has this many segments of constant jerk (unused ones have zero duration):
 #: the brake, jerk toward the peak, the hold, jerk back to zero
@@ -287,8 +284,6 @@ class SCurveProfile:
     def to_position(self, displacement: float, limits: Limits) -> None:
         """Plan to rest at ``displacement`` from the origin (through ruckig). If it cannot
         be planned nothing changes and MotionError is raised."""
-        from .profiles import Profile
-
         prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
         prof.to_position(displacement, limits)
         self._use_ruckig(prof, float(displacement), 0.0)
@@ -315,8 +310,6 @@ class SCurveProfile:
                 limits.jerk,
             )
         if plan is None:
-            from .profiles import Profile
-
             prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
             prof.to_velocity(target, limits)
             FALLBACKS.count += 1

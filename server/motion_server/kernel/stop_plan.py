@@ -35,20 +35,17 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .axis import Axis
 from .enums import AbortReason, AfterStop, AxisState, ProcessState
+from .lanes import GroupLanes
 from .limits import Limits
+from .motion import Motion
 from .power import ABORT_REASON, PowerEvent
 from .processes import Process, StopRamp
 from .trapezoid import MAX_DURATION, TrapezoidProfile
-
-if TYPE_CHECKING:
-    from .lanes import GroupLanes
-    from .motion import Motion
 
 _ACTIVE = ProcessState.ACTIVE
 _DONE = ProcessState.DONE
