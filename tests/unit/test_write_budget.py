@@ -9,11 +9,13 @@ first: the batches behind it go into its cycles."""
 
 from __future__ import annotations
 
+import socket
 from collections import deque
 
 import pytest
 
 from motion_server import config
+from motion_server.frontends.link import IN_FLIGHT_PER_CLIENT, ScanLink
 from motion_server.image import wire
 from motion_server.image.buffer import Meta
 from motion_server.safety.client import ClientInfo
@@ -337,3 +339,18 @@ def test_every_batch_is_applied_exactly_once_in_its_clients_order(budget: int) -
     assert len(b.scan.writes) == 0
     assert int(b.scan.meta[Meta.APPLIED + MODBUS]) == b.seq[MODBUS]
 
+
+def test_a_client_with_too_many_writes_in_flight_waits_for_the_scan() -> None:
+    """The front-end's side: past its share of unacknowledged batches, a client's answer
+    waits for the scan (flow control), another client's does not."""
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    with ours, theirs:
+        link = ScanLink(ours, MODBUS, 0)
+        tickets = [link.send([(0, 1.0)], A) for _ in range(IN_FLIGHT_PER_CLIENT + 1)]
+        assert [t.waits for t in tickets] == [False] * IN_FLIGHT_PER_CLIENT + [True]
+        assert not link.send([(0, 1.0)], B).waits
+        for t in tickets[:2]:
+            link._packet(wire.encode_ack(wire.Ack(t.seq, 1, 0, wire.Result.APPLIED)))
+        assert tickets[0].ack is not None
+        assert not link.send([(0, 1.0)], A).waits  # 8 in flight again
+        assert link.send([(0, 1.0)], A).waits
