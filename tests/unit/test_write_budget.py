@@ -266,8 +266,9 @@ def test_an_instruction_costs_by_the_axes_it_commands() -> None:
     assert costs.of(many) == (4, False)
     assert costs.of([(slot["HMI1.Heartbeat"], 3.0), (slot["HMI1.Reset"], 0.0)]) == (1, True)
     assert costs.of([(slot["HMI1.Heartbeat"], 3.0), (slot["MAJ_1.Speed"], 5.0)]) == (1, False)
-    # the default: 16 units per millisecond of the period
-    assert b.scan.writes.budget == default_budget(0.001) == 16
+    # the default: 8 units per millisecond of the period
+    assert b.scan.writes.budget == default_budget(0.001) == 8
+    assert default_budget(0.002) == 16
 
 
 def test_a_batch_larger_than_the_budget_goes_alone_and_the_next_cycles_pay_for_it() -> None:

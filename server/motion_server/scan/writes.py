@@ -56,8 +56,8 @@ from ..tagmap import Folder
 from .channel import Channel
 
 #: budget units per millisecond of the base period (the default of ``write_budget``):
-#: about 40 % of a period's time on the reference machine
-BUDGET_PER_MS = 16
+#: about 20 % of a period's time on the reference machine, headroom for a loaded one
+BUDGET_PER_MS = 8
 #: batch items per extra unit
 ITEMS_PER_UNIT = 16
 #: axes an instruction commands per extra unit of its execution
