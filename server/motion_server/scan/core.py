@@ -18,17 +18,21 @@ Clock modes (simulated time advances exactly one base period per cycle, always):
 - ``realtime``: cycles on an absolute deadline schedule; a late pass runs the missed
   cycles back to back (at most ``max_catch_up``; the rest are dropped and logged) and
   counts every late cycle as an overrun. The period never stretches. Writes wait for the
-  next cycle.
+  next cycle, which applies what its budget allows (:mod:`.writes`: watchdog writes
+  first; the rest waits for the following cycles, in each client's order).
 - ``scaled``: the same at ``scale`` simulated seconds per real second.
-- ``manual``: time stands still; writes apply at once; a rising edge of ``Clock.Step``
-  runs ``Clock.StepCycles`` cycles (in chunks, with packets read in between) and its
-  write is acknowledged once they ran.
+- ``manual``: time stands still; writes apply at once, whatever the budget; a rising edge
+  of ``Clock.Step`` runs ``Clock.StepCycles`` cycles (in chunks, with packets read in
+  between) and its write is acknowledged once they ran; the writes behind it go into
+  those cycles, each taking its budget.
 - ``fast``: cycles back to back as fast as the CPU allows; writes apply at the start of
-  the next cycle, the image is published about every millisecond.
+  the next cycles within their budget, the image is published about every millisecond.
 
 Stopping (:meth:`Scan.request_stop`: SIGINT/SIGTERM, or the supervisor): the programmed
-stop of every group, as a controller does when it leaves run mode, run back to back;
-then the retained state is saved and :attr:`Scan.finished` becomes true.
+stop of every group, as a controller does when it leaves run mode, commanded before any
+write waiting and run back to back (each cycle applies its budget of writes); then the
+writes still waiting are applied, the retained state is saved and :attr:`Scan.finished`
+becomes true.
 """
 
 from __future__ import annotations
