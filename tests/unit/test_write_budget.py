@@ -355,3 +355,21 @@ def test_a_client_with_too_many_writes_in_flight_waits_for_the_scan() -> None:
         assert tickets[0].ack is not None
         assert not link.send([(0, 1.0)], A).waits  # 8 in flight again
         assert link.send([(0, 1.0)], A).waits
+
+
+def test_a_batch_larger_than_the_budget_is_not_starved_by_smaller_ones() -> None:
+    """Budget 2; A's batch of 48 items costs 4 (more than a whole budget): the first
+    client blocked in a cycle has the first turn of the next, so it goes as soon as a
+    cycle's credit is full, however many small batches B (its channel) and C (another
+    channel) keep sending in turns around it."""
+    b = Bench(budget=2)
+    b.step(12)
+    b.put(C, ("MAJ_1.DecelRate", 2000.0), channel=OPCUA)
+    b.put(A, *[("MAM_1.Speed", 77.0)] * (3 * ITEMS_PER_UNIT))
+    for k in range(1, 25):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+        b.put(C, ("MAJ_1.DecelRate", 1000.0 + k), channel=OPCUA)
+    b.run()
+    speeds = b.column("MAM_1.Speed")
+    assert 77.0 in speeds
+    assert speeds.index(77.0) == 1  # blocked in the first cycle, first in the second

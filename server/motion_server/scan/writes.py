@@ -24,9 +24,9 @@ cycle.
 Order and share. When everything waiting fits, batches are taken in arrival order, as
 they always were. When it does not, the channels (front-ends) take turns, one batch a turn,
 and inside a channel its clients (connections) do: a client whose batch does not fit is
-done for this cycle and has the first turn of the next one, so a batch larger than the
-budget waits at most a few cycles. One client's batches are always taken in the order they
-arrived, whatever the others do.
+done for this cycle, and the first such client has the first turn of the next one, so a
+batch larger than the budget goes in the next cycle whose credit is full (not never). One
+client's batches are always taken in the order they arrived, whatever the others do.
 
 Watchdog writes come first. A batch that writes only watchdog tags (``<name>.Heartbeat``,
 ``<name>.Reset``: the Safety folder) is taken before every other batch of every cycle,
@@ -243,6 +243,7 @@ class WriteQueue:
         """Channels, and inside them clients, take turns while the credit lasts."""
         out: list[Queued] = []
         blocked: set[tuple[int, str]] = set()
+        first_blocked: tuple[int, str] | None = None
         while self.credit > 0:
             progress = False
             for number in list(self._turns):
@@ -260,9 +261,21 @@ class WriteQueue:
                     if self.credit <= 0:
                         break
                 else:
-                    blocked.add((number, key))  # done for this cycle; first in the next
+                    blocked.add((number, key))  # done for this cycle
+                    if first_blocked is None:
+                        first_blocked = (number, key)
             if not progress:
                 break
+        if first_blocked is not None:
+            # the first client that did not fit has the first turn of the next cycle, so a
+            # batch larger than the budget goes when the credit is full, not never
+            number, key = first_blocked
+            cq = self._channels[number]
+            if key in cq.clients:
+                cq.turns.remove(key)
+                cq.turns.appendleft(key)
+                self._turns.remove(number)
+                self._turns.appendleft(number)
         return out
 
     def _take_head(self, number: int, key: str, rotate: bool = False) -> None:
