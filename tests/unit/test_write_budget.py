@@ -373,3 +373,19 @@ def test_a_batch_larger_than_the_budget_is_not_starved_by_smaller_ones() -> None
     speeds = b.column("MAM_1.Speed")
     assert 77.0 in speeds
     assert speeds.index(77.0) == 1  # blocked in the first cycle, first in the second
+
+
+def test_a_clock_step_behind_a_backlog_is_acknowledged_once_its_own_cycles_ran() -> None:
+    """Budget 2: while a step of 8 runs, A's ten batches and then A's own step of 2 wait
+    their turns; the second step is applied before the sixth cycle and adds its 2 cycles
+    after the 3 left: 10 in all, and its answer comes with the tenth."""
+    b = Bench(budget=2)
+    b.step(8)
+    for k in range(1, 11):
+        b.put(A, ("MAJ_1.Speed", float(k)))
+    second = b.put(A, ("Clock.StepCycles", 2), ("Clock.Step", 0), ("Clock.Step", 1))
+    b.run()
+    assert b.scan.ctl.tick == 10
+    (ack,) = [a for a in b.channels[MODBUS].acks if a.seq == second]
+    assert (ack.tick, ack.result) == (10, wire.Result.APPLIED)
+    assert b.column("MAJ_1.Speed") == [2.0, 4.0, 6.0, 8.0, 10.0] + [10.0] * 5
