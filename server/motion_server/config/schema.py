@@ -174,6 +174,8 @@ class ControllerSection(_Model):
     remote_clock: bool = True
     status_log_interval: Annotated[float, Field(ge=0.0, le=86400.0)] = 10.0
     max_catch_up: Annotated[int, Field(ge=1, le=1000)] = 50
+    #: units of client writes a cycle applies (scan/writes.py); unset: 8 per ms of period
+    write_budget: Annotated[int, Field(ge=1, le=1_000_000)] | None = None
 
 
 #: the kernel's defaults: one definition of every axis field's default

@@ -4,6 +4,13 @@
 fragments, on a ``SOCK_SEQPACKET`` socket) and returns a :class:`Ticket`; the scan
 acknowledges every batch once the image shows it (and, for a ``Clock.Step``, once its
 cycles ran). A front-end awaits the ticket only where the protocol answer must wait.
+
+Flow control: the scan applies only a budget of writes per cycle, the rest waits
+(:mod:`motion_server.scan.writes`). A client (connection) may have
+:data:`IN_FLIGHT_PER_CLIENT` batches unacknowledged; the ticket of one more says it
+``waits``, so its answer waits for the scan and a client that writes faster than its
+share of the budget is slowed down to it, instead of piling up a queue that the scan
+would work through long after.
 """
 
 from __future__ import annotations
@@ -23,6 +30,9 @@ log = logging.getLogger("motion_server.frontends")
 
 #: how long a front-end waits for the scan's WELCOME
 CONNECT_TIMEOUT = 30.0
+#: batches of one client the scan has not acknowledged, beyond which the answer to the
+#: client's next write waits for the scan to apply it
+IN_FLIGHT_PER_CLIENT = 8
 _SEQ_MASK = 0xFFFFFFFF
 
 
@@ -38,11 +48,14 @@ class WriteRefused(TagAccessError):
 class Ticket:
     """One batch on its way to the scan."""
 
-    __slots__ = ("_future", "ack", "seq", "waits")
+    __slots__ = ("_future", "ack", "client", "seq", "waits")
 
-    def __init__(self, seq: int) -> None:
+    def __init__(self, seq: int, client: str = "") -> None:
         self.seq = seq
-        #: the protocol answer waits for the acknowledgement (a Clock.Step)
+        #: the key of the client that wrote it
+        self.client = client
+        #: the protocol answer waits for the acknowledgement (a Clock.Step; a client with
+        #: too many writes in flight)
         self.waits = False
         self.ack: wire.Ack | None = None
         self._future: asyncio.Future[wire.Ack] | None = None
@@ -84,6 +97,8 @@ class ScanLink:
         self.fingerprint = fingerprint
         self._seq = 0
         self._tickets: dict[int, Ticket] = {}
+        #: client key -> its batches not acknowledged yet
+        self._in_flight: dict[str, int] = {}
         self._outbox: deque[bytes] = deque()
         self._welcome: asyncio.Future[int] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -119,8 +134,11 @@ class ScanLink:
         if self.broken:
             raise ScanUnavailable(f"the scan is not reachable ({self.broken})")
         self._seq = (self._seq + 1) & _SEQ_MASK or 1
-        ticket = Ticket(self._seq)
+        ticket = Ticket(self._seq, client.key)
         self._tickets[ticket.seq] = ticket
+        n = self._in_flight.get(ticket.client, 0) + 1
+        self._in_flight[ticket.client] = n
+        ticket.waits = n > IN_FLIGHT_PER_CLIENT
         for packet in wire.encode_batch(wire.Batch(ticket.seq, client, items)):
             self._send(packet)
         return ticket
@@ -184,6 +202,7 @@ class ScanLink:
             ack = wire.decode_ack(data)
             ticket = self._tickets.pop(ack.seq, None)
             if ticket is not None:
+                self._landed(ticket)
                 ticket._resolve(ack)
         elif kind == wire.Kind.WELCOME:
             if welcome is not None and not welcome.done():
@@ -202,7 +221,15 @@ class ScanLink:
             self._loop.remove_reader(self.sock.fileno())
         self._fail_all(ScanUnavailable(why))
 
+    def _landed(self, ticket: Ticket) -> None:
+        n = self._in_flight.get(ticket.client, 0) - 1
+        if n > 0:
+            self._in_flight[ticket.client] = n
+        else:
+            self._in_flight.pop(ticket.client, None)
+
     def _fail_all(self, exc: BaseException) -> None:
+        self._in_flight.clear()
         tickets, self._tickets = self._tickets, {}
         for t in tickets.values():
             t._fail(exc)

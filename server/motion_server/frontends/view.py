@@ -211,8 +211,11 @@ class ImageView:
         # restored; with the manual clock every write is answered once applied (time
         # stands still: a client that then steps the clock through another front-end
         # finds its write in that cycle)
-        ticket.waits = self.mode == ClockMode.MANUAL or any(
-            t.owner == "Clock" and t.field in _ANSWERED_WHEN_DONE for t, _ in staged
+        # (the link may have said so already: a client with too many writes in flight)
+        ticket.waits = (
+            ticket.waits
+            or self.mode == ClockMode.MANUAL
+            or any(t.owner == "Clock" and t.field in _ANSWERED_WHEN_DONE for t, _ in staged)
         )
         for (tag, value), (slot, raw) in zip(staged, items, strict=True):
             old = _typed(tag.type, float(current[slot]))

@@ -18,17 +18,21 @@ Clock modes (simulated time advances exactly one base period per cycle, always):
 - ``realtime``: cycles on an absolute deadline schedule; a late pass runs the missed
   cycles back to back (at most ``max_catch_up``; the rest are dropped and logged) and
   counts every late cycle as an overrun. The period never stretches. Writes wait for the
-  next cycle.
+  next cycle, which applies what its budget allows (:mod:`.writes`: watchdog writes
+  first; the rest waits for the following cycles, in each client's order).
 - ``scaled``: the same at ``scale`` simulated seconds per real second.
-- ``manual``: time stands still; writes apply at once; a rising edge of ``Clock.Step``
-  runs ``Clock.StepCycles`` cycles (in chunks, with packets read in between) and its
-  write is acknowledged once they ran.
+- ``manual``: time stands still; writes apply at once, whatever the budget; a rising edge
+  of ``Clock.Step`` runs ``Clock.StepCycles`` cycles (in chunks, with packets read in
+  between) and its write is acknowledged once they ran; the writes behind it go into
+  those cycles, each taking its budget.
 - ``fast``: cycles back to back as fast as the CPU allows; writes apply at the start of
-  the next cycle, the image is published about every millisecond.
+  the next cycles within their budget, the image is published about every millisecond.
 
 Stopping (:meth:`Scan.request_stop`: SIGINT/SIGTERM, or the supervisor): the programmed
-stop of every group, as a controller does when it leaves run mode, run back to back;
-then the retained state is saved and :attr:`Scan.finished` becomes true.
+stop of every group, as a controller does when it leaves run mode, commanded before any
+write waiting and run back to back (each cycle applies its budget of writes); then the
+writes still waiting are applied, the retained state is saved and :attr:`Scan.finished`
+becomes true.
 """
 
 from __future__ import annotations
@@ -36,7 +40,6 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,6 +65,7 @@ from ..tagmap.judge import Judge
 from . import snapshots
 from .channel import CONTROL, Channel
 from .filler import ImageFiller
+from .writes import BatchCosts, Queued, WriteQueue, default_budget
 
 log = logging.getLogger("motion_server.scan")
 
@@ -160,9 +164,10 @@ class Scan:
         buf = buffer if buffer is not None else bytearray(image_bytes(size))
         self.writer = ImageWriter(buf, size, self.layout.fingerprint)
         self.meta = np.zeros(META_WORDS, dtype=np.int64)
-        # channels and the write queue
+        # channels and the write queue (and the budget of each cycle for it)
         self.channels: dict[int, Channel] = {}
-        self._queue: deque[tuple[Channel, wire.Batch]] = deque()
+        budget = ctl_cfg.write_budget or default_budget(self.period)
+        self.writes = WriteQueue(budget, BatchCosts(self.layout, self.ctl))
         #: batches waiting for their cycles: (channel, sequence, tick to reach)
         self._waiting: list[tuple[Channel, int, int]] = []
         #: acknowledgements that go out with the next publish (an ACK means: the image
@@ -264,8 +269,8 @@ class Scan:
 
     def deliver(self, channel: Channel, batch: wire.Batch) -> None:
         """Queue a batch that did not come through a socket (the in-process runtime)."""
-        self._queue.append((channel, batch))
-        self.queued_writes = len(self._queue)
+        self.writes.put(channel, batch)
+        self.queued_writes = len(self.writes)
 
     @property
     def period(self) -> float:
@@ -484,30 +489,36 @@ class Scan:
         return wake if timer is None else min(wake, timer)
 
     def cycle(self, count: int = 1) -> None:
-        """Run ``count`` cycles now, whatever the clock mode (tests, tools); the writes
-        waiting are applied first and the image is published after each cycle."""
+        """Run ``count`` cycles now, whatever the clock mode (tests, tools); every write
+        waiting is applied first, whatever the budget, and the image is published after
+        each cycle."""
         self._receive()
         if self._job is not None and self._job.done:
             self._finish_snapshot()
         with self.ctl.batch():
             for _ in range(count):
-                self._apply_queued()
+                self._apply_all()
                 self._run_cycle()
                 self._ack_due()
                 self._publish()
         if not count and self._dirty:
-            self._apply_queued()
+            self._apply_all()
             self._publish()
         self._flush()
 
     def _manual(self) -> float | None:
-        self._apply_queued()
+        if not self._pending_cycles:
+            self._apply_at_once()
         if self._pending_cycles:
             n = min(self._pending_cycles, MANUAL_CHUNK)
             with self.ctl.batch():
                 for _ in range(n):
+                    # the writes behind the step go into its cycles, within the budget
+                    self._apply_queued()
+                    if not self._pending_cycles:  # a write left the manual clock
+                        break
                     self._run_cycle()
-            self._pending_cycles -= n
+                    self._pending_cycles -= 1
             self._ack_due()
             self._publish()
             return 0.0  # more to run, or to read: at once
@@ -649,8 +660,8 @@ class Scan:
             elif kind == wire.Kind.WRITE:
                 batch = ch.assembler.feed(data)
                 if batch is not None:
-                    self._queue.append((ch, batch))
-                    self.queued_writes = len(self._queue)
+                    self.writes.put(ch, batch)
+                    self.queued_writes = len(self.writes)
             elif kind == wire.Kind.STOP and ch.number == CONTROL:
                 log.info("stop requested: programmed stop of every group")
                 self.request_stop()
@@ -672,23 +683,55 @@ class Scan:
             return
         ch.welcomed = True
         ch.peer_pid = pid
-        applied = int(self.meta[Meta.APPLIED + ch.number])
+        # the new front-end numbers its batches after the last one received: batches of
+        # the one before it may still wait for their cycle
+        last = self.writes.last_received(ch.number)
+        applied = int(self.meta[Meta.APPLIED + ch.number]) if last is None else last
         ch.send(wire.encode_simple(wire.Kind.WELCOME, str(applied)))
         log.debug("%s front-end (pid %d) connected", ch.name, pid)
 
     def _apply_queued(self) -> None:
-        queue = self._queue
-        self.queued_writes = len(queue)
-        while queue:
-            ch, batch = queue.popleft()
-            self._apply(ch, batch)
+        """Before a cycle: the watchdog writes waiting, then the batches this cycle's
+        budget allows (:mod:`.writes`); the others wait for the next cycle."""
+        writes = self.writes
+        self.queued_writes = len(writes)
+        if writes:
+            for q in writes.take_cycle():
+                self._apply(q)
 
-    def _apply(self, ch: Channel, batch: wire.Batch) -> None:
+    def _apply_at_once(self) -> None:
+        """Time stands still (the manual clock between steps): every batch waiting, in
+        arrival order, whatever the budget, until one asks for cycles (a ``Clock.Step``):
+        the batches behind it go into those cycles, each taking its budget."""
+        writes = self.writes
+        self.queued_writes = len(writes)
+        while not self._pending_cycles:
+            q = writes.take_first()
+            if q is None:
+                return
+            self._apply(q)
+
+    def _apply_all(self) -> None:
+        """Every batch waiting, in arrival order, whatever the budget."""
+        writes = self.writes
+        self.queued_writes = len(writes)
+        for q in writes.take_all():
+            self._apply(q)
+
+    def _settle(self, q: Queued) -> None:
+        """Done with ``q``: the channel's APPLIED word moves past every batch done with."""
+        seq = self.writes.settle(q)
+        if seq is not None:
+            self.meta[Meta.APPLIED + q.channel.number] = seq
+
+    def _apply(self, q: Queued) -> None:
+        ch, batch = q.channel, q.batch
         tags = self.layout.tags
         updates = []
         for slot, value in batch.items:
             if not 0 <= slot < len(tags):
                 log.warning("%s channel: write to slot %d outside the image", ch.name, slot)
+                self._settle(q)
                 self._ack(ch, batch.seq, wire.Result.REFUSED)
                 return
             updates.append((tags[slot], value))
@@ -700,7 +743,7 @@ class Scan:
             self._snapshot_op = None
             log.warning("%s channel: a write refused by the scan: %s", ch.name, exc)
             # done with: the front-end drops the values it laid over the image for it
-            self.meta[Meta.APPLIED + ch.number] = batch.seq
+            self._settle(q)
             self._ack(ch, batch.seq, wire.Result.REFUSED)
             return
         snapshot = self._snapshot_op is not None
@@ -711,7 +754,7 @@ class Scan:
             self.filler.refresh(self._clock_commands)
         self.filler.refresh(t for t, _ in updates)
         self._refill = True
-        self.meta[Meta.APPLIED + ch.number] = batch.seq
+        self._settle(q)
         self.writes_applied += 1
         self._dirty = True
         if snapshot:
@@ -764,11 +807,11 @@ class Scan:
 
     def _stopping(self, now: float) -> float | None:
         limit = int(SHUTDOWN_STOP_LIMIT / self.period)
-        self._apply_queued()
         done = all(s.complete for s in self._stops)
         n = 0
         with self.ctl.batch():
             while not done and self._stop_cycles < limit and n < STOP_CHUNK:
+                self._apply_queued()  # the stop was commanded first: writes never delay it
                 self._run_cycle()
                 self._stop_cycles += 1
                 n += 1
@@ -785,6 +828,7 @@ class Scan:
             )
         else:
             log.warning("programmed stop not complete after %.0f s simulated", SHUTDOWN_STOP_LIMIT)
+        self._apply_all()  # what clients wrote before the end is in the retained state
         self.save_retained()
         self.state = ScanState.STOPPED
         self._refill = True
