@@ -477,3 +477,18 @@ def test_a_stop_that_breaks_the_mdac_ends_the_master_driven_time_cam() -> None:
     master_to(s, 20.0)
     new(s, "MAS", Axis=2, StopType=0)
     assert not inst.outputs["IP"] and not mdac.outputs["IP"]
+
+
+def test_a_group_shutdown_clears_the_cam_bits_too() -> None:
+    s = cam_system()
+    calc(s, 3)
+    calc(s, 6)
+    mapc(s, ExecutionMode=1)
+    mapc(s, ExecutionMode=0, ExecutionSchedule=1)
+    new(s, "MATC", Axis=3, CamProfile=6, ExecutionMode=1)
+    master_to(s, 20.0)
+    assert bit(s, 2, B.POSITION_CAM) and bit(s, 3, B.TIME_CAM)
+    new(s, "MGSD", Group=1)
+    s.cycle()
+    for axis in (2, 3):
+        assert not any(bit(s, axis, MotionStatusBit(b)) for b in (8, 9, 10, 11, 13, 14)), axis
