@@ -57,7 +57,57 @@ class CruiseLane(Lane):
         s.cmd_pos[self.at] = a["base"] + pos
 
 
-class ProfileLane(Lane):
+class PlanLane(Lane):
+    """Profiles sampled from a plan of segments at exact multiples of dt (the trapezoid
+    of :mod:`..trapezoid`, the S-curve of :mod:`..scurve`): the members' cycle counts,
+    the segment each is in, and the sample that ends a plan moved out to its own step.
+    A subclass gives the polynomial of a segment (:meth:`_sample`)."""
+
+    def __init__(self, owner: Any) -> None:
+        super().__init__(owner)
+        self._rows = np.zeros(0, dtype=np.intp)
+
+    def _store(self, p: Process, k: int) -> None:
+        prof = p.profile  # type: ignore[attr-defined]
+        a = self.arrays
+        prof.cycles = int(a["cycles"][k])
+        prof.position = p.position = float(a["pos"][k])
+        prof.velocity = p.velocity = float(a["vel"][k])
+        prof.acceleration = p.acceleration = float(a["acc"][k])
+
+    def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
+        super()._set_members(members, axes)
+        self._rows = np.arange(len(members), dtype=np.intp)
+
+    def _sample(
+        self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position, velocity, acceleration) at ``tau`` into segment ``seg``."""
+        raise NotImplementedError
+
+    def step(self, s: AxisArrays, compose: Compose) -> None:
+        if not self.members:
+            return
+        a = self.arrays
+        cycles = a["cycles"]
+        t = (cycles + 1.0) * a["dt"]
+        ending = t >= a["done"]
+        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
+        cycles += 1.0
+        st = a["start"]
+        seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
+        rows = self._rows
+        pos, vel, acc = self._sample(rows, seg, t - st[rows, seg])
+        a["pos"], a["vel"], a["acc"] = pos, vel, acc
+        at = self.at
+        s.cmd_pos[at] = a["base"] + pos
+        s.cmd_vel[at] = vel
+        s.cmd_acc[at] = acc
+        for ax in movers:
+            compose(ax)
+
+
+class ProfileLane(PlanLane):
     """Trapezoidal jogs and moves within their plan (``TrapezoidProfile.step`` and
     ``Plan.sample``); the sample that ends the plan is the process's own (moved out)."""
 
@@ -78,10 +128,6 @@ class ProfileLane(Lane):
     WIDTHS: ClassVar[dict[str, int]] = {
         f: SEGMENTS for f in ("start", "seg_pos", "seg_vel", "seg_acc", "half")
     }
-
-    def __init__(self, owner: Any) -> None:
-        super().__init__(owner)
-        self._rows = np.zeros(0, dtype=np.intp)
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -110,44 +156,15 @@ class ProfileLane(Lane):
             p.acceleration,
         )
 
-    def _store(self, p: Process, k: int) -> None:
-        assert isinstance(p, JogProcess | MoveProcess)
-        prof = p.profile
-        assert isinstance(prof, TrapezoidProfile)
+    def _sample(
+        self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         a = self.arrays
-        prof.cycles = int(a["cycles"][k])
-        prof.position = p.position = float(a["pos"][k])
-        prof.velocity = p.velocity = float(a["vel"][k])
-        prof.acceleration = p.acceleration = float(a["acc"][k])
-
-    def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
-        super()._set_members(members, axes)
-        self._rows = np.arange(len(members), dtype=np.intp)
-
-    def step(self, s: AxisArrays, compose: Compose) -> None:
-        if not self.members:
-            return
-        a = self.arrays
-        cycles = a["cycles"]
-        t = (cycles + 1.0) * a["dt"]
-        ending = t >= a["done"]
-        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
-        cycles += 1.0
-        st = a["start"]
-        seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
-        rows = self._rows
-        tau = t - st[rows, seg]
         v0 = a["seg_vel"][rows, seg]
         acc = a["seg_acc"][rows, seg]
         pos = a["seg_pos"][rows, seg] + tau * (v0 + tau * a["half"][rows, seg])
         vel = v0 + tau * acc
-        a["pos"], a["vel"], a["acc"] = pos, vel, acc
-        at = self.at
-        s.cmd_pos[at] = a["base"] + pos
-        s.cmd_vel[at] = vel
-        s.cmd_acc[at] = acc
-        for ax in movers:
-            compose(ax)
+        return pos, vel, acc
 
 
 class StopLane(Lane):

@@ -16,23 +16,18 @@ import numpy as np
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..scurve import SEGMENTS, SCurveProfile
-from ..state import AxisArrays
-from .base import Compose, Lane
+from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
 PLAN_FIELDS = ("start", "seg_pos", "seg_vel", "seg_acc", "half", "jerk", "jhalf", "jsixth")
 
 
-class SCurveLane(Lane):
+class SCurveLane(PlanLane):
     """Jerk-limited velocity ramps within their plan, stepped as arrays with the
     operations of ``SCurveProfile.step``, in the same order."""
 
     FIELDS = ("base", "cycles", "dt", "done", *PLAN_FIELDS, "pos", "vel", "acc")
     WIDTHS: ClassVar[dict[str, int]] = dict.fromkeys(PLAN_FIELDS, SEGMENTS)
-
-    def __init__(self, owner: Any) -> None:
-        super().__init__(owner)
-        self._rows = np.zeros(0, dtype=np.intp)
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -70,33 +65,10 @@ class SCurveLane(Lane):
             p.acceleration,
         )
 
-    def _store(self, p: Process, k: int) -> None:
-        assert isinstance(p, JogProcess | MoveProcess | StopRamp)
-        prof = p.profile
-        assert isinstance(prof, SCurveProfile)
+    def _sample(
+        self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         a = self.arrays
-        prof.cycles = int(a["cycles"][k])
-        prof.position = p.position = float(a["pos"][k])
-        prof.velocity = p.velocity = float(a["vel"][k])
-        prof.acceleration = p.acceleration = float(a["acc"][k])
-
-    def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
-        super()._set_members(members, axes)
-        self._rows = np.arange(len(members), dtype=np.intp)
-
-    def step(self, s: AxisArrays, compose: Compose) -> None:
-        if not self.members:
-            return
-        a = self.arrays
-        cycles = a["cycles"]
-        t = (cycles + 1.0) * a["dt"]
-        ending = t >= a["done"]
-        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
-        cycles += 1.0
-        st = a["start"]
-        seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
-        rows = self._rows
-        tau = t - st[rows, seg]
         v0 = a["seg_vel"][rows, seg]
         a0 = a["seg_acc"][rows, seg]
         pos = a["seg_pos"][rows, seg] + tau * (
@@ -104,10 +76,4 @@ class SCurveLane(Lane):
         )
         vel = v0 + tau * (a0 + tau * a["jhalf"][rows, seg])
         acc = a0 + tau * a["jerk"][rows, seg]
-        a["pos"], a["vel"], a["acc"] = pos, vel, acc
-        at = self.at
-        s.cmd_pos[at] = a["base"] + pos
-        s.cmd_vel[at] = vel
-        s.cmd_acc[at] = acc
-        for ax in movers:
-            compose(ax)
+        return pos, vel, acc
