@@ -3,12 +3,14 @@ Execution Schedule, and the Pending hand-over (:mod:`motion_server.kernel.cams`)
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from enum import IntEnum
 
 from ..kernel import Axis, Controller, ErrorCode, MotionError, ProcessKind
 from ..kernel.cam_profile import CamProfile
 from ..kernel.cams import CamProcess, active_cam
 from ..kernel.enums import AbortReason
+from ..kernel.processes import Process
 
 
 class ExecutionSchedule(IntEnum):
@@ -58,3 +60,24 @@ def queue_pending(ctl: Controller, slave: Axis, proc: CamProcess) -> None:
                 p.abort(AbortReason.SUPERSEDED)
         slave.preloaded_cams = [p for p in slave.preloaded_cams if p.active] + [proc]
     slave.motion_changed()
+
+
+def start_cam(
+    ctl: Controller, slave: Axis, build: Callable[[], CamProcess], pending: bool
+) -> CamProcess:
+    """Start the cam ``build`` makes on ``slave``, superimposed on its other motion; a
+    Pending one is queued behind the running cam of its kind (or preloaded) instead, and
+    a cam preloaded on the axis follows the one that starts now."""
+    if pending:
+        proc = build()
+        queue_pending(ctl, slave, proc)
+        return proc
+
+    def make(v: float, a: float) -> Process:
+        p = build()
+        p.successor = take_preloaded(slave, p.kind)
+        return p
+
+    started = ctl.start(slave, make, replace=())
+    assert isinstance(started, CamProcess)
+    return started

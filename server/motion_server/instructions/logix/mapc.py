@@ -54,9 +54,8 @@ from ...kernel.cams import (
 )
 from ...kernel.errors import ErrorCode, MotionError
 from ...kernel.gearing import check_master
-from ...kernel.processes import Process
 from ..base import Gate, gate
-from ..cam_common import ExecutionSchedule, calculated_profile, queue_pending, take_preloaded
+from ..cam_common import ExecutionSchedule, calculated_profile, start_cam
 from ..logix_common import ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
@@ -196,7 +195,7 @@ class MAPC(CamInstruction):
         check_master(ctl, slave, master, source)
         direction = resolve_direction(GearDirection(int(self.op["Direction"])), slave.cam_direction)
 
-        def build(v: float = 0.0, a: float = 0.0) -> CamProcess:
+        def build() -> CamProcess:
             return CamProcess(
                 ctl,
                 profile,
@@ -214,19 +213,7 @@ class MAPC(CamInstruction):
                 owner=self,
             )
 
-        if pending:
-            proc = build()
-            queue_pending(ctl, slave, proc)
-        else:
-
-            def make(v: float, a: float) -> Process:
-                p = build(v, a)
-                p.successor = take_preloaded(slave, ProcessKind.POSITION_CAM)
-                return p
-
-            started = ctl.start(slave, make, replace=())
-            assert isinstance(started, CamProcess)
-            proc = started
+        proc = start_cam(ctl, slave, build, pending)
         slave.cam_direction = direction
         ctl.cams.register(number, proc)
         self.started(proc)

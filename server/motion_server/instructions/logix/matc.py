@@ -39,8 +39,7 @@ from ...kernel import ProcessKind
 from ...kernel.cams import CamMode, CamProcess, MasterDirection, active_cam
 from ...kernel.errors import ErrorCode, MotionError
 from ...kernel.master_driven import MotionType, link_reference
-from ...kernel.processes import Process
-from ..cam_common import ExecutionSchedule, calculated_profile, queue_pending, take_preloaded
+from ..cam_common import ExecutionSchedule, calculated_profile, start_cam
 from ..operands import AXIS
 from ..registry import register
 from ..schema import Operand, TagType
@@ -123,19 +122,7 @@ class MATC(CamInstruction):
                 owner=self,
             )
 
-        if pending:
-            proc = build()
-            queue_pending(ctl, ax, proc)
-        else:
-
-            def make(v: float, a: float) -> Process:
-                p = build()
-                p.successor = take_preloaded(ax, ProcessKind.TIME_CAM)
-                return p
-
-            started = ctl.start(ax, make, replace=())
-            assert isinstance(started, CamProcess)
-            proc = started
+        proc = start_cam(ctl, ax, build, pending)
         ax.cam_direction = direction
         if link is not None:
             link.processes.append(proc)  # the MDAC's AC
