@@ -8,9 +8,10 @@ from enum import IntEnum
 
 from ..kernel import Axis, Controller, ErrorCode, MotionError, ProcessKind
 from ..kernel.cam_profile import CamProfile
-from ..kernel.cams import CamProcess, active_cam
+from ..kernel.cams import MAX_SCALING, CamProcess, active_cam
 from ..kernel.enums import AbortReason
 from ..kernel.processes import Process
+from .base import Instruction
 
 
 class ExecutionSchedule(IntEnum):
@@ -21,6 +22,15 @@ class ExecutionSchedule(IntEnum):
     FORWARD_ONLY = 2
     REVERSE_ONLY = 3
     BIDIRECTIONAL = 4
+
+
+def scaling(inst: Instruction, name: str) -> float:
+    """A scaling operand (MAPC, MATC, MC_CamIn): finite, non-zero, within +-2^31 (ERR /
+    ErrorID 13 naming it)."""
+    v = float(inst.op[name])
+    if not (v != 0.0 and abs(v) <= MAX_SCALING):
+        raise inst.out_of_range(name, f"{name} {v:g} must be non-zero and within +-2^31")
+    return v
 
 
 def calculated_profile(ctl: Controller, number: int) -> CamProfile:

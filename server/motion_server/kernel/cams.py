@@ -97,17 +97,6 @@ class CamPhase(IntEnum):
 MAX_SCALING = 2.0**31
 
 
-def judge_scaling(name: str, value: float) -> float:
-    """A scaling must be finite, non-zero and within +-2^31 (MotionError 13 naming it)."""
-    v = float(value)
-    if not (math.isfinite(v) and v != 0.0 and abs(v) <= MAX_SCALING):
-        raise MotionError(
-            ErrorCode.PARAMETER_OUT_OF_RANGE,
-            f"{name} {value!r} must be finite, non-zero and within +-2^31",
-        )
-    return v
-
-
 class CamProcess(Process):
     """One cam on a slave (see the module docstring).
 

@@ -45,7 +45,6 @@ from typing import ClassVar
 
 from ...kernel import MasterReference, ProcessKind
 from ...kernel.cams import (
-    MAX_SCALING,
     CamMode,
     CamProcess,
     LockDirection,
@@ -55,7 +54,7 @@ from ...kernel.cams import (
 from ...kernel.errors import ErrorCode, MotionError
 from ...kernel.gearing import check_master
 from ..base import Gate, gate
-from ..cam_common import ExecutionSchedule, calculated_profile, start_cam
+from ..cam_common import ExecutionSchedule, calculated_profile, scaling, start_cam
 from ..logix_common import ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
@@ -72,14 +71,6 @@ LOCKS = {
 }
 
 SEGMENT = StatusField("SEGMENT", TagType.DINT, "profile segment the cam is in (0-based)")
-
-
-def scaling(inst: ProcessInstruction, name: str) -> float:
-    """A scaling operand: finite, non-zero, within +-2^31 (ERR 13 naming it)."""
-    v = float(inst.op[name])
-    if not (v != 0.0 and abs(v) <= MAX_SCALING):
-        raise inst.out_of_range(name, f"{name} {v:g} must be non-zero and within +-2^31")
-    return v
 
 
 class CamInstruction(ProcessInstruction):

@@ -39,12 +39,12 @@ from ...kernel import ProcessKind
 from ...kernel.cams import CamMode, CamProcess, MasterDirection, active_cam
 from ...kernel.errors import ErrorCode, MotionError
 from ...kernel.master_driven import MotionType, link_reference
-from ..cam_common import ExecutionSchedule, calculated_profile, start_cam
+from ..cam_common import ExecutionSchedule, calculated_profile, scaling, start_cam
 from ..operands import AXIS
 from ..registry import register
 from ..schema import Operand, TagType
 from .mag import DIRECTION, GearDirection, resolve_direction
-from .mapc import CamInstruction, scaling
+from .mapc import CamInstruction
 from .mccp import CAM_PROFILE
 
 

@@ -47,9 +47,10 @@ from enum import IntEnum
 from typing import Any
 
 from ...kernel import MotionError
-from ...kernel.cams import MAX_SCALING, CamMode, CamProcess
+from ...kernel.cams import CamMode, CamProcess
 from ...kernel.gearing import check_master
 from ...kernel.processes import Process
+from ..cam_common import scaling
 from ..plcopen_common import BUFFER_MODE, MCSource, MotionBlock
 from ..registry import register
 from ..schema import Operand, Quantity, StatusField, TagType
@@ -126,12 +127,6 @@ class MC_CamIn(MotionBlock):
         super().__init__(*args, **kwargs)
         self._passes = 0
 
-    def _scaling(self, name: str) -> float:
-        v = float(self.op[name])
-        if not (v != 0.0 and abs(v) <= MAX_SCALING):
-            raise self.out_of_range(name, f"{name} {v:g} must be non-zero and within +-2^31")
-        return v
-
     def execute(self) -> None:
         ctl = self.ctl
         slave = self.axis("Slave")
@@ -145,8 +140,8 @@ class MC_CamIn(MotionBlock):
             raise self.out_of_range(
                 "CamTableID", f"no cam table selected as {self.op['CamTableID']}"
             ) from None
-        ms = self._scaling("MasterScaling")
-        ss = self._scaling("SlaveScaling")
+        ms = scaling(self, "MasterScaling")
+        ss = scaling(self, "SlaveScaling")
         mo = float(self.op["MasterOffset"])
         so = float(self.op["SlaveOffset"])
         prof = sel.profile
