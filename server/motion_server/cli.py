@@ -17,7 +17,7 @@ from typing import Any, NoReturn
 
 from pydantic import ValidationError
 
-from . import __version__, config
+from . import __version__, config, probe
 from .cli_bench import add_commands
 from .config.assembly import RETAIN_HINT, assemble, describe
 from .launch import setup_logging
@@ -305,6 +305,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _run_options(chk)
     chk.set_defaults(func=cmd_check)
+    pr = sub.add_parser(
+        "probe",
+        help="readiness or liveness of a server started with --ready-file (an exec probe)",
+    )
+    probe.add_arguments(pr)
+    pr.set_defaults(func=probe.run)
     add_commands(sub)
     return p
 
