@@ -4,8 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint typecheck unit bench maps tools node-tools clean test-container \
-	test-compose
+.PHONY: run test lint typecheck unit bench maps tools node-tools kube-tools clean \
+	test-container test-compose
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -28,7 +28,7 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-test: lint typecheck tools node-tools
+test: lint typecheck tools node-tools kube-tools
 	$(BIN)/pytest -q
 
 # mbpoll: the Modbus client that is not Python, for the interop tests (Debian package;
@@ -37,6 +37,22 @@ tools:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll) \
 		>/dev/null 2>&1 || echo "note: mbpoll not installed; its interop test will be skipped"; }
+
+# kubectl: renders the Kubernetes manifests offline (`kubectl kustomize`) for
+# tests/deploy. When missing and we are root: the Kubernetes project's apt repository,
+# pinned to a minor release (Debian bookworm's kubernetes-client is 1.20, whose kustomize
+# is too old for these manifests). Without it the manifest tests are skipped, and say so.
+KUBE_MINOR := v1.32
+KUBE_REPO  := https://pkgs.k8s.io/core:/stable:/$(KUBE_MINOR)/deb/
+KUBE_KEY   := /etc/apt/keyrings/kubernetes-$(KUBE_MINOR).asc
+kube-tools:
+	@command -v kubectl >/dev/null 2>&1 || command -v kustomize >/dev/null 2>&1 \
+		|| { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+		&& (mkdir -p /etc/apt/keyrings && curl -fsSL -o $(KUBE_KEY) $(KUBE_REPO)Release.key \
+		&& echo "deb [signed-by=$(KUBE_KEY)] $(KUBE_REPO) /" \
+		> /etc/apt/sources.list.d/kubernetes-$(KUBE_MINOR).list && apt-get update -qq \
+		&& DEBIAN_FRONTEND=noninteractive apt-get install -y -qq kubectl) >/dev/null 2>&1 \
+		|| echo "note: kubectl not installed; the Kubernetes manifest tests will be skipped"; }
 
 # node-opcua: the OPC UA client that is not Python, for the interop test. `npm ci` from the
 # lock file when node_modules is missing or older than the lock (quiet; when it cannot run,
