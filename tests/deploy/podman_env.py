@@ -16,8 +16,12 @@ from __future__ import annotations
 import os
 import resource
 import shutil
+import stat
 import subprocess
 from pathlib import Path
+from typing import Any
+
+import yaml
 
 from .kube import ROOT
 
@@ -40,6 +44,19 @@ RUN set -eu; \\
     rm -rf "$dest"; mv /tmp/motion_server "$dest"
 USER motion
 """
+
+
+def give_to_group(root: Path, group: int) -> None:
+    """What the kubelet does to a volume for a pod's ``fsGroup``: every file the group's,
+    readable and writable by it, directories set-group-ID (new files stay the group's)."""
+    for path in [root, *root.rglob("*")]:
+        os.chown(path, -1, group, follow_symlinks=False)
+        if path.is_symlink():
+            continue
+        mode = path.stat().st_mode | stat.S_IRGRP | stat.S_IWGRP
+        if path.is_dir():
+            mode |= stat.S_IXGRP | stat.S_ISGID
+        path.chmod(mode)
 
 
 class Unavailable(Exception):
@@ -122,6 +139,30 @@ class Podman:
             "-t", TEST_IMAGE, str(context),
         )  # fmt: skip
         return TEST_IMAGE
+
+    def play(self, path: Path, docs: list[dict[str, Any]], start: bool) -> None:
+        """``podman kube play`` the pods of ``docs`` (written to ``path``), then give each
+        claim's volume to the pod's ``fsGroup`` as the kubelet does (group-owned,
+        group-writable, set-group-ID: podman 4.3 ignores ``fsGroup``), then start them;
+        without ``start`` the pods are only created.
+        The containers are initialised first: podman copies the image's directory (its
+        owner and mode) onto an empty volume when it first mounts it, which would undo
+        the group's."""
+        path.write_text(yaml.safe_dump_all(docs, sort_keys=False), "utf-8")
+        self.run("kube", "play", "--start=false", str(path))
+        for pod in docs:
+            if pod["kind"] != "Pod" or not start:
+                continue
+            group = pod["spec"].get("securityContext", {}).get("fsGroup")
+            if group is not None:  # podman copies the image's directory onto an empty
+                for container in pod["spec"]["containers"]:  # volume when it mounts it
+                    self.run("init", f"{pod['metadata']['name']}-{container['name']}")
+            for volume in pod["spec"]["volumes"]:
+                claim = volume.get("persistentVolumeClaim", {}).get("claimName")
+                if group is not None and claim:
+                    out = self.run("volume", "inspect", "--format", "{{.Mountpoint}}", claim)
+                    give_to_group(Path(out.stdout.strip()), int(group))
+            self.run("pod", "start", pod["metadata"]["name"])
 
     def secret(self, name: str, data: dict[str, str]) -> None:
         """A Secret that pods reach by ``secretName``: podman 4.3 reads its data as the

@@ -172,8 +172,14 @@ def test_pods_run_unprivileged_on_a_read_only_root(
 ) -> None:
     for sts in of_kind(rendered[overlay], "StatefulSet"):
         pod = sts["spec"]["template"]["spec"]
-        assert pod["securityContext"]["runAsNonRoot"] is True
-        assert pod["securityContext"]["runAsUser"] == 10001, "the image's user motion"
+        if overlay == "realtime":  # root: added capabilities reach no other user
+            assert pod["securityContext"]["runAsNonRoot"] is False
+            assert pod["securityContext"]["runAsUser"] == 0
+        else:
+            assert pod["securityContext"]["runAsNonRoot"] is True
+            assert pod["securityContext"]["runAsUser"] == 10001, "the image's user motion"
+        # the data volume is the image's group's, writable by it, whoever the user
+        assert pod["securityContext"]["runAsGroup"] == pod["securityContext"]["fsGroup"] == 10001
         assert pod["securityContext"]["seccompProfile"]["type"] == "RuntimeDefault"
         for key in ("hostNetwork", "hostPID", "hostIPC"):
             assert not pod.get(key)
@@ -354,9 +360,7 @@ def test_podman_creates_the_plant_pods_as_written(
 ) -> None:
     """podman plays the pods of the plant, not started; inspect shows the manifests'
     user, read-only root, no capability, Guaranteed resources, volumes and liveness."""
-    play = podman.work / "plant.yaml"
-    play.write_text(dump_yaml(podman_pods(rendered["plant"], test_image)), "utf-8")
-    podman.run("kube", "play", "--start=false", str(play))
+    podman.play(podman.work / "plant.yaml", podman_pods(rendered["plant"], test_image), False)
     try:
         for site in PLANT_SITES:
             pod = f"motion-server-{site}-0"
@@ -380,18 +384,57 @@ def test_podman_creates_the_plant_pods_as_written(
         podman.run("volume", "rm", "--all", "--force", check=False)
 
 
-def test_podman_realtime_pod_has_exactly_the_two_capabilities(
+#: CAP_IPC_LOCK (14) and CAP_SYS_NICE (23), as /proc/PID/status shows capability sets
+REALTIME_CAP_MASK = (1 << 14) | (1 << 23)
+
+
+@pytest.mark.slow
+def test_podman_realtime_pod_runs_with_exactly_the_two_capabilities(
     podman: Podman, test_image: str, rendered: dict[str, list[Doc]]
 ) -> None:
-    play = podman.work / "realtime.yaml"
-    play.write_text(dump_yaml(podman_pods(rendered["realtime"], test_image)), "utf-8")
-    podman.run("kube", "play", "--start=false", str(play))
+    """The real-time pod starts and serves, its server holding SYS_NICE and IPC_LOCK
+    and nothing else, as root (the user added capabilities reach)."""
+    names = ("modbus", "opcua", "web", "ethernetip")
+    ports = {"motion-server": {n: free_port() for n in names}}
+    pods = podman_pods(rendered["realtime"], test_image, ports)
+    podman.play(podman.work / "realtime.yaml", pods, True)
+    container = "motion-server-0-controller"
     try:
-        data = inspect(podman, "motion-server-0-controller")
+        data = inspect(podman, container)
         assert sorted(data["EffectiveCaps"]) == ["CAP_IPC_LOCK", "CAP_SYS_NICE"]
+        ready = wait_ready(podman, container)
+        assert ready.returncode == 0, ready.stderr + podman_logs(podman, container)
+        status = podman.run("exec", container, "cat", "/proc/1/status").stdout
+        fields = dict(line.split(":", 1) for line in status.splitlines() if ":" in line)
+        assert fields["Uid"].split()[0] == "0"
+        assert int(fields["CapEff"], 16) == REALTIME_CAP_MASK
+        assert int(fields["CapPrm"], 16) == REALTIME_CAP_MASK
+        assert int(fields["CapBnd"], 16) == REALTIME_CAP_MASK
+        live = podman.run(*probe_command(container), "--live", check=False)
+        assert live.returncode == 0, live.stderr
     finally:
-        podman.run("pod", "rm", "--all", "--force", check=False)
+        podman.run("pod", "rm", "--all", "--force", "--time", "10", check=False)
         podman.run("volume", "rm", "--all", "--force", check=False)
+
+
+def probe_command(container: str) -> list[str]:
+    """``podman exec`` of the manifests' probe in ``container`` (append --ready/--live)."""
+    return ["exec", container, "python", "-m", "motion_server.probe",
+            "--ready-file", "/run/motion-server/ready.json"]  # fmt: skip
+
+
+def wait_ready(podman: Podman, container: str, timeout: float = 180) -> Any:
+    """The readiness probe, until it passes or ``timeout`` s are up (its last result)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        ready = podman.run(*probe_command(container), "--ready", check=False)
+        if ready.returncode == 0 or time.monotonic() > deadline:
+            return ready
+        time.sleep(1)
+
+
+def podman_logs(podman: Podman, container: str) -> str:
+    return "\n" + podman.run("logs", container, check=False).stderr[-3000:]
 
 
 def free_port() -> int:
@@ -425,9 +468,7 @@ def test_podman_runs_two_controllers_and_a_client_reads_both(
     # hostPort on the same host port, so two pods would collide
     names = ("modbus", "opcua", "web", "ethernetip")
     ports = {f"motion-server-{s}": {n: free_port() for n in names} for s in two}
-    play = podman.work / "two.yaml"
-    play.write_text(dump_yaml(podman_pods(docs, test_image, ports)), "utf-8")
-    podman.run("kube", "play", str(play))
+    podman.play(podman.work / "two.yaml", podman_pods(docs, test_image, ports), True)
     try:
         for site in two:
             sts = f"motion-server-{site}"
@@ -454,18 +495,11 @@ def test_podman_runs_two_controllers_and_a_client_reads_both(
             name = re.search(r'^name = "(\w+)"', text, re.M).group(1)  # type: ignore[union-attr]
             # the probes of the manifests pass inside the pod, on its own site map
             container = f"{sts}-0-controller"
-            probe_cmd = ["exec", container, "python", "-m", "motion_server.probe",
-                         "--ready-file", "/run/motion-server/ready.json"]  # fmt: skip
-            deadline = time.monotonic() + 120
-            while True:  # OPC UA listens seconds after Modbus: ready means both
-                ready = podman.run(*probe_cmd, "--ready", check=False)
-                if ready.returncode == 0 or time.monotonic() > deadline:
-                    break
-                time.sleep(1)
-            assert ready.returncode == 0, ready.stderr
+            ready = wait_ready(podman, container)  # OPC UA listens seconds after Modbus
+            assert ready.returncode == 0, ready.stderr + podman_logs(podman, container)
             assert ready.stdout.startswith(f"ready: {name} ")
             assert "modbus 5020, opcua 4840" in ready.stdout
-            live = podman.run(*probe_cmd, "--live", check=False)
+            live = podman.run(*probe_command(container), "--live", check=False)
             assert live.returncode == 0, live.stderr
             assert re.match(r"live: \d+ cycles in 0\.6 s", live.stdout)
         # a stop is the programmed stop, and the retained state lands on the claim
