@@ -12,6 +12,8 @@ more: an ``emptyDir`` becomes a named volume shared by every pod that uses the s
 volume name (Kubernetes gives each pod its own), so each pod's are renamed after the pod;
 and podman publishes every container port on the host (on the same port number when the
 manifest gives no ``hostPort``), so pods that run are given host ports of their own.
+A third, podman's disregard of ``fsGroup`` for the claim volumes, is bridged where the
+pods are started (:meth:`tests.deploy.podman_env.Podman.play`).
 """
 
 from __future__ import annotations

@@ -476,7 +476,6 @@ def test_podman_runs_two_controllers_and_a_client_reads_both(
             map_json = tmp_path / f"{site}.json"
             done = subprocess.run(
                 [sys.executable, "-m", "motion_server.cli", "map", "-o", str(map_json)],
-                input=None,
                 capture_output=True,
                 text=True,
                 env={
@@ -510,7 +509,7 @@ def test_podman_runs_two_controllers_and_a_client_reads_both(
             assert state["ExitCode"] == 0, state
             volume = json.loads(podman.run("volume", "inspect", f"data-{pod}").stdout)[0]
             retain = json.loads((Path(volume["Mountpoint"]) / "retain.json").read_text())
-            assert retain, "a retain file"
+            assert retain["format"].startswith("motion-server-retain"), retain.get("format")
     finally:
         podman.run("pod", "rm", "--all", "--force", "--time", "10", check=False)
         podman.run("volume", "rm", "--all", "--force", check=False)
