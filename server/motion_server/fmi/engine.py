@@ -1,0 +1,188 @@
+"""The controller behind an FMU: the scan in this process, stepped by the master.
+
+:class:`CoSimController` holds a :class:`~motion_server.runtime.Runtime` (the very scan,
+image and judged write queue the server runs, with no scan process and no socket) on the
+manual clock, and does what an FMI Co-Simulation slave does:
+
+- the master sets inputs: the values are kept, nothing is written yet;
+- ``do_step(t, h)``: the inputs changed since the last step go to the image as one write
+  batch (judged like a client's: words before bits, so a trigger sees the operands set
+  with it), then the cycles that fit in ``h`` run, then the outputs are read from the
+  published image. That is exactly what a Modbus client does with the manual clock:
+  write the tags, then ``Clock.Step`` with ``Clock.StepCycles`` = n; the traces are bit
+  for bit the same;
+- the master gets outputs: values of the last published cycle.
+
+Step sizes: a step that is a whole number of base periods (within 1e-9 of one period)
+runs that many cycles. Any other step is **carried over**: the cycles that fit run and the
+remainder is added to the next step, so simulated time never drifts from the master's by
+a period or more; the first such step is logged as a warning through the FMU's logger,
+the later ones at ``ok`` status. A step that is negative or not finite is refused
+(``do_step`` returns False: fmi2Discard / the FMI 3.0 status error).
+
+A value the tag map refuses (out of the tag's type range, a NaN) is not written: the
+FMU's logger names the variable and the reason, and the other inputs of that step are
+written all the same. Nothing the master sets can crash the scan or move an axis that an
+equal Modbus write would not move.
+
+This module imports no FMI builder: the scripts shipped inside the FMU (:mod:`.slave2`,
+:mod:`.slave3`) adapt it to pythonfmu and pythonfmu3.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from enum import IntEnum
+from typing import Any
+
+from .. import config
+from ..config import SiteMap
+from ..runtime import Runtime
+from ..tagmap import ClockMode, TagAccessError
+from .variables import Causality, Kind, Variable, fmu_variables
+
+#: how close to a whole number of periods a step must be to count as one
+WHOLE_TOLERANCE = 1e-9
+_U32 = 1 << 32
+
+
+class LogLevel(IntEnum):
+    """The FMI status a log message is given (FMI 2.0 and 3.0 share the numbers)."""
+
+    OK = 0
+    WARNING = 1
+    ERROR = 3
+
+
+Logger = Callable[[str, LogLevel], None]
+
+
+def _no_log(message: str, level: LogLevel) -> None:
+    return None
+
+
+def site_for_fmu(text: str, source: str) -> SiteMap:
+    """The site map as the FMU runs it: parsed without the environment's settings (the
+    FMU runs the same wherever it is imported), manual clock, no retained state, no audit
+    log (the FMU writes no files)."""
+    site = config.parse(text, source, environ={})
+    return site.model_copy(
+        update={
+            "controller": site.controller.model_copy(update={"clock": "manual"}),
+            "retain": site.retain.model_copy(update={"enabled": False}),
+            "audit": site.audit.model_copy(update={"enabled": False}),
+        }
+    )
+
+
+class CoSimController:
+    """One controller instance of the FMU (see the module docstring)."""
+
+    def __init__(self, site: SiteMap, log: Logger = _no_log) -> None:
+        self.site = site
+        self.log = log
+        self.runtime = Runtime(site, fresh=True)
+        self.runtime.set_mode(ClockMode.MANUAL)
+        view = self.runtime.image
+        self.view = view
+        slots = {t.name: i for i, t in enumerate(view.layout.tags)}
+        self.variables: list[Variable] = fmu_variables(view.map, slots)
+        self.by_name = {v.name: i for i, v in enumerate(self.variables)}
+        self.period = self.runtime.period
+        self._values = view.values().copy()
+        #: the inputs as the master set them (value reference -> value), and as written
+        self._inputs: dict[int, Any] = {}
+        self._written: dict[int, Any] = {}
+        for vr, var in enumerate(self.variables):
+            if var.causality == Causality.INPUT:
+                value = view.typed(var.slot, float(self._values[var.slot]))
+                self._inputs[vr] = value
+                self._written[vr] = value
+        #: the part of a period carried over from steps that were not whole periods
+        self.carry = 0.0
+        self._carry_warned = False
+        self.cycles = 0
+
+    # -- values ---------------------------------------------------------------------------
+    def get(self, vr: int) -> Any:
+        """The value of variable ``vr``: an input as set, else as of the last cycle."""
+        var = self.variables[vr]
+        if var.causality == Causality.INPUT:
+            return self._inputs[vr]
+        raw = float(self._values[var.slot])
+        if var.kind == Kind.BOOLEAN:
+            return raw != 0.0
+        if var.kind == Kind.REAL:
+            return raw
+        return int(raw)
+
+    def set(self, vr: int, value: Any) -> None:
+        """Set input ``vr`` (written to the image at the next step)."""
+        var = self.variables[vr]
+        if var.causality != Causality.INPUT:
+            if value == self.get(vr):
+                return
+            message = f"{var.name} is fixed by the site map ({self.get(vr)!r}), not {value!r}"
+            self.log(message, LogLevel.ERROR)
+            raise ValueError(message)
+        if var.kind == Kind.INTEGER and var.unsigned32 and int(value) < 0:
+            value = int(value) + _U32
+        self._inputs[vr] = value
+
+    # -- time -----------------------------------------------------------------------------
+    def cycles_for(self, step: float) -> int | None:
+        """The cycles a step of ``step`` seconds runs (carry-over included), or None for a
+        step that cannot be taken."""
+        if not math.isfinite(step) or step < 0.0:
+            self.log(f"step of {step!r} s refused: not a finite, non-negative time", LogLevel.ERROR)
+            return None
+        periods = self.carry + step / self.period
+        whole = round(periods)
+        if abs(periods - whole) <= WHOLE_TOLERANCE:
+            self.carry = 0.0
+            return int(whole)
+        count = math.floor(periods)
+        self.carry = periods - count
+        message = (
+            f"step of {step!r} s is not a whole number of {self.period!r} s periods: "
+            f"{count} cycles run, {self.carry * self.period:.9g} s carried over to the next step"
+        )
+        self.log(message, LogLevel.OK if self._carry_warned else LogLevel.WARNING)
+        self._carry_warned = True
+        return int(count)
+
+    def do_step(self, step: float) -> bool:
+        """Write the changed inputs, run the cycles of ``step`` seconds, read the outputs."""
+        count = self.cycles_for(step)
+        if count is None:
+            return False
+        self.write_inputs()
+        if count:
+            self.runtime.cycle(count)
+            self.cycles += count
+        self._values = self.view.values().copy()
+        return True
+
+    def write_inputs(self) -> None:
+        changed = [vr for vr, v in self._inputs.items() if v != self._written[vr]]
+        if not changed:
+            return
+        updates = [(self.variables[vr].tag, self._inputs[vr]) for vr in changed]
+        try:
+            self.view.write_many(updates)
+        except (TagAccessError, ValueError, TypeError, OverflowError):
+            # one refused value refuses the batch: write them one by one to name it
+            for vr in changed:
+                var = self.variables[vr]
+                try:
+                    self.view.write(var.tag, self._inputs[vr])
+                except (TagAccessError, ValueError, TypeError, OverflowError) as exc:
+                    message = f"{var.name} = {self._inputs[vr]!r} not written: {exc}"
+                    self.log(message, LogLevel.ERROR)
+        for vr in changed:
+            self._written[vr] = self._inputs[vr]
+
+    def close(self) -> None:
+        """Nothing to save (no retained state); drop the scan."""
+        self._inputs.clear()
