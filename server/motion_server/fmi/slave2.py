@@ -59,7 +59,7 @@ class MotionServerFmu2(Fmi2Slave):
             variability=variability,
             description=var.description,
             getter=getter,
-            initial=Fmi2Initial.exact,
+            initial=None if var.causality == Causality.INPUT else Fmi2Initial.exact,
             setter=setter,
         )
 

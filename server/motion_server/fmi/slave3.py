@@ -67,7 +67,7 @@ class MotionServerFmu3(Fmi3Slave):
             variability=variability,
             description=var.description,
             getter=getter,
-            initial=Fmi3Initial.exact,
+            initial=None if var.causality == Causality.INPUT else Fmi3Initial.exact,
             setter=setter,
         )
 
