@@ -18,7 +18,7 @@ runs that many cycles. Any other step is **carried over**: the cycles that fit r
 remainder is added to the next step, so simulated time never drifts from the master's by
 a period or more; the first such step is logged as a warning through the FMU's logger,
 the later ones at ``ok`` status. A step that is negative or not finite is refused
-(``do_step`` returns False: fmi2Discard / the FMI 3.0 status error).
+(``do_step`` returns False: the wrappers answer fmi2Discard / fmi3Discard).
 
 A value the tag map refuses (out of the tag's type range, a NaN) is not written: the
 FMU's logger names the variable and the reason, and the other inputs of that step are
