@@ -182,7 +182,7 @@ def cmd_fmu(args: argparse.Namespace) -> int:
     from .fmi.build import FmuBuildError, build_fmu
 
     try:
-        out = build_fmu(args.map, args.output, args.fmi)
+        out = build_fmu(args.map, args.output, args.fmi, args.serve)
     except FmuBuildError as exc:
         raise SystemExit(f"motion-server: {exc}") from None
     log.info("FMI %d.0 Co-Simulation FMU written to %s", args.fmi, out)
@@ -310,6 +310,12 @@ def build_parser() -> argparse.ArgumentParser:
     fmu.add_argument("map", nargs="?", help="site map (TOML); the demo map when left out")
     fmu.add_argument("-o", "--output", required=True, help="the FMU file to write (NAME.fmu)")
     fmu.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    fmu.add_argument(
+        "--serve",
+        action="store_true",
+        help="the site map's front-ends (Modbus, OPC UA) serve the controller while a "
+        "master steps the FMU",
+    )
     fmu.set_defaults(func=cmd_fmu)
     hp = sub.add_parser(
         "hash-password",

@@ -89,4 +89,4 @@ def test_the_site_map_travels_in_the_fmu(demo_fmu2: Path) -> None:
         names = set(z.namelist())
         info = json.loads(z.read("resources/motion_fmu.json"))
     assert {"resources/site.toml", "resources/slave2.py", "modelDescription.xml"} <= names
-    assert info == {"model": "demo2", "source": "<embedded demo.toml>"}
+    assert info == {"model": "demo2", "source": "<embedded demo.toml>", "serve": False}

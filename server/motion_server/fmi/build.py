@@ -21,6 +21,7 @@ from pathlib import Path
 from .. import config
 from ..config.loading import DEMO_MAP
 from ..tagmap import TagMapError, build_tagmap
+from .serving import SERVE_NEEDS
 from .shipped import model_identifier, write_shipped
 
 #: the builder package of each FMI version, and the pinned version it was tested with
@@ -48,8 +49,11 @@ def site_source(path: str | Path | None) -> tuple[str, str]:
     return text, source
 
 
-def build_fmu(site_map: str | Path | None, output: str | Path, fmi: int = 2) -> Path:
-    """Build the FMU of ``site_map`` (None: the demo) into ``output`` (a ``.fmu`` file)."""
+def build_fmu(
+    site_map: str | Path | None, output: str | Path, fmi: int = 2, serve: bool = False
+) -> Path:
+    """Build the FMU of ``site_map`` (None: the demo) into ``output`` (a ``.fmu`` file);
+    ``serve``: its front-ends serve the controller while a master steps it."""
     if fmi not in BUILDERS:
         raise FmuBuildError(f"--fmi must be 2 or 3, not {fmi}")
     package, version = BUILDERS[fmi]
@@ -64,13 +68,15 @@ def build_fmu(site_map: str | Path | None, output: str | Path, fmi: int = 2) -> 
     if out.suffix != ".fmu":
         raise FmuBuildError(f"{out}: the output must be a .fmu file")
     text, source = site_source(site_map)
+    if serve and config.parse(text, source, environ={}).controller.remote_clock:
+        raise FmuBuildError(SERVE_NEEDS)
     model = model_identifier(out.stem)
     script = resources.files("motion_server.fmi").joinpath(SCRIPTS[fmi])
     with tempfile.TemporaryDirectory(prefix="motion_fmu_") as tmp:
         folder = Path(tmp)
         script_file = folder / SCRIPTS[fmi]
         script_file.write_text(script.read_text("utf-8"), "utf-8")
-        project = write_shipped(folder, model, source, text)
+        project = write_shipped(folder, model, source, text, serve)
         built_dir = folder / "built"
         built = Path(builder.build_FMU(script_file, dest=built_dir, project_files=project))
         try:

@@ -40,6 +40,7 @@ from .. import config
 from ..config import SiteMap
 from ..runtime import Runtime
 from ..tagmap import ClockMode, TagAccessError
+from .serving import SERVE_NEEDS, ServedRuntime, ServeError
 from .variables import Causality, Kind, Variable, fmu_variables
 
 #: how close to a whole number of periods a step must be to count as one
@@ -77,13 +78,18 @@ def site_for_fmu(text: str, source: str) -> SiteMap:
 
 
 class CoSimController:
-    """One controller instance of the FMU (see the module docstring)."""
+    """One controller instance of the FMU (see the module docstring). ``serve``: the
+    site map's front-ends serve the image while the master steps (:mod:`.serving`)."""
 
-    def __init__(self, site: SiteMap, log: Logger = _no_log) -> None:
+    def __init__(self, site: SiteMap, log: Logger = _no_log, serve: bool = False) -> None:
         self.site = site
         self.log = log
         self.runtime = Runtime(site, fresh=True)
         self.runtime.set_mode(ClockMode.MANUAL)
+        self.served: ServedRuntime | None = None
+        #: serve from the first step on (not when a builder instantiates the slave to
+        #: write the model description)
+        self._serve = serve
         view = self.runtime.image
         self.view = view
         slots = {t.name: i for i, t in enumerate(view.layout.tags)}
@@ -157,12 +163,31 @@ class CoSimController:
         count = self.cycles_for(step)
         if count is None:
             return False
+        if self._serve:
+            self.start_serving()
+        if self.served is not None:
+            self.served.call(lambda: self._step(count))
+        else:
+            self._step(count)
+        return True
+
+    def start_serving(self) -> None:
+        """Start the front-ends (once; :class:`ServeError` when they cannot listen, or
+        when the site map lets clients step the clock)."""
+        self._serve = False
+        if self.site.controller.remote_clock:
+            raise ServeError(SERVE_NEEDS)
+        self.served = ServedRuntime(self.runtime)
+        port = self.served.modbus_port
+        where = f"Modbus TCP on port {port}" if port is not None else "no Modbus"
+        self.log(f"front-ends serving the FMU's controller: {where}", LogLevel.OK)
+
+    def _step(self, count: int) -> None:
         self.write_inputs()
         if count:
             self.runtime.cycle(count)
             self.cycles += count
         self._values = self.view.values().copy()
-        return True
 
     def write_inputs(self) -> None:
         changed = [vr for vr, v in self._inputs.items() if v != self._written[vr]]
@@ -184,5 +209,8 @@ class CoSimController:
             self._written[vr] = self._inputs[vr]
 
     def close(self) -> None:
-        """Nothing to save (no retained state); drop the scan."""
-        self._inputs.clear()
+        """Nothing to save (no retained state); a served controller stops its groups
+        (the programmed stop) and closes its front-ends."""
+        if self.served is not None:
+            self.served.stop()
+            self.served = None

@@ -27,6 +27,8 @@ class Shipped:
     model: str
     source: str
     site_text: str
+    #: the site map's front-ends serve the controller while the master steps it
+    serve: bool = False
 
 
 def model_identifier(stem: str) -> str:
@@ -39,19 +41,22 @@ def read_shipped(resources: str | Path) -> Shipped:
     folder = Path(resources)
     info = json.loads((folder / INFO_FILE).read_text("utf-8"))
     text = (folder / SITE_FILE).read_text("utf-8")
-    return Shipped(str(info["model"]), str(info["source"]), text)
+    return Shipped(str(info["model"]), str(info["source"]), text, bool(info.get("serve")))
 
 
-def write_shipped(folder: Path, model: str, source: str, site_text: str) -> list[Path]:
+def write_shipped(
+    folder: Path, model: str, source: str, site_text: str, serve: bool = False
+) -> list[Path]:
     """Write the resources files into ``folder``; the paths written."""
     site = folder / SITE_FILE
     site.write_text(site_text, "utf-8")
     info = folder / INFO_FILE
-    info.write_text(json.dumps({"model": model, "source": source}, indent=2) + "\n", "utf-8")
+    fields = {"model": model, "source": source, "serve": serve}
+    info.write_text(json.dumps(fields, indent=2) + "\n", "utf-8")
     return [site, info]
 
 
 def controller_from(resources: str | Path, log: Logger) -> tuple[Shipped, CoSimController]:
     shipped = read_shipped(resources)
     site = site_for_fmu(shipped.site_text, shipped.source)
-    return shipped, CoSimController(site, log)
+    return shipped, CoSimController(site, log, serve=shipped.serve)

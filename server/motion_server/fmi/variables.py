@@ -10,7 +10,7 @@ What each tag becomes:
   instruction operands and triggers (``MAG_1.Ratio``, ``MAG_1.Execute``), the plant side
   the site map models (a feedback-only axis's ``FeedbackInput``, the ``Inject*`` fault
   inputs of each axis), cam table points and watchdog tags. The ``Clock`` folder's
-  writable tags (``Step``, ``Mode``, snapshots, communication faults) are left out: while
+  command tags (``Step``, ``Mode``, snapshots, communication faults) are left out: while
   the master steps the FMU, it owns time.
 - **parameter** (variability fixed): what the site map fixes for the server's life:
   each axis's configuration block (``ConversionConstant``, ``MaxVelocity``, ...), axis
@@ -38,6 +38,7 @@ from enum import IntEnum
 from ..instructions.schema import TagType
 from ..tagmap import Folder, TagMap
 from ..tagmap.axis_config import CONFIG_FIELDS
+from ..tagmap.fields import clock_fields
 from ..tagmap.model import Tag
 
 #: fields of axes and groups that the site map fixes (beside the axis configuration block)
@@ -55,6 +56,10 @@ _FIXED_TAGS = frozenset(
         "Diagnostics.InstanceCount",
     }
 )
+
+
+#: the Clock's command fields (writable with ``remote_clock``): never FMU variables
+CLOCK_COMMANDS = frozenset(f.name for f in clock_fields(remote_clock=True) if f.writable)
 
 
 class Kind(IntEnum):
@@ -104,8 +109,10 @@ def kind_of(tag: Tag) -> Kind:
 
 def causality_of(tag: Tag) -> Causality | None:
     """The tag's role in the FMU, or None for a tag the FMU does not show."""
+    if tag.folder == Folder.CLOCK and tag.field in CLOCK_COMMANDS:
+        return None
     if tag.writable:
-        return None if tag.folder == Folder.CLOCK else Causality.INPUT
+        return Causality.INPUT
     fixed_owner = tag.folder in (Folder.AXES, Folder.GROUPS) and (
         tag.field in _FIXED_FIELDS or tag.field.startswith("Member")
     )
