@@ -49,6 +49,8 @@ def test_variables_are_the_tags(version: int, demo_fmu2: Path, demo_fmu3: Path) 
     udint = "Integer" if version == 2 else "Int64"
     assert by_name["Clock.Cycle"].type == udint
     assert md.coSimulation is not None
+    # a step of any size is taken: the part of a period is carried over
+    assert md.coSimulation.canHandleVariableCommunicationStepSize
     assert float(md.defaultExperiment.stepSize) == 0.002  # the demo's coarse update period
 
 

@@ -78,7 +78,11 @@ def build_fmu(
         script_file.write_text(script.read_text("utf-8"), "utf-8")
         project = write_shipped(folder, model, source, text, serve)
         built_dir = folder / "built"
-        built = Path(builder.build_FMU(script_file, dest=built_dir, project_files=project))
+        # steps of any size are taken (carry-over); pythonfmu3 0.3.4 would write false
+        options = {"canHandleVariableCommunicationStepSize": True}
+        built = Path(
+            builder.build_FMU(script_file, dest=built_dir, project_files=project, **options)
+        )
         try:
             out.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(built, out)
