@@ -105,3 +105,14 @@ def test_udint_inputs_take_fmi2_negative_integers_as_unsigned(ctl: CoSimControll
     vr = ctl.by_name["MAG_1.SlaveCounts"]
     ctl.set(vr, -1)  # an FMI 2.0 Integer holding 2^32 - 1
     assert ctl.get(vr) == 2**32 - 1
+
+
+def test_the_servers_warnings_reach_the_fmu_logger(
+    ctl: CoSimController, logged: list[tuple[str, LogLevel]]
+) -> None:
+    # a subnormal REAL is accepted, and the server warns of it (the mark of a wrong word
+    # order on Modbus): the master sees that warning through the FMU's logger
+    ctl.set(ctl.by_name["MAJ_1.Speed"], 1e-40)
+    assert ctl.do_step(PERIOD)
+    warnings = [m for m, lvl in logged if lvl == LogLevel.WARNING]
+    assert any("MAJ_1.Speed" in m and "subnormal" in m for m in warnings), logged

@@ -20,8 +20,10 @@ a period or more; the first such step is logged as a warning through the FMU's l
 the later ones at ``ok`` status. A step that is negative or not finite is refused
 (``do_step`` returns False: the wrappers answer fmi2Discard / fmi3Discard).
 
-A value the tag map refuses (out of the tag's type range, a NaN) is not written: the
-FMU's logger names the variable and the reason, and the other inputs of that step are
+The server's own warnings and errors raised while a step runs (a subnormal REAL written,
+an instruction's internal error) go to the FMU's logger too. A value the tag map refuses
+(out of the tag's type range, a NaN) is not written: the FMU's logger names the variable
+and the reason, and the other inputs of that step are
 written all the same. Nothing the master sets can crash the scan or move an axis that an
 equal Modbus write would not move.
 
@@ -31,8 +33,11 @@ This module imports no FMI builder: the scripts shipped inside the FMU (:mod:`.s
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from enum import IntEnum
 from typing import Any
 
@@ -61,6 +66,35 @@ Logger = Callable[[str, LogLevel], None]
 
 def _no_log(message: str, level: LogLevel) -> None:
     return None
+
+
+class _Forward(logging.Handler):
+    """The server's own warnings and errors (``motion_server`` loggers) raised in this
+    thread, handed to the FMU's logger: the master shows them with the instance's name."""
+
+    def __init__(self, log: Logger) -> None:
+        super().__init__(logging.WARNING)
+        self._log = log
+        self._thread = threading.get_ident()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.thread == self._thread
+
+    def emit(self, record: logging.LogRecord) -> None:
+        level = LogLevel.ERROR if record.levelno >= logging.ERROR else LogLevel.WARNING
+        self._log(f"{record.name}: {record.getMessage()}", level)
+
+
+@contextlib.contextmanager
+def forwarding(log: Logger) -> Iterator[None]:
+    """While the block runs, the server's warnings in this thread go to ``log`` too."""
+    handler = _Forward(log)
+    logger = logging.getLogger("motion_server")
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
 
 
 def site_for_fmu(text: str, source: str) -> SiteMap:
@@ -183,10 +217,11 @@ class CoSimController:
         self.log(f"front-ends serving the FMU's controller: {where}", LogLevel.OK)
 
     def _step(self, count: int) -> None:
-        self.write_inputs()
-        if count:
-            self.runtime.cycle(count)
-            self.cycles += count
+        with forwarding(self.log):
+            self.write_inputs()
+            if count:
+                self.runtime.cycle(count)
+                self.cycles += count
         self._values = self.view.values().copy()
 
     def write_inputs(self) -> None:
