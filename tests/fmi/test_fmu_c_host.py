@@ -102,7 +102,7 @@ def test_with_libpython_preloaded_the_host_steps_the_fmu(
     reason="known, depends on the environment: when the FMU is unloaded, the pythonfmu "
     "wrapper ends the Python it started; the process may then abort in numpy's bundled "
     "libgfortran (heap corruption reported at exit), after the results were delivered "
-    "(docs/co-simulation.md)",
+    "(docs/co-simulation.md; upstream: NTNU-IHB/PythonFMU#228)",
 )
 def test_the_host_exits_cleanly(host: Path, unpacked: Path, libpython: Path) -> None:
     out = run_host(host, unpacked, 1, PERIOD, python_env(libpython))
