@@ -19,7 +19,7 @@ run: $(STAMP)
 	$(BIN)/motion-server run $(MAP)
 
 # only the source trees that exist yet (bench/ arrives with the benchmarks)
-LINT_DIRS := $(wildcard server clients tests bench)
+LINT_DIRS := $(wildcard server clients tests bench examples)
 
 lint: $(STAMP)
 	$(BIN)/ruff check $(LINT_DIRS)
@@ -31,12 +31,16 @@ typecheck: $(STAMP)
 test: lint typecheck tools node-tools kube-tools
 	$(BIN)/pytest -q
 
-# mbpoll: the Modbus client that is not Python, for the interop tests (Debian package;
-# installed when missing and we are root, as on a fresh CI machine)
+# mbpoll: the Modbus client that is not Python, for the interop tests; gcc: compiles the
+# FMU's C host (tests/fmi/host.c) (Debian packages; installed when missing and we are
+# root, as on a fresh CI machine)
 tools:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll) \
 		>/dev/null 2>&1 || echo "note: mbpoll not installed; its interop test will be skipped"; }
+	@command -v gcc >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gcc libc6-dev) \
+		>/dev/null 2>&1 || echo "note: gcc not installed; the FMU's C host test will be skipped"; }
 
 # kubectl: renders the Kubernetes manifests offline (`kubectl kustomize`) for
 # tests/deploy. When missing and we are root: the Kubernetes project's apt repository,

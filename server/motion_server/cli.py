@@ -177,6 +177,18 @@ def cmd_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fmu(args: argparse.Namespace) -> int:
+    """Build a Co-Simulation FMU of the site map's controller (docs/co-simulation.md)."""
+    from .fmi.build import FmuBuildError, build_fmu
+
+    try:
+        out = build_fmu(args.map, args.output, args.fmi, args.serve)
+    except FmuBuildError as exc:
+        raise SystemExit(f"motion-server: {exc}") from None
+    log.info("FMI %d.0 Co-Simulation FMU written to %s", args.fmi, out)
+    return 0
+
+
 def read_password() -> str:
     """A password from a prompt (twice) or the first line of standard input."""
     if sys.stdin.isatty():
@@ -294,6 +306,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     mp.add_argument("-o", "--output", help="write to this file instead of standard output")
     mp.set_defaults(func=cmd_map)
+    fmu = sub.add_parser("fmu", help="build an FMI Co-Simulation FMU of the controller")
+    fmu.add_argument("map", nargs="?", help="site map (TOML); the demo map when left out")
+    fmu.add_argument("-o", "--output", required=True, help="the FMU file to write (NAME.fmu)")
+    fmu.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    fmu.add_argument(
+        "--serve",
+        action="store_true",
+        help="the site map's front-ends (Modbus, OPC UA) serve the controller while a "
+        "master steps the FMU",
+    )
+    fmu.set_defaults(func=cmd_fmu)
     hp = sub.add_parser(
         "hash-password",
         help="hash a password (standard input, else a prompt) for [[opcua.users]] password_hash",
