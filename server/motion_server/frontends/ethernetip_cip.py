@@ -346,7 +346,9 @@ class TagDispatcher(LogixDispatcher):
             return self._read(service, target, data, fragmented=True)
         if service in (WRITE_TAG, WRITE_TAG_FRAGMENTED):
             return self._write(service, target, data)
-        return self._rmw(service, target, data)
+        if service == READ_MODIFY_WRITE:
+            return self._rmw(service, target, data)
+        return error(service, Status.SERVICE_NOT_SUPPORTED)
 
     def _type_word(self, target: Target) -> bytes:
         if target.member is None:
@@ -465,6 +467,8 @@ class TagDispatcher(LogixDispatcher):
         changed alone (a client writes back what it read a moment ago); a write to a
         read-only member is a privilege violation."""
         tag = target.tag
+        if target.member is not None and not target.member.writable:
+            return error(service, Status.PRIVILEGE_VIOLATION)
         updates: list[tuple[str, Any]] = []
         for m in tag.structure.members:
             if m.hidden or not m.fields:
