@@ -75,3 +75,15 @@ class Wire:
         general, size = mr[2], mr[3]
         ext = struct.unpack_from(f"<{size}H", mr, 4)
         return general, ext, mr[4 + 2 * size :]
+
+
+def forward_open(w: Wire, serial: int) -> int:
+    """A class 3 Forward Open to the controller in slot 0 (as pylogix sends it): the
+    general status."""
+    data = struct.pack(
+        "<BBIIHHIBBBBIHIHBB",
+        0x0A, 0x0E, 0, 0x20000002 + serial, serial & 0xFFFF, 0x1337, 42, 3, 0, 0, 0,
+        2_000_000, 0x43F4, 2_000_000, 0x43F4, 0xA3, 3,
+    )  # fmt: skip
+    data += bytes((1, 0, 0x20, 2, 0x24, 1))
+    return w.cip(0x54, bytes((0x20, 6, 0x24, 1)), data)[0]
