@@ -138,7 +138,7 @@ def test_malformed_frames_never_take_the_server_down(srv: MotionServer) -> None:
                         r.randrange(2**32),
                         0,
                         0,
-                    )  # fmt: skip
+                    )
                 )
             else:  # random Message Router requests in a valid frame
                 frames.append(rr(1, r.randbytes(r.randrange(1, 60))))
