@@ -225,6 +225,8 @@ class TagDispatcher(LogixDispatcher):
         self.write_check: WriteHook | None = None
         #: tickets of the writes of the request being served (the adapter awaits them)
         self.tickets: list[Ticket] = []
+        self._resolved: dict[bytes, Target] = {}
+        self._ranges: dict[tuple[str, int, int], list[tuple[int, str, int, int, int]]] = {}
         self._definitions = {s.instance: template_definition(s) for s in logix.structures}
         self._handles = {s.instance: s.handle for s in logix.structures}
         # the connection manager is ours to reach, so that a closed TCP connection takes
@@ -269,6 +271,39 @@ class TagDispatcher(LogixDispatcher):
             else:
                 struct.pack_into(fmt, out, off, int(v))
         return out
+
+    def pack_range(self, tag: LogixTag, start: int, end: int) -> tuple[bytearray, int]:
+        """Bytes ``start``..``end`` of the tag (and of the values that overlap them),
+        packed without the rest of the structure: ``(buffer, offset of its byte 0)``.
+        A read of one member costs that member, not the whole structure."""
+        key = (tag.name, start, end)
+        plan = self._ranges.get(key)
+        if plan is None:
+            plan = [
+                e
+                for e in self._plans[tag.name]
+                if e[0] < end and e[0] + (1 if e[3] == 2 else struct.calcsize(e[1])) > start
+            ]
+            if len(self._ranges) < 100_000:
+                self._ranges[key] = plan
+        base = min([start, *(e[0] for e in plan)])
+        top = max([end, *(e[0] + (1 if e[3] == 2 else struct.calcsize(e[1])) for e in plan)])
+        values = self.view.values()
+        out = bytearray(top - base)
+        for off, fmt, slot, kind, bit in plan:
+            v = values[slot]
+            off -= base
+            if kind == 2:
+                if v:
+                    out[off] |= 1 << bit
+            elif kind == 1:
+                i = int(v) & 0xFFFFFFFF
+                struct.pack_into("<i", out, off, i - (1 << 32) if i & 0x80000000 else i)
+            elif fmt in ("<f", "<d"):
+                struct.pack_into(fmt, out, off, float(v))
+            else:
+                struct.pack_into(fmt, out, off, int(v))
+        return out, base
 
     @staticmethod
     def member_value(m: Member, raw: bytes | bytearray, k: int = 0) -> Any:
@@ -337,9 +372,16 @@ class TagDispatcher(LogixDispatcher):
         return Target(tag, member, element)
 
     def _tag_service(self, service: int, raw: bytes, data: bytes) -> CipServiceResponse:
-        target = self._resolve(raw)
-        if isinstance(target, int):
-            return error(service, target)
+        cached = self._resolved.get(raw)
+        if cached is None:
+            found = self._resolve(raw)
+            if isinstance(found, int):
+                return error(service, found)
+            # paths that name something, as clients repeat them (a bounded number)
+            if len(self._resolved) < 10_000:
+                self._resolved[raw] = found
+            cached = found
+        target = cached
         if service == READ_TAG:
             return self._read(service, target, data, fragmented=False)
         if service == READ_TAG_FRAGMENTED:
@@ -366,12 +408,15 @@ class TagDispatcher(LogixDispatcher):
         span = target.span(count)
         if span == 0:
             return error(service, Status.GENERAL_ERROR, BEYOND_END)
-        raw = self.pack(target.tag)
         m = target.member
-        if m is not None and m.type == CipType.BOOL:
-            body = bytes((1 if raw[m.offset] >> (m.bit or 0) & 1 else 0,))
+        if m is None:
+            body = bytes(self.pack(target.tag))
+        elif m.type == CipType.BOOL:
+            raw, base = self.pack_range(target.tag, m.offset, m.offset + 1)
+            body = bytes((1 if raw[m.offset - base] >> (m.bit or 0) & 1 else 0,))
         else:
-            body = bytes(raw[target.start : target.start + span])
+            raw, base = self.pack_range(target.tag, target.start, target.start + span)
+            body = bytes(raw[target.start - base : target.start - base + span])
         if offset > len(body) or (fragmented and offset == len(body) and body):
             return error(service, Status.GENERAL_ERROR, BEYOND_END)
         head = self._type_word(target)
