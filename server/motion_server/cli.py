@@ -307,7 +307,8 @@ def build_parser() -> argparse.ArgumentParser:
         choices=FORMATS,
         default="json",
         help="json (default), csv, md, nodeset (OPC UA NodeSet2 XML), kepware (KEPServerEX "
-        "tag CSV), ignition (Ignition tag JSON)",
+        "tag CSV), ignition (Ignition tag JSON), l5x (Logix UDTs and tags, as served over "
+        "EtherNet/IP)",
     )
     mp.add_argument("-o", "--output", help="write to this file instead of standard output")
     mp.set_defaults(func=cmd_map)
