@@ -16,7 +16,15 @@ from __future__ import annotations
 
 from xml.sax.saxutils import escape, quoteattr
 
-from .logix_types import FLAG_BITS, CipType, LogixMap, Member, Structure, build_logix_map
+from .logix_types import (
+    FLAG_BITS,
+    CipType,
+    LogixMap,
+    LogixTag,
+    Member,
+    Structure,
+    build_logix_map,
+)
 from .model import Tag, TagMap
 
 #: the Logix firmware the file declares (UDINT members need 32 or later)
@@ -87,7 +95,7 @@ def to_l5x(tagmap: TagMap, logix: LogixMap | None = None) -> str:
         f'MajorRev="{MAJOR_REV}" MinorRev="{MINOR_REV}">',
         "<DataTypes>",
     ]
-    first_of = {}
+    first_of: dict[str, LogixTag] = {}
     for t in logix.tags:
         first_of.setdefault(t.structure.name, t)
     for s in logix.structures:
