@@ -247,3 +247,16 @@ def test_the_site_map_decides_who_writes_and_refusals_are_audited(tmp_path: Path
         assert "may not write MSO_1.Axis" in audit
     finally:
         srv.finish()
+
+
+def test_pylogix_reads_the_wall_clock(srv: MotionServer) -> None:
+    """The Wall Clock object gives the host's UTC time (pylogix GetPLCTime)."""
+    import datetime as dt
+
+    with pylogix.PLC("127.0.0.1", port=srv.ethernetip_port) as p:
+        before = dt.datetime.now(dt.UTC).replace(tzinfo=None)
+        r = p.GetPLCTime()
+        after = dt.datetime.now(dt.UTC).replace(tzinfo=None)
+        assert r.Status == "Success"
+        assert before - dt.timedelta(seconds=1) <= r.Value <= after + dt.timedelta(seconds=1)
+        assert p.SetPLCTime().Status == "Privilege violation"

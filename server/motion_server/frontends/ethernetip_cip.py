@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import struct
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
@@ -94,6 +95,10 @@ SYMBOL_CLASS = 0x6B
 TEMPLATE_CLASS = 0x6C
 MESSAGE_ROUTER = 0x02
 PROGRAM_NAME_CLASS = 0x64
+WALL_CLOCK_CLASS = 0x8B
+#: Wall Clock attribute: the current UTC time in microseconds since 1970 (ULINT)
+UTC_MICROSECONDS = 11
+SET_ATTRIBUTE_LIST = 0x04
 #: a whole structure's type word in Read/Write Tag (then its handle)
 STRUCT_TYPE = 0x02A0
 #: reply data bytes at most (fits an unconnected reply: 504 bytes less the headers)
@@ -325,6 +330,8 @@ class TagDispatcher(LogixDispatcher):
             return self._template(service_code, path.instance_id, data)
         if path.class_id == MESSAGE_ROUTER and service_code == MULTIPLE_SERVICE:
             return self._multiple(service_code, data)
+        if path.class_id == WALL_CLOCK_CLASS:
+            return self._wall_clock(service_code, path.instance_id or 0, data)
         response: CipServiceResponse = super().dispatch(service_code, path, data)
         return response
 
@@ -630,6 +637,29 @@ class TagDispatcher(LogixDispatcher):
                 )
             return CipServiceResponse.success(service, chunk)
         return error(service, Status.SERVICE_NOT_SUPPORTED)
+
+    def _wall_clock(self, service: int, instance: int, data: bytes) -> CipServiceResponse:
+        """The Wall Clock object (pylogix ``GetPLCTime``): the host's UTC time, not the
+        simulated one (``Clock.SimTime``). Setting it is refused: the server does not
+        own the host's clock."""
+        if instance != 1:
+            return error(service, Status.PATH_DESTINATION_UNKNOWN)
+        if service == SET_ATTRIBUTE_LIST:
+            return error(service, Status.PRIVILEGE_VIOLATION)
+        if service != GET_ATTRIBUTE_LIST:
+            return error(service, Status.SERVICE_NOT_SUPPORTED)
+        if len(data) < 2:
+            return error(service, Status.NOT_ENOUGH_DATA)
+        count = struct.unpack_from("<H", data, 0)[0]
+        if count > 16 or len(data) < 2 + 2 * count:
+            return error(service, Status.NOT_ENOUGH_DATA)
+        out = bytearray(struct.pack("<H", count))
+        for a in struct.unpack_from(f"<{count}H", data, 2):
+            if a == UTC_MICROSECONDS:
+                out += struct.pack("<HHQ", a, 0, time.time_ns() // 1000)
+            else:
+                out += struct.pack("<HH", a, Status.ATTRIBUTE_NOT_SUPPORTED)
+        return CipServiceResponse.success(service, bytes(out))
 
     def _multiple(self, service: int, data: bytes) -> CipServiceResponse:
         """Multiple Service Packet, bounded: at most :data:`MAX_SERVICES` services and
