@@ -199,6 +199,14 @@ def test_refusals_answer_the_logix_general_status(srv: MotionServer) -> None:
         # a value the judge refuses (a REAL that is not finite)
         nan = struct.pack("<HHf", 0xCA, 1, float("nan"))
         assert w.cip(0x4D, symbolic("MAG_1", "Ratio"), nan)[0] == 0x09
+        # Read Tag Fragmented: a structure from an offset, the rest of its bytes
+        status, _, whole = w.cip(0x4C, symbolic("Cam1"), b"\x01\x00")
+        assert status == 0 and whole[:2] == b"\xa0\x02"
+        status, _, part = w.cip(0x52, symbolic("Cam1"), struct.pack("<HI", 1, 100))
+        assert status == 0 and part[4:] == whole[4 + 100 :]
+        # Write Tag Fragmented: two elements of an array from byte 4 of the element span
+        data = struct.pack("<HHI", 0xCA, 4, 8) + struct.pack("<ff", 11.0, 12.0)
+        assert w.cip(0x53, symbolic("Cam1", "Slave", 0), data)[0] == 0
         # and a good one still works on the same connection
         two = struct.pack("<HHf", 0xCA, 1, 2.0)
         assert w.cip(0x4D, symbolic("MAG_1", "Ratio"), two)[0] == 0x00
@@ -207,6 +215,7 @@ def test_refusals_answer_the_logix_general_status(srv: MotionServer) -> None:
     finally:
         w.close()
     assert srv.read("MAG_1.Ratio") == 2.0
+    assert (srv.read("Cam1.Slave[2]"), srv.read("Cam1.Slave[3]")) == (11.0, 12.0)
 
 
 READ_ONLY_MAP = """

@@ -243,3 +243,27 @@ def test_sessions_are_bounded_and_half_open_ones_time_out(srv: MotionServer) -> 
         for s in idle:
             s.close()
     assert srv.read("Diagnostics.DroppedCycles") == 0
+
+
+def test_a_killed_frontend_is_restarted_on_its_port(srv: MotionServer) -> None:
+    """Supervision as for the other front-ends: the process that serves EtherNet/IP
+    dies, the supervisor starts another on the same port, motion goes on."""
+    import signal
+
+    port = srv.ethernetip_port
+    pid = frontend_pid(srv)
+    restarts = srv.read("Diagnostics.FrontendRestarts")
+    cycle = srv.read("Clock.Cycle")
+    os.kill(pid, signal.SIGKILL)
+    deadline = time.monotonic() + 60
+    while True:
+        assert time.monotonic() < deadline, srv.log_tail()
+        try:
+            answered(srv)
+            break
+        except (OSError, AssertionError):
+            time.sleep(0.2)  # another process's progress, not simulated time
+    assert frontend_pid(srv) != pid and srv.ethernetip_port == port
+    assert srv.read("Diagnostics.FrontendRestarts") == restarts + 1
+    assert srv.read("Clock.Cycle") > cycle
+    assert srv.read("Diagnostics.DroppedCycles") == 0
