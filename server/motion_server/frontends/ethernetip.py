@@ -63,6 +63,8 @@ FRAME_TIMEOUT = 10.0
 #: seconds a write's reply waits for the scan's acknowledgement (manual clock, Clock.Step)
 WRITE_TIMEOUT = 30.0
 HEADER = 24
+#: reply bytes a connection may have queued before the front-end waits for the client
+SEND_BUFFER = 64 * 1024
 _KNOWN = {int(c) for c in EncapsulationCommand}
 _connection_numbers = itertools.count(1)
 
@@ -175,20 +177,25 @@ class EnipAdapter(EipAdapter):
         try:
             while True:
                 try:
-                    head = await asyncio.wait_for(reader.readexactly(HEADER), idle)
+                    # asyncio.timeout, not wait_for: wait_for (3.11) wraps every read in a
+                    # task of its own, which costs more than serving a tag read
+                    async with asyncio.timeout(idle):
+                        head = await reader.readexactly(HEADER)
                 except TimeoutError:
                     result, why = "idle timeout", f"no request for {idle:g} s"
                     break
                 command, length = struct.unpack_from("<HH", head)
                 try:
-                    body = await asyncio.wait_for(reader.readexactly(length), FRAME_TIMEOUT)
+                    async with asyncio.timeout(FRAME_TIMEOUT):
+                        body = await reader.readexactly(length)
                 except TimeoutError:
                     result, why = "frame timeout", f"frame incomplete after {FRAME_TIMEOUT:g} s"
                     break
                 frame = head + body
                 if command not in _KNOWN:
                     writer.write(_invalid_command(frame))
-                    await asyncio.wait_for(writer.drain(), FRAME_TIMEOUT)
+                    async with asyncio.timeout(FRAME_TIMEOUT):
+                        await writer.drain()
                     continue
                 try:
                     msg, _ = self._manager.try_parse(frame, peer)
@@ -213,7 +220,9 @@ class EnipAdapter(EipAdapter):
                     session = 0
                 if reply is not None:
                     writer.write(reply)
-                    await asyncio.wait_for(writer.drain(), FRAME_TIMEOUT)
+                    if writer.transport.get_write_buffer_size() > SEND_BUFFER:
+                        async with asyncio.timeout(FRAME_TIMEOUT):  # a client not reading
+                            await writer.drain()
         except asyncio.IncompleteReadError:
             pass
         except (ConnectionError, OSError, TimeoutError) as exc:
