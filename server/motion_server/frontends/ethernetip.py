@@ -53,7 +53,7 @@ from ..safety.roles import Role, required_role
 from ..tagmap import Tag, TagMap
 from ..tagmap.logix_types import LogixMap, LogixTag, build_logix_map
 from .ethernetip_cip import Status, TagDispatcher
-from .link import WriteRefused
+from .link import Ticket, WriteRefused
 from .view import ImageView, outcome
 
 log = logging.getLogger("motion_server.frontends.ethernetip")
@@ -242,7 +242,8 @@ class EnipAdapter(EipAdapter):
         """One message's reply; a write's reply waits for the scan when the view says so
         (manual clock, Clock.Step)."""
         tags = self.tags
-        tags.tickets = []
+        tickets: list[Ticket] = []  # this request's (other connections' run meanwhile)
+        tags.tickets = tickets
         tags.connections.current = client.connection
         tags.write_check = lambda tag, updates: self._check(client, tag, updates)
         with writing_as(client):
@@ -251,14 +252,15 @@ class EnipAdapter(EipAdapter):
             except Exception as exc:  # a request the library's parsers choke on
                 log.info("EtherNet/IP request from %s refused: %s", client.key, exc)
                 reply = _cip_error(msg, session, Status.NOT_ENOUGH_DATA)
-            for ticket in tags.tickets:
+            tags.tickets = []
+            for ticket in tickets:
                 if not ticket.waits:
                     continue
                 try:
-                    await asyncio.wait_for(outcome(ticket), WRITE_TIMEOUT)
+                    async with asyncio.timeout(WRITE_TIMEOUT):
+                        await outcome(ticket)
                 except (WriteRefused, TimeoutError) as exc:
                     log.warning("EtherNet/IP write by %s: %s", client.key, exc)
-        tags.tickets = []
         return reply
 
     def _check(
