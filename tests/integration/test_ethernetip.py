@@ -269,3 +269,28 @@ def test_pylogix_reads_the_wall_clock(srv: MotionServer) -> None:
         assert r.Status == "Success"
         assert before - dt.timedelta(seconds=1) <= r.Value <= after + dt.timedelta(seconds=1)
         assert p.SetPLCTime().Status == "Privilege violation"
+
+
+def test_a_command_the_scan_refuses_fails_the_request(tmp_path: Path) -> None:
+    """An admin's Clock.SnapshotRestore of a snapshot that does not exist: the write was
+    judged and queued, the scan's command failed, and the request answers 0x10 (device
+    state conflict) as Modbus answers exception 04."""
+    demo = Path(__file__).parents[2] / "server" / "motion_server" / "data" / "demo.toml"
+    text = demo.read_text().replace('role = "operator"   #', 'role = "admin"   #')
+    site = tmp_path / "site.toml"
+    site.write_text(text)
+    srv = MotionServer.start(tmp_path / "run", site, opcua=False, ethernetip=True)
+    try:
+        w = Wire(srv.ethernetip_port)
+        try:
+            number = struct.pack("<HHI", 0xC8, 1, 42)
+            assert w.cip(0x4D, symbolic("Clock", "Snapshot"), number)[0] == 0x00
+            restore = struct.pack("<HHB", 0xC1, 1, 1)
+            assert w.cip(0x4D, symbolic("Clock", "SnapshotRestore"), restore)[0] == 0x10
+            # the connection goes on
+            assert w.cip(0x4C, symbolic("Clock", "Cycle"), b"\x01\x00")[0] == 0
+        finally:
+            w.close()
+        assert "no such snapshot" in srv.log()
+    finally:
+        srv.finish()

@@ -253,6 +253,7 @@ class EnipAdapter(EipAdapter):
                 log.info("EtherNet/IP request from %s refused: %s", client.key, exc)
                 reply = _cip_error(msg, session, Status.NOT_ENOUGH_DATA)
             tags.tickets = []
+            failed = False
             for ticket in tickets:
                 if not ticket.waits:
                     continue
@@ -261,6 +262,11 @@ class EnipAdapter(EipAdapter):
                         await outcome(ticket)
                 except (WriteRefused, TimeoutError) as exc:
                     log.warning("EtherNet/IP write by %s: %s", client.key, exc)
+                    failed = True
+        if failed:
+            # the scan refused the write or the command it carried failed (a snapshot
+            # that does not exist): the request fails as a whole, as Modbus answers 04
+            reply = _cip_error(msg, session, Status.DEVICE_STATE_CONFLICT)
         return reply
 
     def _check(
