@@ -224,8 +224,10 @@ class EnipAdapter(EipAdapter):
                         async with asyncio.timeout(FRAME_TIMEOUT):  # a client not reading
                             await writer.drain()
         except asyncio.IncompleteReadError:
-            pass
-        except (ConnectionError, OSError, TimeoutError) as exc:
+            pass  # the client closed, in a frame or between two
+        except TimeoutError:
+            result, why = "send timeout", f"replies not taken for {FRAME_TIMEOUT:g} s"
+        except (ConnectionError, OSError) as exc:
             result, why = "closed", str(exc) or type(exc).__name__
         finally:
             if session:

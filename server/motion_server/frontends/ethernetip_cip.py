@@ -35,7 +35,9 @@ from enum import IntEnum
 from typing import Any
 
 from ethernetip.cip import mr_codec
+from ethernetip.cip.attribute import AttributeAccess, CipAttribute
 from ethernetip.cip.cip_class import CipClass
+from ethernetip.cip.data_types import CipDataType
 from ethernetip.cip.identity_info import IdentityInfo
 from ethernetip.cip.path import CipPath
 from ethernetip.cip.service import CipServiceResponse
@@ -242,9 +244,6 @@ class TagDispatcher(LogixDispatcher):
         self.register_class(self.connections.cip_class)
         # Program Name (class 0x64): the library names the program after the product;
         # pycomm3 shows it as the controller's name: the site's
-        from ethernetip.cip.attribute import AttributeAccess, CipAttribute
-        from ethernetip.cip.data_types import CipDataType
-
         pn = CipClass(PROGRAM_NAME_CLASS, "Program Name", revision=1)
         pn.add_standard_instance_services()
         name = controller_name.encode("ascii", "replace")[:40]
@@ -430,11 +429,9 @@ class TagDispatcher(LogixDispatcher):
         head = self._type_word(target)
         room = MAX_REPLY - len(head)
         chunk = body[offset : offset + room]
+        # what does not fit answers what fits with 0x06 (as Logix answers a plain read
+        # too large for one reply); the client goes on with Read Tag Fragmented
         more = offset + len(chunk) < len(body)
-        if more and not fragmented:
-            # Logix answers a plain read that does not fit with what fits and 0x06; the
-            # client goes on with Read Tag Fragmented
-            pass
         reply = head + chunk
         if more:
             return CipServiceResponse(
