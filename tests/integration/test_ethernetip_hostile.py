@@ -267,3 +267,40 @@ def test_a_killed_frontend_is_restarted_on_its_port(srv: MotionServer) -> None:
     assert srv.read("Diagnostics.FrontendRestarts") == restarts + 1
     assert srv.read("Clock.Cycle") > cycle
     assert srv.read("Diagnostics.DroppedCycles") == 0
+
+
+def test_a_thousand_connections_at_once_hold_at_most_the_limit(srv: MotionServer) -> None:
+    """1,000 clients connect together: at most ``max_sessions`` are served, the others
+    are closed at once, and once they leave the server answers as before."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft < 1100:
+        pytest.skip(f"the test needs 1,100 descriptors (limit {soft})")
+    time.sleep(0.5)  # the connections of earlier tests are gone
+    socks = []
+    start = time.monotonic()
+    try:
+        for _ in range(1000):
+            s = socket.socket()
+            s.settimeout(5.0)
+            s.connect(("127.0.0.1", srv.ethernetip_port))
+            s.sendall(register())
+            socks.append(s)
+        # a served client idle for IDLE seconds is closed and frees its place: the bound
+        # is the limit once per IDLE seconds the connecting took (and once more)
+        rounds = 2 + int((time.monotonic() - start) / IDLE)
+        served = 0
+        for s in socks:
+            try:
+                if len(s.recv(24)) == 24:
+                    served += 1
+            except (ConnectionError, TimeoutError):
+                pass
+        assert 1 <= served <= MAX_SESSIONS * rounds, (served, rounds)
+    finally:
+        for s in socks:
+            s.close()
+    time.sleep(0.5)
+    answered(srv)
+    assert srv.read("Diagnostics.DroppedCycles") == 0
