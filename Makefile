@@ -78,6 +78,7 @@ maps: $(STAMP)
 	@$(BIN)/motion-server map --format nodeset -o maps/demo-nodeset.xml
 	@$(BIN)/motion-server map --format kepware -o maps/demo-kepware.csv
 	@$(BIN)/motion-server map --format ignition -o maps/demo-ignition.json
+	@$(BIN)/motion-server map --format l5x -o maps/demo-logix.L5X
 
 # Build the Dockerfile and smoke-test the image with buildah (as root; see container/).
 test-container: $(STAMP)

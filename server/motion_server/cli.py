@@ -42,7 +42,10 @@ def _load(path: str | None) -> config.SiteMap:
 
 # -- argument types: one line naming the option for a bad value ---------------------------------
 def _setting(
-    model: type[config.ControllerSection] | type[config.ModbusSection] | type[config.OpcUaSection],
+    model: type[config.ControllerSection]
+    | type[config.ModbusSection]
+    | type[config.OpcUaSection]
+    | type[config.EthernetIpSection],
     name: str,
     convert: Callable[[str], Any],
 ) -> Callable[[str], Any]:
@@ -83,6 +86,7 @@ _scale = _setting(config.ControllerSection, "scale", _finite)
 _modbus_host = _setting(config.ModbusSection, "host", str)
 _modbus_port = _setting(config.ModbusSection, "port", int)
 _opcua_port = _setting(config.OpcUaSection, "port", int)
+_ethernetip_port = _setting(config.EthernetIpSection, "port", int)
 
 
 def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteMap:
@@ -91,6 +95,10 @@ def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteM
     ``--modbus-role``, ``--no-modbus``, ``--opcua-port``, ``--no-opcua``). Messages about
     an overridden field name the option."""
     sections: dict[str, dict[str, Any]] = {"controller": {}, "modbus": {}, "opcua": {}}
+    sections["ethernetip"] = {}
+    # a port serves EtherNet/IP on any map (it is off unless the map turns it on)
+    enip_port = getattr(args, "ethernetip_port", None)
+    no_enip = bool(getattr(args, "no_ethernetip", False))
     origins: dict[tuple[str, str], str] = {}
     for section, key, option, value in (
         ("controller", "clock", "--clock", args.clock),
@@ -100,6 +108,9 @@ def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteM
         ("modbus", "enabled", "--no-modbus", False if args.no_modbus else None),
         ("opcua", "port", "--opcua-port", args.opcua_port),
         ("opcua", "enabled", "--no-opcua", False if args.no_opcua else None),
+        ("ethernetip", "port", "--ethernetip-port", enip_port),
+        ("ethernetip", "enabled", "--ethernetip-port", True if enip_port is not None else None),
+        ("ethernetip", "enabled", "--no-ethernetip", False if no_enip else None),
     ):
         if value is not None:
             sections[section][key] = value
@@ -274,6 +285,12 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--opcua-port", type=_opcua_port, help="OPC UA port, 0 = ephemeral (site map: [opcua] port)"
     )
     p.add_argument("--no-opcua", action="store_true", help="do not serve OPC UA")
+    p.add_argument(
+        "--ethernetip-port",
+        type=_ethernetip_port,
+        help="EtherNet/IP port, 0 = ephemeral; serves it (site map: [ethernetip] port)",
+    )
+    p.add_argument("--no-ethernetip", action="store_true", help="do not serve EtherNet/IP")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -302,7 +319,8 @@ def build_parser() -> argparse.ArgumentParser:
         choices=FORMATS,
         default="json",
         help="json (default), csv, md, nodeset (OPC UA NodeSet2 XML), kepware (KEPServerEX "
-        "tag CSV), ignition (Ignition tag JSON)",
+        "tag CSV), ignition (Ignition tag JSON), l5x (Logix UDTs and tags, as served over "
+        "EtherNet/IP)",
     )
     mp.add_argument("-o", "--output", help="write to this file instead of standard output")
     mp.set_defaults(func=cmd_map)

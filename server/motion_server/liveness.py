@@ -56,6 +56,8 @@ FRONTEND_BEAT = 0.5
 #: nodes, large reads and browses within its OperationLimits, publishing): 10 s, so that
 #: a heavy but legitimate request is not mistaken for a hang
 FRONTEND_HANG = {"modbus": 3.0, "opcua": 10.0}
+#: EtherNet/IP serves HMIs and PLC MSGs with small requests, as Modbus does: 3 s
+FRONTEND_HANG["ethernetip"] = 3.0
 #: the supervisor's own gap between two looks beyond which it forgives everyone
 SELF_STALL = 1.0
 

@@ -38,7 +38,8 @@ it writes there, atomically, a JSON object for test benches and tools::
 
     {"format": "motion-server-ready/1", "pid": 4242, "site": "demo",
      "modbus": {"host": "127.0.0.1", "port": 5020, "tls_port": 0},
-     "opcua": {"host": "127.0.0.1", "port": 4840, "endpoint": "opc.tcp://..."}}
+     "opcua": {"host": "127.0.0.1", "port": 4840, "endpoint": "opc.tcp://..."},
+     "ethernetip": {"host": "127.0.0.1", "port": 44818, "slot": 0}}
 
 (a protocol not served is absent), and removes it when the server begins to stop.
 """
@@ -67,7 +68,7 @@ from .launch import LaunchSpec
 from .liveness import FRONTEND_HANG, SCAN_HANG, SCAN_KILL_GRACE, Liveness
 from .safety import retain
 from .safety.audit import AuditLog
-from .scan.channel import CONTROL, MODBUS, OPCUA
+from .scan.channel import CONTROL, ETHERNETIP, MODBUS, OPCUA
 from .tagmap import build_tagmap
 
 log = logging.getLogger("motion_server.supervisor")
@@ -140,6 +141,8 @@ class Supervisor:
             self.roles["modbus"] = MODBUS
         if site.opcua.enabled if opcua is None else opcua:
             self.roles["opcua"] = OPCUA
+        if site.ethernetip.enabled:
+            self.roles["ethernetip"] = ETHERNETIP
         self.layout = ImageLayout(build_tagmap(site))
         self.size = image_bytes(self.layout.size)
         if "opcua" not in self.roles:
@@ -265,6 +268,9 @@ class Supervisor:
                 if port.get("tls_port"):
                     tls = tls.model_copy(update={"port": port["tls_port"]})
                 site = site.model_copy(update={"modbus": modbus.model_copy(update={"tls": tls})})
+            elif role == "ethernetip":
+                enip = site.ethernetip.model_copy(update={"port": port.get("port", 0)})
+                site = site.model_copy(update={"ethernetip": enip})
             else:
                 opcua = site.opcua.model_copy(update={"port": port.get("port", 0)})
                 site = site.model_copy(update={"opcua": opcua})
@@ -336,6 +342,8 @@ class Supervisor:
                     parts.append(f"Modbus TCP port {msg['port']}")
                 if msg.get("tls_port"):
                     parts.append(f"Modbus/TCP Security port {msg['tls_port']}")
+            elif role == "ethernetip":
+                parts.append(f"EtherNet/IP port {msg.get('port', 0)}")
             else:
                 parts.append(f"OPC UA {msg.get('endpoint', '')}")
         return ", ".join(parts) or "no front-end"
@@ -625,6 +633,13 @@ class Supervisor:
                 "host": self.site.opcua.host,
                 "port": int(at.get("port", 0)),
                 "endpoint": str(at.get("endpoint", "")),
+            }
+        if "ethernetip" in self.roles:
+            at = self._ports.get("ethernetip", {})
+            info["ethernetip"] = {
+                "host": self.site.ethernetip.host,
+                "port": int(at.get("port", 0)),
+                "slot": self.site.ethernetip.slot,
             }
         path = self.ready_file
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")

@@ -112,11 +112,14 @@ class MotionServer:
         args: Sequence[str] = (),
         env: Mapping[str, str] | None = None,
         timeout: float = START_TIMEOUT,
+        ethernetip: bool = False,
     ) -> MotionServer:
         """Start ``motion-server run`` in ``workdir`` (its data directories go there) on
         ephemeral ports and wait until every front-end listens; :class:`ServerError`
         with the log when it cannot. ``opcua``: False does not serve OPC UA, None serves
-        it when the site map does. ``args``: more ``motion-server run`` options."""
+        it when the site map does. ``ethernetip``: True serves EtherNet/IP on an ephemeral
+        port (:attr:`ethernetip_port`), False (the default) does not, whatever the map says.
+        ``args``: more ``motion-server run`` options."""
         work = Path(workdir)
         work.mkdir(parents=True, exist_ok=True)
         site = Path(site_map).resolve() if site_map is not None else None
@@ -132,6 +135,7 @@ class MotionServer:
         # which a map with users or TLS roles gives plain Modbus only when asked
         cmd += ["--modbus-role", "admin"]
         cmd += ["--no-opcua"] if opcua is False else ["--opcua-port", "0"]
+        cmd += ["--ethernetip-port", "0"] if ethernetip else ["--no-ethernetip"]
         cmd += list(args)
         (work / "ready.json").unlink(missing_ok=True)  # left by a server that was killed
         with (work / "server.log").open("ab") as log:
@@ -217,6 +221,11 @@ class MotionServer:
     def opcua_endpoint(self) -> str:
         """The OPC UA endpoint URL ("" when OPC UA is not served)."""
         return str(self.info.get("opcua", {}).get("endpoint", ""))
+
+    @property
+    def ethernetip_port(self) -> int:
+        """The EtherNet/IP port (0 when EtherNet/IP is not served)."""
+        return int(self.info.get("ethernetip", {}).get("port", 0))
 
     @property
     def opcua_port(self) -> int:
@@ -390,6 +399,7 @@ class ServerFactory:
         opcua: bool | None = None,
         args: Sequence[str] = (),
         env: Mapping[str, str] | None = None,
+        ethernetip: bool = False,
     ) -> MotionServer:
         server = MotionServer.start(
             self._make_dir(),
@@ -399,6 +409,7 @@ class ServerFactory:
             args=args,
             env=env,
             timeout=self.timeout,
+            ethernetip=ethernetip,
         )
         self.servers.append(server)
         return server

@@ -89,6 +89,7 @@ def test_run_serves_opcua_on_the_given_port(tmp_path: Path) -> None:
     port = _free_port()
     log = tmp_path / "server.log"
     cmd = [sys.executable, "-m", "motion_server.cli", "run", "--clock", "manual", "--no-modbus"]
+    cmd.append("--no-ethernetip")  # the demo's port 44818 may be taken
     with log.open("wb") as f:
         proc = subprocess.Popen(
             [*cmd, "--opcua-port", str(port)],

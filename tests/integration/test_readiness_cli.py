@@ -73,7 +73,7 @@ def test_the_modbus_port_opens_only_once_the_controller_runs(tmp_path: Path) -> 
     tagmap = build_tagmap(config.load())
     port = _free_port()
     ready_file = tmp_path / "ready.json"
-    args = ["--clock", "manual", "--modbus-port", str(port), "--no-opcua"]
+    args = ["--clock", "manual", "--modbus-port", str(port), "--no-opcua", "--no-ethernetip"]
     proc = _start([*args, "--ready-file", str(ready_file)], tmp_path)
     refused = 0
     try:
@@ -117,7 +117,7 @@ def test_the_modbus_port_opens_only_once_the_controller_runs(tmp_path: Path) -> 
 
 
 def test_a_ready_file_that_cannot_be_written_stops_the_start(tmp_path: Path) -> None:
-    args = ["--clock", "manual", "--modbus-port", "0", "--no-opcua"]
+    args = ["--clock", "manual", "--modbus-port", "0", "--no-opcua", "--no-ethernetip"]
     proc = _start([*args, "--ready-file", str(tmp_path / "missing" / "ready.json")], tmp_path)
     assert proc.wait(180) == 1
     log = (tmp_path / "server.log").read_text()

@@ -205,7 +205,8 @@ def test_a_server_run_in_a_source_tree_leaves_no_files_there(tmp_path: Path) -> 
     env["HOME"] = str(home)
     ready = tmp_path / "ready.json"
     cmd = [sys.executable, "-m", "motion_server.cli", "run", "--clock", "manual",
-           "--modbus-port", "0", "--no-opcua", "--ready-file", str(ready)]  # fmt: skip
+           "--modbus-port", "0", "--no-opcua", "--no-ethernetip",
+           "--ready-file", str(ready)]  # fmt: skip
     log = (tmp_path / "server.log").open("wb")
     proc = subprocess.Popen(cmd, cwd=clone, env=env, stdout=log, stderr=log)
     try:

@@ -94,6 +94,7 @@ def test_little_word_order_is_exported() -> None:
         ("nodeset", "demo-nodeset.xml"),
         ("kepware", "demo-kepware.csv"),
         ("ignition", "demo-ignition.json"),
+        ("l5x", "demo-logix.L5X"),
     ],
 )
 def test_checked_in_demo_exports_equal_a_fresh_export(fmt: str, name: str) -> None:

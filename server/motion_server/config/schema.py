@@ -506,6 +506,43 @@ class ModbusSection(_Model):
     tls: ModbusTlsSection = ModbusTlsSection()
 
 
+class EthernetIpAccessSection(_Model):
+    """EtherNet/IP access (``[ethernetip.access]``). EtherNet/IP has no users, so the site
+    map decides: ``allow``: the networks a client may connect from (empty = everyone);
+    ``role``: what a client that no rule matches may write (``viewer``, the default: read
+    only); ``rules``: the first rule whose ``networks`` hold the client lets it write the
+    tags its ``write`` entries name (folders, owners, tags: as ``[modbus.access]``), with
+    the rights of an operator (Clock tags: admin only). ``max_sessions``: open TCP
+    connections at most; ``idle_timeout``: seconds without a complete request before a
+    connection is closed (0 = never)."""
+
+    allow: list[str] = Field(default_factory=list)
+    role: Literal["viewer", "operator", "admin"] = "viewer"
+    rules: list[WriteRule] = Field(default_factory=list)
+    max_sessions: Annotated[int, Field(ge=1, le=10000)] = 64
+    idle_timeout: Annotated[float, Field(ge=0.0)] = 60.0
+
+    @field_validator("allow")
+    @classmethod
+    def _networks(cls, value: list[str]) -> list[str]:
+        for net in value:
+            ipaddress.ip_network(net, strict=False)
+        return value
+
+
+class EthernetIpSection(_Model):
+    """EtherNet/IP front-end (``[ethernetip]``): the map's tags as native Logix tags (CIP
+    over TCP, ``docs/ethernetip.md``). ``port = 0`` binds an ephemeral port (tests);
+    ``slot``: the backplane slot the controller says it sits in (a route to any slot is
+    answered)."""
+
+    enabled: bool = False
+    host: BindAddress = "127.0.0.1"
+    port: Annotated[int, Field(ge=0, le=65535)] = 44818
+    slot: Annotated[int, Field(ge=0, le=16)] = 0
+    access: EthernetIpAccessSection = EthernetIpAccessSection()
+
+
 HASH_RE = r"^scrypt\$\d+\$\d+\$\d+\$[A-Za-z0-9+/=]+\$[A-Za-z0-9+/=]+$"
 #: environment variable naming the users secret file (TOML, ``[[users]]`` entries)
 USERS_FILE_ENV = "MOTION_SERVER_USERS_FILE"
@@ -647,6 +684,7 @@ class SiteMap(_Model):
     instructions: InstructionsSection = InstructionsSection()
     modbus: ModbusSection = ModbusSection()
     opcua: OpcUaSection = OpcUaSection()
+    ethernetip: EthernetIpSection = EthernetIpSection()
     watchdogs: list[WatchdogSection] = Field(default_factory=list)
     cams: list[CamSection] = Field(default_factory=list)
     audit: AuditSection = AuditSection()

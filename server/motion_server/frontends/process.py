@@ -37,7 +37,7 @@ from ..launch import LaunchSpec, follow_supervisor, setup_logging
 from ..liveness import FRONTEND_BEAT
 from ..safety.access import AccessPolicy, plain_role
 from ..safety.audit import AuditLog
-from ..scan.channel import MODBUS, OPCUA
+from ..scan.channel import ETHERNETIP, MODBUS, OPCUA
 from ..scheduling import LOAD_WINDOW, MODBUS_RT_PRIORITY, CpuLoad, Policy
 from ..tagmap import build_tagmap
 from ..tagmap.judge import Judge
@@ -48,7 +48,7 @@ from .view import ImageView
 
 log = logging.getLogger("motion_server.frontends")
 
-KINDS = {"modbus": MODBUS, "opcua": OPCUA}
+KINDS = {"modbus": MODBUS, "opcua": OPCUA, "ethernetip": ETHERNETIP}
 #: connection numbers of the n-th start of a front-end begin at n * this + 1
 GENERATION_SPAN = 1_000_000
 #: the Modbus front-end's load (% of a core each second) beyond which it leaves the
@@ -102,6 +102,10 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
         frontend = modbus_module.ModbusFrontend(
             view, cfg.host, cfg.port, cfg.unit_id, policy, audit, cfg.tls
         )
+    elif kind == "ethernetip":
+        from .ethernetip import EthernetIpFrontend
+
+        frontend = EthernetIpFrontend(view, site.ethernetip, audit, site.site.name)
     else:
         from .opcua import OpcUaFrontend
 
@@ -129,6 +133,8 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
         tls_port = frontend.tls_port if frontend.tls_server is not None else 0
         port = frontend.port if frontend.server is not None else 0
         _say({"listening": kind, "port": port, "tls_port": tls_port})
+    elif kind == "ethernetip":
+        _say({"listening": kind, "port": frontend.port})
     else:
         _say({"listening": kind, "port": frontend.port, "endpoint": frontend.endpoint})
     loop = asyncio.get_running_loop()
@@ -164,6 +170,8 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
 
 def _where(site: SiteMap, kind: str) -> str:
     cfg = site.modbus if kind == "modbus" else site.opcua
+    if kind == "ethernetip":
+        return f"{site.ethernetip.host}:{site.ethernetip.port}"
     return f"{cfg.host}:{cfg.port}"
 
 
@@ -198,7 +206,7 @@ async def _follow_policy(policy: Policy) -> None:
 def main() -> int:
     kind = sys.argv[1] if len(sys.argv) > 1 else ""
     if kind not in KINDS:
-        print("usage: python -m motion_server.frontends modbus|opcua", file=sys.stderr)
+        print("usage: python -m motion_server.frontends modbus|opcua|ethernetip", file=sys.stderr)
         return 2
     spec = LaunchSpec.read(sys.stdin.buffer)
     follow_supervisor(spec)

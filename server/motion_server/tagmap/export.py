@@ -17,7 +17,7 @@ from .bits import bits_text, packed_words, word_bits
 from .cams import CAM_ELEMENT_WORDS, CAM_HEADER_WORDS, CamInfo, cam_tables
 from .model import MAP_FORMAT, Block, Tag, TagMap
 
-FORMATS = ("json", "csv", "md", "nodeset", "kepware", "ignition")
+FORMATS = ("json", "csv", "md", "nodeset", "kepware", "ignition", "l5x")
 SCHEMA_FILE = "map.schema.json"
 
 #: function codes the Modbus front-end serves, and the exceptions it answers
@@ -264,7 +264,9 @@ def to_markdown(tagmap: TagMap) -> str:
 
 
 def export(tagmap: TagMap, fmt: str) -> str:
-    """The export of ``tagmap`` in ``fmt`` (json, csv, md, nodeset, kepware, ignition)."""
+    """The export of ``tagmap`` in ``fmt`` (json, csv, md, nodeset, kepware, ignition,
+    l5x)."""
+    from .l5x import to_l5x  # Logix UDTs and tags (what EtherNet/IP serves)
     from .nodeset_xml import to_nodeset  # NodeSet2 XML of the OPC UA namespace
     from .scada import to_ignition, to_kepware  # SCADA tag imports
 
@@ -275,6 +277,7 @@ def export(tagmap: TagMap, fmt: str) -> str:
         "nodeset": to_nodeset,
         "kepware": to_kepware,
         "ignition": to_ignition,
+        "l5x": to_l5x,
     }
     try:
         return writers[fmt](tagmap)
