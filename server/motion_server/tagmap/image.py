@@ -569,6 +569,7 @@ class TagImage:
             "QueuedWrites": lambda: host.queued_writes & _UINT32,
             "FrontendRestarts": lambda: host.restarts & _UINT32,
             "Ready": lambda: host.ready,
+            "ProfileFallbacks": lambda: system.ctl.profile_fallbacks & _UINT32,
         }
         self._get[tag.name] = getters[tag.field]
 
