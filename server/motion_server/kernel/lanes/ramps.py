@@ -12,6 +12,7 @@ import numpy as np
 
 from ..axis import Axis
 from ..enums import ProcessState
+from ..move_plan import velocity_plans
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from ..trapezoid import SEGMENTS, TrapezoidProfile
@@ -134,7 +135,7 @@ class ProfileLane(PlanLane):
         if type(p) is not JogProcess and type(p) is not MoveProcess:
             return False
         prof = p.profile
-        return isinstance(prof, TrapezoidProfile) and prof.plan is not None and not prof.finished
+        return isinstance(prof, TrapezoidProfile) and prof.planned and not prof.finished
 
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         assert isinstance(p, JogProcess | MoveProcess)
@@ -155,6 +156,45 @@ class ProfileLane(PlanLane):
             p.velocity,
             p.acceleration,
         )
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The joining members' ``FIELDS`` as arrays: the velocity targets not planned
+        yet (jogs commanded since the last step) planned in one pass
+        (:func:`..move_plan.velocity_plans`), the others loaded one by one."""
+        requested: list[int] = []
+        requests: list[tuple[float, ...]] = []
+        rows: list[tuple[Any, ...]] = []
+        for k, (p, ax) in enumerate(joining):
+            prof = p.profile  # type: ignore[attr-defined]
+            request = prof.request
+            if request is None:
+                rows.append(self._load(p, ax))
+                continue
+            requested.append(k)
+            requests.append((ax.base, prof.dt, p.position, p.velocity, p.acceleration, *request))
+        if not requested:
+            return None  # every plan built already: row by row, as before
+        n = len(joining)
+        cols = np.array(requests, dtype=float).T
+        base, dt, x, v, acc = cols[0], cols[1], cols[2], cols[3], cols[4]
+        plans = velocity_plans(dt, cols[5], cols[6], cols[7], cols[8], cols[9])
+        planned = (
+            base, np.zeros(len(requested)), dt, plans.done, plans.start, plans.pos,
+            plans.vel, plans.acc, plans.half, x, v, acc,
+        )  # fmt: skip
+        if not rows:
+            return list(planned)
+        # both kinds: place each column's rows where their members are
+        at = np.array(requested, dtype=np.intp)
+        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
+        columns = []
+        for j, f in enumerate(self.FIELDS):
+            width = self.WIDTHS.get(f)
+            col = np.empty((n,) if width is None else (n, width))
+            col[at] = planned[j]
+            col[others] = np.array([r[j] for r in rows], dtype=float)
+            columns.append(col)
+        return columns
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
