@@ -26,7 +26,8 @@ from .trapezoid import END_TOLERANCE, SEGMENTS
 class VelocityPlans(NamedTuple):
     """The plans of n velocity targets as ``ProfileLane`` holds them: ``start``,
     ``pos``, ``vel``, ``acc`` and ``half`` with one row of ``SEGMENTS`` values each, and
-    ``done`` (a sample at t >= done ends the plan)."""
+    ``done`` (a sample at t >= done ends the plan), ``end`` (when the target velocity is
+    reached) and ``end_pos`` (the position there)."""
 
     start: np.ndarray
     pos: np.ndarray
@@ -34,6 +35,8 @@ class VelocityPlans(NamedTuple):
     acc: np.ndarray
     half: np.ndarray
     done: np.ndarray
+    end: np.ndarray
+    end_pos: np.ndarray
 
 
 def velocity_plans(
@@ -80,4 +83,4 @@ def velocity_plans(
         v = v + zero * zero
         t = t + zero
     done = t - END_TOLERANCE * dt
-    return VelocityPlans(start, pos, vel, acc, half, done)
+    return VelocityPlans(start, pos, vel, acc, half, done, t, p)

@@ -341,8 +341,9 @@ class TrapezoidProfile:
 
     # -- stepping -------------------------------------------------------------------------
     def step(self) -> None:
-        plan = self.plan
-        if self.finished or plan is None:
+        # (finished first: a finished plan is not needed, so not built)
+        plan = None if self.finished else self.plan
+        if plan is None:
             # holding the target velocity: integrate it (no plan needed)
             self.acceleration = 0.0
             self.position += self.velocity * self._dt

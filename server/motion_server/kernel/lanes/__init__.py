@@ -29,7 +29,10 @@ Membership:
 - A step in which a member changes state (a profile or ramp ends, a gear catches up, a
   fraction gear's counts outgrow int64) is the process's own: the lane moves the member
   out before it computes, and the axis is composed in Python in that step, then offered
-  again. Events cost Python work; the steady arithmetic between them does not.
+  again. Events cost Python work; the steady arithmetic between them does not. The
+  common events are ended by the lanes themselves, as arrays: a stop ramp reaching rest
+  (the stop lane) and a trapezoidal jog reaching its velocity (the profile lane hands it
+  to the cruise lane).
 
 The order of the steps and the levels of the followers: :mod:`.group`.
 """
