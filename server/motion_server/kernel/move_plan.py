@@ -75,12 +75,14 @@ def velocity_plans(
     p = p + duration * (v + duration * h)
     v = v + duration * a
     t = t + duration
-    zero = np.zeros(n)
-    for k in range(1, SEGMENTS):
-        # a segment of zero duration and acceleration (h = 0.5 * 0.0 = 0.0)
+    # then segments of zero duration and acceleration (h = 0.5 * 0.0 = 0.0): each adds
+    # 0.0 * (v + 0.0 * 0.0), 0.0 * 0.0 and 0.0, which for the finite values of a judged
+    # plan changes a -0.0 into 0.0 the first time and nothing after
+    start[:, 1], pos[:, 1], vel[:, 1] = t, p, v
+    t = t + 0.0
+    p = p + 0.0 * (v + 0.0)
+    v = v + 0.0
+    for k in range(2, SEGMENTS):
         start[:, k], pos[:, k], vel[:, k] = t, p, v
-        p = p + zero * (v + zero * zero)
-        v = v + zero * zero
-        t = t + zero
     done = t - END_TOLERANCE * dt
     return VelocityPlans(start, pos, vel, acc, half, done, t, p)

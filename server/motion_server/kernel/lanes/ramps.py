@@ -187,7 +187,8 @@ class ProfileLane(PlanLane):
         yet (jogs commanded since the last step) planned in one pass
         (:func:`..move_plan.velocity_plans`), the others loaded one by one."""
         requested: list[int] = []
-        requests: list[tuple[float, ...]] = []
+        requests: list[float] = []
+        add = requests.extend
         rows: list[tuple[Any, ...]] = []
         for k, (p, ax) in enumerate(joining):
             prof = p.profile  # type: ignore[attr-defined]
@@ -196,11 +197,12 @@ class ProfileLane(PlanLane):
                 rows.append(self._load(p, ax))
                 continue
             requested.append(k)
-            requests.append((ax.base, prof.dt, p.position, p.velocity, p.acceleration, *request))
+            add((ax.base, prof._dt, p.position, p.velocity, p.acceleration))
+            add(request)
         if not requested:
             return None  # every plan built already: row by row, as before
         n = len(joining)
-        cols = np.array(requests, dtype=float).T
+        cols = np.array(requests, dtype=float).reshape(len(requested), 10).T
         base, dt, x, v, acc = cols[0], cols[1], cols[2], cols[3], cols[4]
         target = cols[7]
         plans = velocity_plans(dt, cols[5], cols[6], target, cols[8], cols[9])
