@@ -109,6 +109,21 @@ def command(draw: st.DrawFn) -> Command:
     }  # fmt: skip
 
 
+def assert_status(fast: MotionSystem, ref: MotionSystem, where: str) -> None:
+    """The status arrays a publish reads agree with the axes' own status (a lane that
+    changes a process's state must mark its axis, as composition does) and with the
+    reference's."""
+    arrays = []
+    for s in (fast, ref):
+        st = s.ctl.status_arrays()
+        axes = s.ctl.axes
+        assert st.motion_status.tolist() == [ax.motion_status for ax in axes], where
+        assert st.plcopen_state.tolist() == [int(ax.plcopen_state) for ax in axes], where
+        arrays.append([a.copy() for a in st])
+    for a, b in zip(*arrays, strict=True):
+        assert np.array_equal(a, b), where
+
+
 def run_rounds(
     fast: MotionSystem,
     ref: MotionSystem,
@@ -130,7 +145,9 @@ def run_rounds(
         for c in range(cycles):
             fast.cycle()
             ref.cycle()
-            assert_same(fast, ref, f"round {r} {commands}, cycle {c}")
+            where = f"round {r} {commands}, cycle {c}"
+            assert_same(fast, ref, where)
+            assert_status(fast, ref, where)
             most = max(most, laned(fast))
             if c == 0:
                 for s in (fast, ref):

@@ -31,8 +31,9 @@ Membership:
   out before it computes, and the axis is composed in Python in that step, then offered
   again. Events cost Python work; the steady arithmetic between them does not. The
   common events are ended by the lanes themselves, as arrays: a stop ramp reaching rest
-  (the stop lane) and a trapezoidal jog reaching its velocity (the profile lane hands it
-  to the cruise lane).
+  (the stop lane), a trapezoidal jog reaching its velocity (the profile lane hands it
+  to the cruise lane) and a real-ratio gear catching up (the catch-up lane locks it and
+  hands it to the gear lane).
 
 The order of the steps and the levels of the followers: :mod:`.group`.
 """

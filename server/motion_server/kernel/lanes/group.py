@@ -228,3 +228,8 @@ class GroupLanes:
             self.scurves.step(s, compose)
         for lane, level in self.schedule:
             lane.step(s, level, dt, compose)
+            if type(lane) is CatchUpLane and lane.reached:
+                # gears locked in the lane: offered as Motion.offer would, in row order
+                for p, ax in lane.reached:
+                    self._offer_follower(p, ax)
+                lane.reached = ()
