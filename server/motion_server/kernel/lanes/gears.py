@@ -71,6 +71,25 @@ class GearLane(LevelledLane):
         p.acceleration = float(a["acc"][k])
         p.single.v_prev = float(a["v_prev"][k])
 
+    def take_batch(self, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
+        """``joining`` (gears the catch-up lane locked, :meth:`CatchUpLane._lock`) were
+        admitted last, in this order; ``columns`` holds their ``FIELDS``, what
+        :meth:`_load` would read: if they are all that joined since the last rebuild,
+        the next rebuild takes the columns instead of loading them one by one."""
+        mine = self._joining
+        if len(mine) == len(joining) and all(
+            q is p for (q, _), (p, _) in zip(mine, joining, strict=True)
+        ):
+            self._batch = (joining[0][0], len(joining), columns)
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        batch = self._batch
+        if batch is None or not joining or joining[0][0] is not batch[0]:
+            return None
+        if len(joining) != batch[1]:
+            return None
+        return [np.asarray(col, dtype=float) for col in batch[2]]
+
     def step(self, s: AxisArrays, lv: int, dt: float, compose: Compose) -> None:
         a = self.arrays
         level = self.levels[lv]
@@ -322,6 +341,8 @@ class CatchUpLane(LevelledLane):
         slot = self._slot
         dirty = s.dirty
         reached: list[tuple[Process, Axis]] = []
+        # the locked lane's FIELDS of each, as GearLane._load would read them
+        base, lock_pos, num, den = [], [], [], []
         for j, k in enumerate(rows):
             p, ax = self.members[k], self.axes[k]
             assert isinstance(p, GearProcess) and p.single is not None
@@ -338,6 +359,10 @@ class CatchUpLane(LevelledLane):
             p.at_lock = x
             c.lock()
             p.locked = True
+            base.append(ax.base)
+            lock_pos.append(c.lock_pos)
+            num.append(c.num)
+            den.append(c.den)
             # composition marks the status (GearingLockStatus) and the axis is offered
             dirty.add(ax.index)
             p.status_changed = False
@@ -345,5 +370,11 @@ class CatchUpLane(LevelledLane):
             p.offer_pending = False
             reached.append((p, ax))
         self.reached = reached
+        self.locked_columns = [
+            base, pos, lock_pos, num, den, a["ratio"][r], v_prev, pos, vel, acc
+        ]  # fmt: skip
         self.changed = True
         self._owner.dirty = True
+
+    #: the ``GearLane`` columns of :attr:`reached` (:meth:`GearLane.take_batch`)
+    locked_columns: list[Any] | None = None

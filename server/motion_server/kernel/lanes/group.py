@@ -229,7 +229,14 @@ class GroupLanes:
         for lane, level in self.schedule:
             lane.step(s, level, dt, compose)
             if type(lane) is CatchUpLane and lane.reached:
-                # gears locked in the lane: offered as Motion.offer would, in row order
+                # gears locked in the lane: offered as Motion.offer would, in row order;
+                # the lane of locked gears takes their columns if it took them all
                 for p, ax in lane.reached:
                     self._offer_follower(p, ax)
+                columns = lane.locked_columns
+                if columns is not None:
+                    for follower in self.followers[lane.source]:
+                        if isinstance(follower, GearLane):
+                            follower.take_batch(lane.reached, columns)
                 lane.reached = ()
+                lane.locked_columns = None
