@@ -22,9 +22,14 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   (a :class:`~motion_server.kernel.cams.CamProcess`: Continuous, Immediate, on the
   master's command position) over one cubic table of 9 points over 0..360 (a dwell, a rise
   of 10 mm, a dwell), master scaling 0.1 mm per cam unit: a pass is 36 mm of master, 360
-  ms, so the 2000 steps measured hold five passes and more.
+  ms, so the 2000 steps measured hold five passes and more;
+- ``maj``, ``mag``: ``accel`` and ``clutch`` commanded through the instructions, one MAJ
+  instance per master and one MAG instance per slave (units per s and s²), all executed
+  in the same scan: the command is the instructions' execution (operands latched and
+  judged, status written, the kernel command), as a scan runs it.
 
-The commands go to the kernel directly (the processes the instructions build); the
+The commands go to the kernel directly (the processes the instructions build; through
+the instructions in ``maj`` and ``mag``); the
 benchmark prints, per step of ``Controller.step``, the CPU time of the stepping thread
 (the cost on one core, which other processes on a shared machine do not inflate): mean,
 p99 and max over the case's steps, and the CPU share of the 1 ms period (target: 256
@@ -62,6 +67,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from motion_server.instructions import Instruction, MotionSystem
 from motion_server.kernel import (
     AxisConfig,
     AxisType,
@@ -192,6 +198,56 @@ def leave_run(ctl: Controller) -> None:
     ctl.set_mode(OperatingMode.PROGRAM)
 
 
+def instructions(
+    type_name: str,
+    axes: Callable[[int], range],
+    operands: Callable[[int, int], dict[str, object]],
+) -> tuple[Callable[[Controller], None], Callable[[Controller], None]]:
+    """(set-up, command) of a case that commands through instructions: the set-up adds
+    one instance of ``type_name`` per axis number k of ``axes(n_axes)``, its operands
+    ``operands(n_axes, k)``, to a
+    :class:`~motion_server.instructions.MotionSystem` on the controller (not timed); the
+    command raises every trigger and executes them, as a scan does (operands latched and
+    judged, status written, the kernel command). The steps after it are the
+    controller's, as in the other cases (the instances' own update is not timed)."""
+
+    def setup(ctl: Controller) -> None:
+        system = MotionSystem(ctl)
+        insts = []
+        for n in axes(len(ctl.axes)):
+            inst = system.add(type_name, f"{type_name}{n}", {})
+            inst.inputs.update(operands(len(ctl.axes), n))
+            insts.append(inst)
+        SYSTEMS[id(ctl)] = insts
+
+    def command(ctl: Controller) -> None:
+        for inst in SYSTEMS[id(ctl)]:
+            inst.inputs[inst.TRIGGER] = True
+            inst.scan()
+
+    return setup, command
+
+
+#: the instances of the instruction cases, by id of their controller
+SYSTEMS: dict[int, list[Instruction]] = {}
+
+#: MAJ on every master at 100 mm/s, 1000 mm/s² (the ``accel`` jog), through the instruction
+MAJ_SETUP, MAJ_COMMAND = instructions(
+    "MAJ",
+    lambda n: range(1, n // 2 + 1),
+    lambda n, k: {"Axis": k, "Speed": SPEED, "AccelRate": RATE, "DecelRate": RATE, "AccelUnits": 0,
+               "DecelUnits": 0},
+)  # fmt: skip
+#: MAG with the clutch on every slave (the ``clutch`` gear), through the instruction: real
+#: ratio 0.5, command reference, clutch at 1,000 mm/s² (units per s²)
+MAG_SETUP, MAG_COMMAND = instructions(
+    "MAG",
+    lambda n: range(n // 2 + 1, n + 1),
+    lambda n, k: {"SlaveAxis": k, "MasterAxis": k - n // 2, "Ratio": 0.5, "MasterReference": 1,
+               "Clutch": 0, "AccelRate": RATE, "AccelUnits": 0},
+)  # fmt: skip
+
+
 def geared(ctl: Controller) -> None:
     """Masters jogging, slaves geared to them (the set-up of ``steady``)."""
     jog(ctl)
@@ -210,6 +266,8 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "clutch": (jog, lambda c: gear(c, True), 60),
     "s-curve": (lambda c: gear(c, False), lambda c: jog(c, JERK), 100),
     "cam": (jog, cam, 2000),
+    "maj": (lambda c: (gear(c, False), MAJ_SETUP(c)), MAJ_COMMAND, 100),
+    "mag": (lambda c: (jog(c), MAG_SETUP(c)), MAG_COMMAND, 60),
 }
 
 

@@ -300,6 +300,10 @@ RUNG_EVENTS: dict[tuple[bool, bool], RungEvent] = {
 }
 
 
+#: (name, bit mask) of every LogixBit: the FLAGS word without an enum walk per status write
+_LOGIX_MASKS = tuple((b.name, 1 << int(b)) for b in LogixBit)
+
+
 class LogixInstruction(Instruction):
     """Transitional Logix instruction: ``Execute`` is the rung-condition-in.
 
@@ -317,13 +321,14 @@ class LogixInstruction(Instruction):
         return bool(self.outputs[name])
 
     def set_bits(self, **bits: bool) -> None:
+        out = self.outputs
         for name, value in bits.items():
-            self.outputs[name] = bool(value)
+            out[name] = bool(value)
         flags = 0
-        for b in LogixBit:
-            if self.outputs[b.name]:
-                flags |= 1 << int(b)
-        self.outputs["FLAGS"] = flags
+        for name, mask in _LOGIX_MASKS:
+            if out[name]:
+                flags |= mask
+        out["FLAGS"] = flags
 
     def fail(self, code: int, exerr: int = 0) -> None:
         self.outputs["ERR"] = int(code)

@@ -88,7 +88,11 @@ class Operand:
             if not math.isfinite(v):
                 return False
             if self.enum is not None:
-                self.enum(int(value))
+                n = int(value)
+                # a member's value passes without the enum's constructor (slow); any other
+                # is judged by the constructor, which raises ValueError
+                if n not in self.enum._value2member_map_:
+                    self.enum(n)
         except (TypeError, ValueError, OverflowError):
             return False
         if self.minimum is not None and (

@@ -196,8 +196,27 @@ class Motion:
         them, the PLCopen aborting mode and Logix merge); the new process is built by
         ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
         raises, nothing has changed: the processes it would replace keep running."""
-        if not ax.processes:
-            # an axis without motion may be a master its lane followers read as constant
+        procs = ax.processes
+        if not procs and not ax.preloaded_cams:
+            # the common case of an axis without motion, without the calls: nothing to
+            # settle, inherit or retire. (An axis without motion may be a master its lane
+            # followers read as constant: they are levelled again.)
+            self.lanes[ax.group].dirty = True
+            p = make(0.0, 0.0)
+            if not ax.override.neutral and overridable(p):
+                apply(p, ax.override)
+            if replace is None and ax.buffered is not None:
+                ax.buffered.cancelled = True
+                ax.buffered = None
+            procs.append(p)
+            if p.masters:
+                self.order_dirty = True
+            # Axis.motion_changed: busy if the new process is active
+            self.s.scalars.busy[ax.index] = p.active
+            self.s.dirty.add(ax.index)
+            self.offer(ax)
+            return p
+        if not procs:
             self.lanes[ax.group].dirty = True
         self.settle(ax)
         matching = [p for p in ax.processes if p.active and (replace is None or p.kind in replace)]

@@ -134,6 +134,27 @@ def _build(
     )
 
 
+def judge_velocity_plan(
+    p0: float, v0: float, target: float, acceleration: float, deceleration: float
+) -> None:
+    """Refuse what :func:`plan_velocity` would refuse (too long, or beyond any float),
+    with the same error, without building the plan: its one segment's duration and end,
+    computed as :func:`_build` computes them (the segments after it last 0 and change
+    nothing a finite plan holds)."""
+    direction = target if target != 0.0 else v0
+    a_max, a_min = _limit_pair(direction, acceleration, deceleration)
+    gap = target - v0
+    a = a_max if gap > 0.0 else a_min
+    duration = max(gap / a, 0.0)
+    t = 0.0 + duration
+    if not math.isfinite(t) or t > MAX_DURATION:
+        raise _too_long(t)
+    p = p0 + duration * (v0 + duration * (0.5 * a))
+    v = v0 + duration * a
+    if not (math.isfinite(p) and math.isfinite(v) and math.isfinite(p0) and math.isfinite(v0)):
+        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
+
+
 def _limit_pair(direction: float, acceleration: float, deceleration: float) -> tuple[float, float]:
     """(largest positive, largest negative) acceleration for travel in ``direction``."""
     if direction >= 0.0:
@@ -215,12 +236,27 @@ def plan_position(
     return _build(dt, p0, v0, segments, 0.0, target)
 
 
+#: what :func:`plan_velocity` needs besides dt: (p0, v0, target, acceleration, deceleration)
+VelocityRequest = tuple[float, float, float, float, float]
+
+
 class TrapezoidProfile:
     """A trapezoidal profile with the interface of :class:`.profiles.Profile`.
 
     ``position`` is the displacement from the profile's origin; ``cycles`` counts the
     samples since the current plan.
+
+    A velocity target is judged at once (:func:`judge_velocity_plan`: a plan that could
+    not be held is refused when it is commanded) and planned when the plan is first
+    needed: ``plan`` builds it then, from the ``request`` kept, unless the fast lanes have
+    planned every velocity target admitted in a scan in one pass before the step
+    (:mod:`.move_plan`); both give the very same numbers.
     """
+
+    #: the plan, once built (``plan`` builds it from ``request``)
+    _plan: Plan | None = None
+    #: a velocity target judged but not planned yet
+    request: VelocityRequest | None = None
 
     def __init__(
         self, dt: float, velocity: float = 0.0, acceleration: float = 0.0, position: float = 0.0
@@ -231,7 +267,8 @@ class TrapezoidProfile:
         self.acceleration = float(acceleration)
         self.finished = False
         self.cycles = 0
-        self.plan: Plan | None = None
+        self._plan = None
+        self.request = None
         self._target_position: float | None = None
         self._target_velocity = 0.0
 
@@ -257,17 +294,45 @@ class TrapezoidProfile:
         if not math.isfinite(velocity):
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
         limits = limits.validated()
-        plan = plan_velocity(
-            self._dt,
+        request = (
             self.position,
             self.velocity,
             float(velocity),
             limits.acceleration,
             limits.deceleration,
         )
-        self._start(plan, None, float(velocity))
+        judge_velocity_plan(*request)
+        self._start(None, None, float(velocity))
+        self.request = request
 
-    def _start(self, plan: Plan, target_position: float | None, target_velocity: float) -> None:
+    @property
+    def plan(self) -> Plan | None:
+        """The current plan (built now if only requested); None once none is needed."""
+        request = self.request
+        if request is not None:
+            self._plan = plan_velocity(self._dt, *request)
+            self.request = None
+        return self._plan
+
+    @plan.setter
+    def plan(self, plan: Plan | None) -> None:
+        self._plan = plan
+        self.request = None
+
+    @property
+    def planned(self) -> bool:
+        """A plan is running (built, or requested and not built yet)."""
+        return self.request is not None or self._plan is not None
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        # saved before plans were built on demand: the plan was an attribute
+        if "plan" in state:
+            state["_plan"] = state.pop("plan")
+        self.__dict__.update(state)
+
+    def _start(
+        self, plan: Plan | None, target_position: float | None, target_velocity: float
+    ) -> None:
         self.plan = plan
         self.cycles = 0
         self.finished = False
@@ -276,8 +341,9 @@ class TrapezoidProfile:
 
     # -- stepping -------------------------------------------------------------------------
     def step(self) -> None:
-        plan = self.plan
-        if self.finished or plan is None:
+        # (finished first: a finished plan is not needed, so not built)
+        plan = None if self.finished else self.plan
+        if plan is None:
             # holding the target velocity: integrate it (no plan needed)
             self.acceleration = 0.0
             self.position += self.velocity * self._dt

@@ -152,6 +152,13 @@ DIAGNOSTICS_FIELDS: tuple[FieldSpec, ...] = (
         TagType.BOOL,
         description="1 while the controller runs (the scan cycles); 0 while it starts or stops",
     ),
+    # after Ready: placed after its register, which kept its place
+    FieldSpec(
+        "ProfileFallbacks",
+        TagType.UDINT,
+        description="jerk-limited velocity targets the closed-form S-curve left to ruckig "
+        "(since the scan started)",
+    ),
 )
 
 

@@ -553,6 +553,9 @@ class TagImage:
 
             return get
 
+        # the kernel counts fallbacks per OS process; the tag counts those of this image's
+        # scan (one per server process, many in a test process)
+        fallbacks0 = system.ctl.profile_fallbacks
         getters: dict[str, Getter] = {
             "Heartbeat": lambda: host.heartbeat & _UINT32,
             "CycleTime": lambda: host.last_cycle_time * 1e6,
@@ -569,6 +572,7 @@ class TagImage:
             "QueuedWrites": lambda: host.queued_writes & _UINT32,
             "FrontendRestarts": lambda: host.restarts & _UINT32,
             "Ready": lambda: host.ready,
+            "ProfileFallbacks": lambda: (system.ctl.profile_fallbacks - fallbacks0) & _UINT32,
         }
         self._get[tag.name] = getters[tag.field]
 

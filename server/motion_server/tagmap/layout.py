@@ -144,22 +144,30 @@ def _region(
     alloc: _Allocator, items: Sequence[_Item], bools_last: bool = False
 ) -> list[tuple[_Item, int, int | None]]:
     """Place a region's items: (item, address, bit). The registers of BOOLs come first,
-    or after the words with ``bools_last``."""
+    or after the words with ``bools_last``; then a word listed after the first BOOL comes
+    after the BOOLs' registers (a word added to a block that has them moves nothing)."""
     placed: list[tuple[_Item, int, int | None]] = []
+    bools = [i for i in items if i.type == TagType.BOOL]
 
     def place_bools() -> None:
-        bools = [i for i in items if i.type == TagType.BOOL]
         for k in range(0, len(bools), 16):
             reg = alloc.take(1)
             placed.extend((item, reg, bit) for bit, item in enumerate(bools[k : k + 16]))
 
+    words = [i for i in items if i.type != TagType.BOOL]
+    later: list[_Item] = []
     if not bools_last:
         place_bools()
-    for item in items:
-        if item.type != TagType.BOOL:
-            placed.append((item, alloc.take(item.type.words), None))
+    elif bools:
+        first = items.index(bools[0])
+        later = [i for i in items[first:] if i.type != TagType.BOOL]
+        words = [i for i in items[:first] if i.type != TagType.BOOL]
+    for item in words:
+        placed.append((item, alloc.take(item.type.words), None))
     if bools_last:
         place_bools()
+        for item in later:
+            placed.append((item, alloc.take(item.type.words), None))
     return placed
 
 

@@ -29,7 +29,11 @@ Membership:
 - A step in which a member changes state (a profile or ramp ends, a gear catches up, a
   fraction gear's counts outgrow int64) is the process's own: the lane moves the member
   out before it computes, and the axis is composed in Python in that step, then offered
-  again. Events cost Python work; the steady arithmetic between them does not.
+  again. Events cost Python work; the steady arithmetic between them does not. The
+  common events are ended by the lanes themselves, as arrays: a stop ramp reaching rest
+  (the stop lane), a trapezoidal jog reaching its velocity (the profile lane hands it
+  to the cruise lane) and a real-ratio gear catching up (the catch-up lane locks it and
+  hands it to the gear lane).
 
 The order of the steps and the levels of the followers: :mod:`.group`.
 """

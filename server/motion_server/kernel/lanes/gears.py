@@ -7,6 +7,7 @@ Each member reads its master through the lane's ``source`` (command or actual po
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -69,6 +70,25 @@ class GearLane(LevelledLane):
         p.velocity = float(a["vel"][k])
         p.acceleration = float(a["acc"][k])
         p.single.v_prev = float(a["v_prev"][k])
+
+    def take_batch(self, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
+        """``joining`` (gears the catch-up lane locked, :meth:`CatchUpLane._lock`) were
+        admitted last, in this order; ``columns`` holds their ``FIELDS``, what
+        :meth:`_load` would read: if they are all that joined since the last rebuild,
+        the next rebuild takes the columns instead of loading them one by one."""
+        mine = self._joining
+        if len(mine) == len(joining) and all(
+            q is p for (q, _), (p, _) in zip(mine, joining, strict=True)
+        ):
+            self._batch = (joining[0][0], len(joining), columns)
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        batch = self._batch
+        if batch is None or not joining or joining[0][0] is not batch[0]:
+            return None
+        if len(joining) != batch[1]:
+            return None
+        return [np.asarray(col, dtype=float) for col in batch[2]]
 
     def step(self, s: AxisArrays, lv: int, dt: float, compose: Compose) -> None:
         a = self.arrays
@@ -259,10 +279,14 @@ class CatchUpLane(LevelledLane):
         dv = np.where(speeding_up, a["accel"][level], a["decel"][level]) * dt
         gap = target - v0
         caught = np.abs(gap) <= dv
-        movers = []
-        if caught.any():
-            movers = self.move_out(np.flatnonzero(caught) + (level.start or 0))
+        movers: list[Axis] = []
+        locking: list[int] = []
         v1 = v0 + np.copysign(dv, gap)
+        if caught.any():
+            locking, odd = self._locking(s, np.flatnonzero(caught) + (level.start or 0))
+            movers = self.move_out(odd) if odd else []
+            # RateRamp.step: the step that catches up lands on the target velocity
+            v1 = np.where(caught, target, v1)
         pos = a["pos"][level] + 0.5 * (v0 + v1) * dt
         acc = (v1 - v0) / dt
         a["v_prev"][level] = v
@@ -273,5 +297,84 @@ class CatchUpLane(LevelledLane):
         s.cmd_pos[si] = a["base"][level] + pos
         s.cmd_vel[si] = v1
         s.cmd_acc[si] = acc
+        if locking:
+            self._lock(s, locking)
         for ax in movers:
             compose(ax)
+
+    #: the gears :meth:`_lock` locked in the last step, to offer to the locked lanes
+    #: (``GroupLanes``; a class default for lanes restored from older snapshots)
+    reached: Sequence[tuple[Process, Axis]] = ()
+
+    def _locking(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
+        """The rows that catch up this step, split into those the lane locks itself
+        (:meth:`_lock`: a real ratio, the gear its axis's only process, nothing buffered,
+        the drive on: the usual MAG clutch) and those moved out to the gear's own step."""
+        locking, odd = [], []
+        drive_on = s.drive_on
+        for k in rows.tolist():
+            p, ax = self.members[k], self.axes[k]
+            procs = ax.processes
+            c = p.single
+            if (
+                not c.exact
+                and len(procs) == 1
+                and procs[0] is p
+                and ax.buffered is None
+                and drive_on[ax.index]
+            ):
+                locking.append(k)
+            else:
+                odd.append(k)
+        return locking, odd
+
+    def _lock(self, s: AxisArrays, rows: list[int]) -> None:
+        """Lock the gears at ``rows``, which caught up in this step (the lane has written
+        their sample): what their own step and composition do (``RateRamp.step``,
+        ``GearProcess._lock``, ``Motion.compose`` of a single process marking the changed
+        status, ``Motion.offer``), without stepping them again. Each leaves this lane;
+        :attr:`reached` hands them to the lanes of locked gears."""
+        a = self.arrays
+        r = np.array(rows, dtype=np.intp)
+        pos, vel, acc = a["pos"][r].tolist(), a["vel"][r].tolist(), a["acc"][r].tolist()
+        v_prev = a["v_prev"][r].tolist()
+        slot = self._slot
+        dirty = s.dirty
+        reached: list[tuple[Process, Axis]] = []
+        # the locked lane's FIELDS of each, as GearLane._load would read them
+        base, lock_pos, num, den = [], [], [], []
+        for j, k in enumerate(rows):
+            p, ax = self.members[k], self.axes[k]
+            assert isinstance(p, GearProcess) and p.single is not None
+            ramp = p.ramp
+            assert ramp is not None
+            slot.pop(id(p), None)
+            x = pos[j]
+            ramp.position = p.position = x
+            ramp.velocity = p.velocity = vel[j]
+            ramp.acceleration = p.acceleration = acc[j]
+            c = p.single
+            c.v_prev = v_prev[j]
+            # GearProcess._lock (one real-ratio coupling)
+            p.at_lock = x
+            c.lock()
+            p.locked = True
+            base.append(ax.base)
+            lock_pos.append(c.lock_pos)
+            num.append(c.num)
+            den.append(c.den)
+            # composition marks the status (GearingLockStatus) and the axis is offered
+            dirty.add(ax.index)
+            p.status_changed = False
+            p.lane = None
+            p.offer_pending = False
+            reached.append((p, ax))
+        self.reached = reached
+        self.locked_columns = [
+            base, pos, lock_pos, num, den, a["ratio"][r], v_prev, pos, vel, acc
+        ]  # fmt: skip
+        self.changed = True
+        self._owner.dirty = True
+
+    #: the ``GearLane`` columns of :attr:`reached` (:meth:`GearLane.take_batch`)
+    locked_columns: list[Any] | None = None

@@ -31,6 +31,11 @@ from .scurve import SCurveLane
 class GroupLanes:
     """The lanes of one motion group, and the axes it still composes in Python."""
 
+    #: per command follower lane: its member list and their levels when it was last
+    #: ordered (the same list object and levels again: nothing to sort); a class default
+    #: for lanes restored from a snapshot saved before it existed
+    _ordered: dict[LevelledLane, tuple[list[Process], list[int]]] | None = None
+
     def __init__(self, group: MotionGroup) -> None:
         self.group = group
         self.cruise = CruiseLane(self)
@@ -61,6 +66,7 @@ class GroupLanes:
         #: the group's axes in composition order, without those in a lane
         self.python_order: list[Axis] = list(group.order)
         self.dirty = False
+        self._ordered = {}
 
     def __len__(self) -> int:
         return sum(len(lane) for lane in self.all)
@@ -183,16 +189,24 @@ class GroupLanes:
             memo[key] = result
             return result
 
+        ordered = self._ordered
+        if ordered is None:
+            ordered = self._ordered = {}
         depth = 0
         for lane in lanes:
             levels = [level(ax) for ax in lane.axes]
-            if any(lv is None for lv in levels):
+            if None in levels:
                 for p, lv in zip(list(lane.members), levels, strict=True):
                     if lv is None:
                         lane.evict(p)
                 lane.rebuild()
             kept = [lv for lv in levels if lv is not None]
-            lane.order(kept)
+            last = ordered.get(lane)
+            if last is None or last[0] is not lane.members or last[1] != kept:
+                # (a rebuild or an order replaces the member list: the same list is the
+                # same members in the same order, already sorted by these levels)
+                lane.order(kept)
+                ordered[lane] = (lane.members, kept)
             depth = max(depth, len(lane.levels))
         self.depth = depth
 
@@ -200,10 +214,29 @@ class GroupLanes:
         if self.cruise.members:
             self.cruise.step(s)
         if self.profiles.members:
-            self.profiles.step(s, compose)
+            profiles = self.profiles
+            profiles.step(s, compose)
+            if profiles.reached:
+                # jogs at speed: offered as Motion.offer would, in row order
+                cruise = self.cruise
+                for p, ax in profiles.reached:
+                    cruise.admit(p, ax)
+                profiles.reached = ()
         if self.stops.members:
             self.stops.step(s, dt, compose)
         if self.scurves.members:
             self.scurves.step(s, compose)
         for lane, level in self.schedule:
             lane.step(s, level, dt, compose)
+            if type(lane) is CatchUpLane and lane.reached:
+                # gears locked in the lane: offered as Motion.offer would, in row order;
+                # the lane of locked gears takes their columns if it took them all
+                for p, ax in lane.reached:
+                    self._offer_follower(p, ax)
+                columns = lane.locked_columns
+                if columns is not None:
+                    for follower in self.followers[lane.source]:
+                        if isinstance(follower, GearLane):
+                            follower.take_batch(lane.reached, columns)
+                lane.reached = ()
+                lane.locked_columns = None

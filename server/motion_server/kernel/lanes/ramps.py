@@ -6,12 +6,14 @@ None of them reads another axis, so they step first, before any follower.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from ..axis import Axis
 from ..enums import ProcessState
+from ..move_plan import velocity_plans
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from ..trapezoid import SEGMENTS, TrapezoidProfile
@@ -92,7 +94,11 @@ class PlanLane(Lane):
         cycles = a["cycles"]
         t = (cycles + 1.0) * a["dt"]
         ending = t >= a["done"]
-        movers = self.move_out(np.flatnonzero(ending)) if ending.any() else []
+        movers: list[Axis] = []
+        ended: list[int] = []
+        if ending.any():
+            ended, odd = self._ending(s, np.flatnonzero(ending))
+            movers = self.move_out(odd) if odd else []
         cycles += 1.0
         st = a["start"]
         seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
@@ -103,8 +109,19 @@ class PlanLane(Lane):
         s.cmd_pos[at] = a["base"] + pos
         s.cmd_vel[at] = vel
         s.cmd_acc[at] = acc
+        if ended:
+            self._end(s, ended, t)
         for ax in movers:
             compose(ax)
+
+    def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
+        """The rows whose plan ends this step, split into those the lane ends itself
+        (:meth:`_end`) and those moved out to their process's own step."""
+        return [], rows.tolist()
+
+    def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
+        """End the plans of ``rows`` (from :meth:`_ending`) at the sample ``t``."""
+        raise NotImplementedError
 
 
 class ProfileLane(PlanLane):
@@ -124,7 +141,12 @@ class ProfileLane(PlanLane):
         "pos",
         "vel",
         "acc",
+        "end",
+        "end_pos",
+        "end_vel",
+        "landing",
     )
+    DTYPES: ClassVar[dict[str, Any]] = {"landing": bool}
     WIDTHS: ClassVar[dict[str, int]] = {
         f: SEGMENTS for f in ("start", "seg_pos", "seg_vel", "seg_acc", "half")
     }
@@ -134,7 +156,7 @@ class ProfileLane(PlanLane):
         if type(p) is not JogProcess and type(p) is not MoveProcess:
             return False
         prof = p.profile
-        return isinstance(prof, TrapezoidProfile) and prof.plan is not None and not prof.finished
+        return isinstance(prof, TrapezoidProfile) and prof.planned and not prof.finished
 
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         assert isinstance(p, JogProcess | MoveProcess)
@@ -154,7 +176,124 @@ class ProfileLane(PlanLane):
             p.position,
             p.velocity,
             p.acceleration,
+            plan.end,
+            plan.end_position,
+            plan.end_velocity,
+            plan.landing,
         )
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The joining members' ``FIELDS`` as arrays: the velocity targets not planned
+        yet (jogs commanded since the last step) planned in one pass
+        (:func:`..move_plan.velocity_plans`), the others loaded one by one."""
+        requested: list[int] = []
+        requests: list[float] = []
+        add = requests.extend
+        rows: list[tuple[Any, ...]] = []
+        for k, (p, ax) in enumerate(joining):
+            prof = p.profile  # type: ignore[attr-defined]
+            request = prof.request
+            if request is None:
+                rows.append(self._load(p, ax))
+                continue
+            requested.append(k)
+            add((ax.base, prof._dt, p.position, p.velocity, p.acceleration))
+            add(request)
+        if not requested:
+            return None  # every plan built already: row by row, as before
+        n = len(joining)
+        cols = np.array(requests, dtype=float).reshape(len(requested), 10).T
+        base, dt, x, v, acc = cols[0], cols[1], cols[2], cols[3], cols[4]
+        target = cols[7]
+        plans = velocity_plans(dt, cols[5], cols[6], target, cols[8], cols[9])
+        m = len(requested)
+        planned = (
+            base, np.zeros(m), dt, plans.done, plans.start, plans.pos, plans.vel, plans.acc,
+            plans.half, x, v, acc, plans.end, plans.end_pos, target, np.zeros(m, dtype=bool),
+        )  # fmt: skip
+        if not rows:
+            return list(planned)
+        # both kinds: place each column's rows where their members are
+        at = np.array(requested, dtype=np.intp)
+        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
+        columns = []
+        for j, f in enumerate(self.FIELDS):
+            width = self.WIDTHS.get(f)
+            dtype = self.DTYPES.get(f, float)
+            col = np.empty((n,) if width is None else (n, width), dtype=dtype)
+            col[at] = planned[j]
+            col[others] = np.array([r[j] for r in rows], dtype=dtype)
+            columns.append(col)
+        return columns
+
+    def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
+        """A jog that reaches its velocity, its axis's only process with nothing
+        buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
+        the others (moves, which land, and the rest) by their process's own step."""
+        ended, odd = [], []
+        landing = self.arrays["landing"]
+        drive_on = s.drive_on
+        for k in rows.tolist():
+            p, ax = self.members[k], self.axes[k]
+            procs = ax.processes
+            if (
+                type(p) is JogProcess
+                and not landing[k]
+                and len(procs) == 1
+                and procs[0] is p
+                and ax.buffered is None
+                and drive_on[ax.index]
+            ):
+                ended.append(k)
+            else:
+                odd.append(k)
+        return ended, odd
+
+    def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
+        """The jogs at ``rows`` reach their velocity at the sample ``t``: what composing
+        their axes does (``TrapezoidProfile.finish_plan``, ``JogProcess._after_step``,
+        ``Motion.compose`` of a single process, then ``Motion.offer``: at speed, it joins
+        the cruise lane), with the finishing sample computed as arrays, the same
+        operations in the same order. Each jog leaves this lane for the cruise lane
+        (its plan stays as it is, built or still a request)."""
+        a = self.arrays
+        r = np.array(rows, dtype=np.intp)
+        gap = t[r] - a["end"][r]
+        end_vel = a["end_vel"][r]
+        # finish_plan: end_position + max(t - end, 0.0) * end_velocity (not landing)
+        x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
+        cmd = a["base"][r] + x
+        positions, velocities = x.tolist(), end_vel.tolist()
+        cycles = (a["cycles"][r]).tolist()  # already counted this sample
+        idx = self.idx[r]
+        s.cmd_pos[idx] = cmd
+        s.cmd_vel[idx] = end_vel
+        s.cmd_acc[idx] = 0.0
+        slot = self._slot
+        at_speed: list[tuple[Process, Axis]] = []
+        for j, k in enumerate(rows):
+            p, ax = self.members[k], self.axes[k]
+            assert isinstance(p, JogProcess)
+            slot.pop(id(p), None)
+            prof = p.profile
+            assert isinstance(prof, TrapezoidProfile)
+            x_k, v_k = positions[j], velocities[j]
+            prof.cycles = int(cycles[j])
+            prof.finished = True
+            prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
+            p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
+            p.at_speed = True
+            # leaves this lane and is offered at once (Motion.offer): to the cruise lane
+            p.lane = None
+            p.offer_pending = False
+            at_speed.append((p, ax))
+        self.reached = at_speed
+        self.changed = True
+        self._owner.dirty = True
+
+    #: the jogs :meth:`_end` ended in the last step, for the cruise lane (``GroupLanes``;
+    #: a class default for lanes restored from a snapshot saved before it existed)
+    reached: Sequence[tuple[Process, Axis]] = ()
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray

@@ -1,0 +1,88 @@
+"""Trapezoidal velocity plans of many axes in one pass: the jogs commanded in a scan.
+
+A command that ramps an axis to a velocity (MAJ, MC_MoveVelocity, an MCD change of a
+jog, the ramp of a paused move) is judged when it is commanded
+(:func:`.trapezoid.judge_velocity_plan`: a plan that could not be held is refused at
+once) and keeps its request (:attr:`.trapezoid.TrapezoidProfile.request`). When the
+fast lanes take the processes commanded since the last step (``ProfileLane`` at its
+rebuild, before the step), the plans of all of them are built here as arrays, with the
+floating-point operations of :func:`.trapezoid.plan_velocity` and ``_build`` in the same
+order, so every sample is bit-identical to the plan built one by one (which the reference
+path, ``Controller(lanes=False)``, and any process that leaves the lane still build from
+the same request).
+
+Pure: numpy only.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from .trapezoid import END_TOLERANCE, SEGMENTS
+
+
+class VelocityPlans(NamedTuple):
+    """The plans of n velocity targets as ``ProfileLane`` holds them: ``start``,
+    ``pos``, ``vel``, ``acc`` and ``half`` with one row of ``SEGMENTS`` values each, and
+    ``done`` (a sample at t >= done ends the plan), ``end`` (when the target velocity is
+    reached) and ``end_pos`` (the position there)."""
+
+    start: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    half: np.ndarray
+    done: np.ndarray
+    end: np.ndarray
+    end_pos: np.ndarray
+
+
+def velocity_plans(
+    dt: np.ndarray,
+    p0: np.ndarray,
+    v0: np.ndarray,
+    target: np.ndarray,
+    acceleration: np.ndarray,
+    deceleration: np.ndarray,
+) -> VelocityPlans:
+    """``plan_velocity(dt, p0, v0, target, acceleration, deceleration)`` for every row
+    of the arrays (each of shape (n,)), as arrays. The requests were judged when they were
+    commanded: every plan here is finite and within the longest duration."""
+    n = len(p0)
+    # the limit pair of the direction of travel (_limit_pair) and the ramp's acceleration
+    direction = np.where(target != 0.0, target, v0)
+    forward = direction >= 0.0
+    a_max = np.where(forward, acceleration, deceleration)
+    a_min = np.where(forward, -deceleration, -acceleration)
+    gap = target - v0
+    a = np.where(gap > 0.0, a_max, a_min)
+    q = gap / a
+    # Python's max(q, 0.0): 0.0 only when q < 0.0 (a -0.0 or a NaN stays)
+    duration = np.where(q < 0.0, 0.0, q)
+    # _build over the segments (duration, a), then three of (0.0, 0.0)
+    start = np.empty((n, SEGMENTS))
+    pos = np.empty((n, SEGMENTS))
+    vel = np.empty((n, SEGMENTS))
+    acc = np.zeros((n, SEGMENTS))
+    half = np.zeros((n, SEGMENTS))
+    t = np.zeros(n)
+    p = p0.astype(float, copy=True)
+    v = v0.astype(float, copy=True)
+    h = 0.5 * a
+    start[:, 0], pos[:, 0], vel[:, 0], acc[:, 0], half[:, 0] = t, p, v, a, h
+    p = p + duration * (v + duration * h)
+    v = v + duration * a
+    t = t + duration
+    # then segments of zero duration and acceleration (h = 0.5 * 0.0 = 0.0): each adds
+    # 0.0 * (v + 0.0 * 0.0), 0.0 * 0.0 and 0.0, which for the finite values of a judged
+    # plan changes a -0.0 into 0.0 the first time and nothing after
+    start[:, 1], pos[:, 1], vel[:, 1] = t, p, v
+    t = t + 0.0
+    p = p + 0.0 * (v + 0.0)
+    v = v + 0.0
+    for k in range(2, SEGMENTS):
+        start[:, k], pos[:, k], vel[:, k] = t, p, v
+    done = t - END_TOLERANCE * dt
+    return VelocityPlans(start, pos, vel, acc, half, done, t, p)

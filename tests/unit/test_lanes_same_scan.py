@@ -1,0 +1,204 @@
+"""Many commands in the same scan on many axes: with the fast lanes, the plans of the
+jogs and moves commanded in one scan are built together before the step
+(:mod:`motion_server.kernel.move_plan`); the motion must stay the reference's bit for bit
+after every cycle, whatever the mix (jogs and moves from any state, trapezoidal and
+S-curve, MCD changes, stops, clutched gears and PLCopen gears with their catch-up)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from motion_server.instructions import MotionSystem
+from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
+from motion_server.kernel.trapezoid import TrapezoidProfile
+
+from .test_lanes import assert_same, laned
+
+MASTERS = tuple(range(1, 7))
+SLAVES = tuple(range(7, 13))
+#: (instruction type, operands)
+Command = tuple[str, dict[str, object]]
+
+
+def pair() -> tuple[MotionSystem, MotionSystem]:
+    """Six virtual masters and six servo slaves in one group, lanes on and off."""
+    out = []
+    for lanes in (True, False):
+        cfg = [
+            AxisConfig(
+                n, f"M{n}", AxisType.VIRTUAL, max_acceleration=5000.0, max_deceleration=5000.0
+            )
+            for n in MASTERS
+        ] + [AxisConfig(n, f"S{n}", AxisType.SERVO, following_error_limit=1e6) for n in SLAVES]
+        group = GroupConfig(1, "G", tuple(a.number for a in cfg), 0.002)
+        s = MotionSystem(Controller(cfg, [group], lanes=lanes))
+        for a in cfg:
+            s.ctl.servo_on(s.ctl.axis(a.number))
+        out.append(s)
+    return out[0], out[1]
+
+
+speeds = st.sampled_from([5.0, 20.0, 100.0, 250.0])
+rates = st.sampled_from([100.0, 1000.0, 5000.0, 20_000.0])
+positions = st.one_of(st.sampled_from([0.0, 1.0, 50.0, -30.0]), st.floats(-200.0, 200.0))
+any_axis = st.sampled_from(MASTERS + SLAVES)
+
+
+@st.composite
+def command(draw: st.DrawFn) -> Command:
+    kind = draw(
+        st.sampled_from(
+            ["MAJ", "MAJ", "MAM", "MCD", "MAS", "MAG", "MC_MoveVelocity", "MC_MoveAbsolute",
+             "MC_MoveRelative", "MC_MoveAdditive", "MC_Halt", "MC_GearIn"]
+        )
+    )  # fmt: skip
+    s_curve = draw(st.sampled_from([0, 0, 1]))
+    if kind == "MAJ":
+        return kind, {
+            "Axis": draw(any_axis), "Direction": draw(st.sampled_from([0, 1])),
+            "Speed": draw(speeds), "AccelRate": draw(rates), "DecelRate": draw(rates),
+            "Profile": s_curve, "Merge": draw(st.sampled_from([0, 0, 1])),
+        }  # fmt: skip
+    if kind == "MAM":
+        return kind, {
+            "Axis": draw(any_axis), "MoveType": draw(st.sampled_from([0, 1])),
+            "Position": draw(positions), "Speed": draw(speeds), "AccelRate": draw(rates),
+            "DecelRate": draw(rates), "Profile": s_curve,
+        }  # fmt: skip
+    if kind == "MCD":
+        return kind, {
+            "Axis": draw(any_axis), "MotionType": draw(st.sampled_from([0, 1])),
+            "ChangeSpeed": 1, "Speed": draw(st.sampled_from([0.0, 10.0, 150.0])),
+            "ChangeAccel": draw(st.sampled_from([0, 1])), "AccelRate": draw(rates),
+            "ChangeDecel": draw(st.sampled_from([0, 1])), "DecelRate": draw(rates),
+        }  # fmt: skip
+    if kind == "MAS":
+        return kind, {"Axis": draw(any_axis), "StopType": draw(st.sampled_from([0, 1]))}
+    if kind == "MAG":
+        return kind, {
+            "SlaveAxis": draw(st.sampled_from(SLAVES)),
+            "MasterAxis": draw(st.sampled_from(MASTERS)),
+            "Ratio": draw(st.sampled_from([0.5, -1.25, 2.0])),
+            "MasterReference": draw(st.sampled_from([0, 1])),
+            "Clutch": draw(st.sampled_from([0, 0, 1])),
+            "AccelRate": draw(st.sampled_from([50.0, 100.0])),
+        }  # fmt: skip
+    if kind == "MC_GearIn":
+        return kind, {
+            "Slave": draw(st.sampled_from(SLAVES)), "Master": draw(st.sampled_from(MASTERS)),
+            "RatioNumerator": draw(st.sampled_from([1.0, 3.0, -2.0])), "RatioDenominator": 2.0,
+            "Acceleration": draw(rates), "Deceleration": draw(rates),
+        }  # fmt: skip
+    jerk = draw(st.sampled_from([0.0, 0.0, 50_000.0])) if s_curve else 0.0
+    dyn = {"Acceleration": draw(rates), "Deceleration": draw(rates), "Jerk": jerk}
+    if kind == "MC_Halt":
+        return kind, {"Axis": draw(any_axis), "Deceleration": dyn["Deceleration"]}
+    if kind == "MC_MoveVelocity":
+        return kind, {
+            "Axis": draw(any_axis), "Velocity": draw(speeds),
+            "Direction": draw(st.sampled_from([1, 2])), **dyn,
+        }  # fmt: skip
+    if kind == "MC_MoveAbsolute":
+        return kind, {
+            "Axis": draw(any_axis), "Position": draw(positions), "Velocity": draw(speeds), **dyn,
+        }  # fmt: skip
+    return kind, {
+        "Axis": draw(any_axis), "Distance": draw(positions), "Velocity": draw(speeds), **dyn,
+    }  # fmt: skip
+
+
+def assert_status(fast: MotionSystem, ref: MotionSystem, where: str) -> None:
+    """The status arrays a publish reads agree with the axes' own status (a lane that
+    changes a process's state must mark its axis, as composition does) and with the
+    reference's."""
+    arrays = []
+    for s in (fast, ref):
+        st = s.ctl.status_arrays()
+        axes = s.ctl.axes
+        assert st.motion_status.tolist() == [ax.motion_status for ax in axes], where
+        assert st.plcopen_state.tolist() == [int(ax.plcopen_state) for ax in axes], where
+        arrays.append([a.copy() for a in st])
+    for a, b in zip(*arrays, strict=True):
+        assert np.array_equal(a, b), where
+
+
+def run_rounds(
+    fast: MotionSystem,
+    ref: MotionSystem,
+    rounds: list[tuple[list[Command], int]],
+    prefix: str = "R",
+) -> int:
+    """Each round: every command of it triggered before the same cycle, then ``cycles``
+    cycles, both systems compared after every one. The most processes seen in a lane."""
+    most = 0
+    for r, (commands, cycles) in enumerate(rounds):
+        names = []
+        for k, (type_name, ops) in enumerate(commands):
+            name = f"{prefix}{r}C{k}"
+            names.append(name)
+            for s in (fast, ref):
+                inst = s.add(type_name, name, {})
+                inst.inputs.update(ops)
+                inst.inputs[inst.TRIGGER] = True
+        for c in range(cycles):
+            fast.cycle()
+            ref.cycle()
+            where = f"round {r} {commands}, cycle {c}"
+            assert_same(fast, ref, where)
+            assert_status(fast, ref, where)
+            most = max(most, laned(fast))
+            if c == 0:
+                for s in (fast, ref):
+                    for name in names:
+                        s.instances[name].inputs[s.instances[name].TRIGGER] = False
+        assert laned(ref) == 0
+    return most
+
+
+def jog_all(speed: float) -> list[Command]:
+    return [
+        ("MAJ", {"Axis": n, "Speed": speed, "AccelRate": 1000.0, "DecelRate": 1000.0})
+        for n in MASTERS
+    ]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    rounds=st.lists(
+        st.tuples(st.lists(command(), min_size=1, max_size=12), st.integers(1, 40)),
+        min_size=1,
+        max_size=5,
+    )
+)
+def test_commands_in_the_same_scan_give_the_reference_motion(
+    rounds: list[tuple[list[Command], int]],
+) -> None:
+    fast, ref = pair()
+    # masters jogging, slaves geared: every kind of state for the commands to meet
+    gears: list[Command] = [
+        ("MAG", {"SlaveAxis": s, "MasterAxis": s - 6, "Ratio": 0.5, "Clutch": 1}) for s in SLAVES
+    ]
+    run_rounds(fast, ref, [(jog_all(50.0), 3), (gears, 5)], prefix="P")
+    run_rounds(fast, ref, rounds)
+
+
+def test_jogs_commanded_together_are_planned_together_and_run_in_the_lane() -> None:
+    """Six jogs in one scan: each judged at its command and not planned yet; the lane
+    plans them together before the step, and every one is in the lane from that step on,
+    sampling what the reference's plans sample."""
+    fast, ref = pair()
+    for s in (fast, ref):
+        for k, (type_name, ops) in enumerate(jog_all(80.0)):
+            inst = s.add(type_name, f"J{k}", {})
+            inst.inputs.update(ops)
+            inst.inputs[inst.TRIGGER] = True
+            inst.scan()  # the scan executes it (the cycle's own scan sees no new edge)
+    for n in MASTERS:
+        prof = fast.ctl.axis(n).processes[0].profile
+        assert isinstance(prof, TrapezoidProfile)
+        assert prof.request is not None  # judged, not planned: planned with the others
+    assert run_rounds(fast, ref, [([], 60)]) == len(MASTERS)
+    # 80 mm/s at 1000 mm/s² takes 80 ms, 40 cycles of 2 ms: all at speed
+    assert np.array_equal(fast.ctl.cmd_vel[: len(MASTERS)], np.full(len(MASTERS), 80.0))

@@ -1,0 +1,110 @@
+"""Velocity plans built together (:func:`motion_server.kernel.move_plan.velocity_plans`)
+are the plans :func:`motion_server.kernel.trapezoid.plan_velocity` builds one by one, bit
+for bit (signed zeros included); what it refuses is refused when the jog is commanded
+(:func:`~motion_server.kernel.trapezoid.judge_velocity_plan`), with the same error."""
+
+from __future__ import annotations
+
+import contextlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from motion_server.kernel import Limits, MotionError
+from motion_server.kernel.move_plan import velocity_plans
+from motion_server.kernel.trapezoid import (
+    MAX_DURATION,
+    TrapezoidProfile,
+    judge_velocity_plan,
+    plan_velocity,
+)
+
+velocities = st.one_of(
+    st.sampled_from([0.0, -0.0, 1.0, -1.0, 100.0, -250.0]),
+    st.floats(-1e4, 1e4, allow_nan=False),
+)
+rates = st.one_of(st.sampled_from([1.0, 1000.0, 5000.0]), st.floats(1e-3, 1e6))
+dts = st.sampled_from([0.0005, 0.001, 0.002, 0.004, 0.032])
+
+Request = tuple[float, float, float, float, float, float]
+
+
+def bits(x: object) -> bytes:
+    return np.asarray(x, dtype=float).tobytes()
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.tuples(dts, st.floats(-1e3, 1e3), velocities, velocities, rates, rates),
+        min_size=1,
+        max_size=20,
+    )
+)
+def test_plans_built_together_are_the_plans_built_one_by_one(requests: list[Request]) -> None:
+    built = []
+    for r in requests:
+        # (one refused when commanded is never planned with the others)
+        with contextlib.suppress(MotionError):
+            built.append((r, plan_velocity(*r)))
+    if not built:
+        return
+    cols = [np.array(c, dtype=float) for c in zip(*(r for r, _ in built), strict=True)]
+    plans = velocity_plans(*cols)
+    for k, (_, one) in enumerate(built):
+        for field in ("start", "pos", "vel", "acc", "half"):
+            assert bits(getattr(plans, field)[k]) == bits(getattr(one, field)), (k, field)
+        assert bits(plans.done[k]) == bits(one.done), k
+
+
+def test_a_ramp_of_a_whole_number_of_periods_ends_on_its_last_period() -> None:
+    """100 mm/s at 1000 mm/s² lasts 0.1 s: its end, ``done``, lies a hair (1e-9 of a
+    period) before 0.1 s, so that the 100th sample of 1 ms ends the ramp whatever the
+    rounding of 100 x 0.001."""
+    plans = velocity_plans(*(np.array([x]) for x in (0.001, 0.0, 0.0, 100.0, 1000.0, 1000.0)))
+    assert plans.done[0] == 0.1 - 1e-9 * 0.001
+    assert plans.done[0] <= 100 * 0.001
+
+
+@pytest.mark.parametrize(
+    ("v0", "target", "rate"),
+    [
+        (0.0, 1e6, 1e-3),  # 1e9 s: beyond the longest plan
+        (0.0, 1.0, MAX_DURATION**-1 / 2),  # just beyond
+        (0.0, 1e300, 1e-300),  # not finite
+        (1e308, -1e308, 1.0),
+    ],
+)
+def test_what_a_plan_refuses_is_refused_when_commanded(
+    v0: float, target: float, rate: float
+) -> None:
+    with pytest.raises(MotionError) as planned:
+        plan_velocity(0.001, 0.0, v0, target, rate, rate)
+    with pytest.raises(MotionError) as judged:
+        judge_velocity_plan(0.0, v0, target, rate, rate)
+    assert (judged.value.code, str(judged.value)) == (planned.value.code, str(planned.value))
+    prof = TrapezoidProfile(0.001, v0)
+    with pytest.raises(MotionError):
+        prof.to_velocity(target, Limits(1.0, rate, rate))
+    assert prof.plan is None and prof.request is None  # nothing changed
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-1e3, 1e3), velocities, velocities, rates, rates)
+def test_a_requested_plan_is_the_plan(
+    p0: float, v0: float, target: float, acc: float, dec: float
+) -> None:
+    """A profile given a velocity target judges it and builds the very same plan when it
+    is first read."""
+    prof = TrapezoidProfile(0.002, v0, 0.0, p0)
+    try:
+        one = plan_velocity(0.002, p0, v0, target, acc, dec)
+    except MotionError:
+        with pytest.raises(MotionError):
+            prof.to_velocity(target, Limits(1.0, acc, dec))
+        return
+    prof.to_velocity(target, Limits(1.0, acc, dec))
+    assert prof.request is not None and prof.planned
+    assert prof.plan == one and prof.request is None
