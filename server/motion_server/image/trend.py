@@ -28,6 +28,7 @@ program order, and x86-64 keeps stores ordered with stores and loads with loads.
 from __future__ import annotations
 
 import mmap
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -48,6 +49,10 @@ _WRITTEN = _TAKEN + 1
 CONTROL_WORDS = _WRITTEN + 7
 # row words
 _SEQ, _TICK, _GEN = range(3)
+_ROWS_AT = 8 * CONTROL_WORDS
+_ROW_BYTES = 8 * ROW_WORDS
+_WRITTEN_AT = 8 * _WRITTEN
+_WORD = struct.Struct("<q")
 
 
 def ring_bytes(capacity: int = CAPACITY) -> int:
@@ -94,6 +99,8 @@ class RingWriter(_Ring):
             c[_MAGIC] = MAGIC
         self._getter = getter
         self._slots = slots
+        self._buf = buf
+        self._body = struct.Struct("<qq")
         self._taken = int(c[_TAKEN])
         self._written = int(c[_WRITTEN])
         self._reading: list[Any] = []
@@ -107,16 +114,15 @@ class RingWriter(_Ring):
         reading = self._reading
         if not reading:
             return
+        # one C call per store (struct), in the order the reader relies on
         w = self._written
-        row = w % self.capacity
-        words = self.words
-        words[row, _SEQ] = 2 * w + 1
-        words[row, _TICK] = tick
-        words[row, _GEN] = self._taken
-        self.floats[row, 3 : 3 + len(reading)] = [get() for get in reading]
-        words[row, _SEQ] = 2 * w + 2
+        at = _ROWS_AT + (w % self.capacity) * _ROW_BYTES
+        buf = self._buf
+        _WORD.pack_into(buf, at, 2 * w + 1)
+        self._body.pack_into(buf, at + 8, tick, self._taken, *[get() for get in reading])
+        _WORD.pack_into(buf, at, 2 * w + 2)
         self._written = w + 1
-        c[_WRITTEN] = w + 1
+        _WORD.pack_into(buf, _WRITTEN_AT, w + 1)
 
     def renew(self) -> None:
         """Take the channel set again at the next cycle (the getters read another
@@ -130,6 +136,7 @@ class RingWriter(_Ring):
         self._reading = [self._getter(s) for s in slots if 0 <= s < self._slots]
         if len(self._reading) != n:  # a slot out of range: trend nothing rather than wrong
             self._reading = []
+        self._body = struct.Struct(f"<qq{len(self._reading)}d")
         self._taken = gen
         c[_TAKEN] = gen
 
