@@ -12,9 +12,11 @@ process drains. Memory layout (8-byte words)::
               taken generation, written rows W, spare x6
     rows      capacity x (sequence, tick, generation, MAX_CHANNELS float64 values)
 
-The web process (the only writer of the request) writes the slot numbers and the count,
-then G + 1. The scan compares G with the generation it took once per cycle (one word):
-with no trend asked for (n = 0) it does nothing more. Row ``w`` (the w-th row written,
+The web process (the only writer of the request) makes G odd, writes the slot numbers
+and the count, then makes G even again (G + 2 in all). The scan compares G with the
+generation it took once per cycle (one word): with no trend asked for (n = 0) it does
+nothing more. It takes a new request only when G is even and unchanged after it read the
+slots, so it never trends a set half written. Row ``w`` (the w-th row written,
 0-based) lives at ``w % capacity``; the scan makes its sequence ``2w + 1`` while it writes
 it and ``2w + 2`` once complete, then sets W = w + 1. A reader copies rows ``[r, W)``
 and checks each row's sequence after the copy: a row the scan overwrote meanwhile (its
@@ -52,6 +54,7 @@ _SEQ, _TICK, _GEN = range(3)
 _ROWS_AT = 8 * CONTROL_WORDS
 _ROW_BYTES = 8 * ROW_WORDS
 _WRITTEN_AT = 8 * _WRITTEN
+_REQ_GEN_AT = 8 * _REQ_GEN
 _WORD = struct.Struct("<q")
 
 
@@ -107,8 +110,7 @@ class RingWriter(_Ring):
 
     def cycle(self, tick: int) -> None:
         """Write this cycle's row (nothing when no channel is asked for)."""
-        c = self.control
-        gen = int(c[_REQ_GEN])
+        gen = _WORD.unpack_from(self._buf, _REQ_GEN_AT)[0]  # the idle cost: this read
         if gen != self._taken:
             self._take(gen)
         reading = self._reading
@@ -130,9 +132,16 @@ class RingWriter(_Ring):
         self._taken = -1
 
     def _take(self, gen: int) -> None:
+        """Take request ``gen`` unless the web process is writing one (G odd, or G moved
+        while read): then the rows keep the set taken before, and the next cycle looks
+        again."""
+        if gen & 1:
+            return
         c = self.control
         n = max(0, min(int(c[_REQ_N]), MAX_CHANNELS))
         slots = [int(s) for s in c[_REQ_SLOTS : _REQ_SLOTS + n]]
+        if int(c[_REQ_GEN]) != gen:
+            return
         self._reading = [self._getter(s) for s in slots if 0 <= s < self._slots]
         if len(self._reading) != n:  # a slot out of range: trend nothing rather than wrong
             self._reading = []
@@ -180,10 +189,12 @@ class RingReader(_Ring):
         if len(slots) > MAX_CHANNELS:
             raise ValueError(f"{len(slots)} channels: at most {MAX_CHANNELS}")
         c = self.control
+        before = int(c[_REQ_GEN])
+        c[_REQ_GEN] = before + 1  # odd: being written
         c[_REQ_SLOTS : _REQ_SLOTS + len(slots)] = slots
         c[_REQ_N] = len(slots)
-        gen = int(c[_REQ_GEN]) + 1
-        c[_REQ_GEN] = gen
+        gen = before + 2
+        c[_REQ_GEN] = gen  # even: complete
         self.sets[gen] = tuple(slots)
         return gen
 
