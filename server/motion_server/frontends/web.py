@@ -162,11 +162,21 @@ class WebApp:
             session = self._anonymous(request)
         if session is None:
             raise HttpError(401, "log in first")
+        if post:
+            self._same_origin(request)
         if post and not csrf_ok(session, request.headers.get("x-csrf-token")):
             raise HttpError(403, "missing or wrong X-CSRF-Token")
         if session.role < role:
             raise HttpError(403, f"role {session.role.label} may not do this ({role.label} needed)")
         return session
+
+    def _same_origin(self, request: Request) -> None:
+        """403 for a POST a browser sent from another origin (an Origin header that is
+        not this server's); a client that sends none (not a browser) passes, the CSRF
+        token still applies."""
+        origin = request.headers.get("origin")
+        if origin is not None and not self.origin_ok(request):
+            raise HttpError(403, "cross-origin request refused")
 
     def _anonymous(self, request: Request) -> Session | None:
         """An anonymous session when allowed (its cookie is set on the answer)."""
@@ -244,6 +254,7 @@ class WebApp:
                 "login refused: a password is never sent over plain HTTP to a non-loopback "
                 "address; configure [web] cert_file and key_file (HTTPS)",
             )
+        self._same_origin(request)
         data = await self._json(request)
         user, password = data.get("user"), data.get("password")
         if not isinstance(user, str) or not isinstance(password, str):
@@ -252,13 +263,20 @@ class WebApp:
         if limiter.locked(peer):
             raise HttpError(401, "too many failed logins from this address: try again later")
         role = await asyncio.to_thread(self.sessions.check, user, password)
+        port = request.client.port if request.client else 0
         if role is None:
             limiter.failed(peer)
             log.warning("web: failed login for user %r from %s", user[:64], peer)
+            if self.audit is not None:
+                who = ClientInfo("web", peer, port, 0, user[:64])
+                self.audit.connection(who, "login", "refused", "wrong user name or password")
             raise HttpError(401, "wrong user name or password")
         limiter.succeeded(peer)
         self.sessions.logout(request.cookies.get(COOKIE))
         session = self.sessions.login(user, role)
+        if self.audit is not None:
+            who = ClientInfo("web", peer, port, 0, user, role.label)
+            self.audit.connection(who, "login", "accepted")
         log.info("web: %s logged in from %s (%s)", user, peer, role.label)
         response = JSONResponse(self._who(session))
         self._set_cookie(response, session)
@@ -411,8 +429,8 @@ class WebApp:
         return self._respond(request, {"result": "ok"})
 
     # -- WebSocket ------------------------------------------------------------------------
-    def origin_ok(self, ws: WebSocket) -> bool:
-        """The handshake's Origin is this server's own origin, for a Host this server
+    def origin_ok(self, ws: WebSocket | Request) -> bool:
+        """The request's Origin is this server's own origin, for a Host this server
         answers to (a DNS name pointed at it by someone else is not)."""
         origin = ws.headers.get("origin", "")
         host = ws.headers.get("host", "")
