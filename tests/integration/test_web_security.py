@@ -152,6 +152,11 @@ async def test_bad_websocket_messages_get_an_error(server: MotionServer) -> None
         ]
         await ws.send(json.dumps({"type": "trend", "channels": many[:17]}))
         assert "at most 16" in (await next_text(ws, "error"))["message"]
+        await ws.send(b"\x00binary")
+        assert "JSON text" in (await next_text(ws, "error"))["message"]
+        for _ in range(11):  # each change makes the scan take a set: limited per second
+            await ws.send(json.dumps({"type": "trend", "channels": ["Axis1.ActualPosition"]}))
+        assert "changes a second" in (await next_text(ws, "error"))["message"]
         await ws.send(json.dumps({"type": "status", "hz": 20}))
         status = await next_text(ws, "status")
         assert "Axis1.ActualPosition" in status["values"]

@@ -12,11 +12,13 @@ headers (:class:`_Headers`); a bad request gets a one-line error, never a traceb
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import itertools
 import json
 import logging
 import socket
+import time
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -56,6 +58,10 @@ MAX_STATUS_HZ = 50.0
 #: bytes of a connection's kernel send buffer (no autotuning to megabytes: a slow client
 #: would see trends seconds old instead of a counted gap)
 SEND_BUFFER = 128 * 1024
+#: trend set changes a connection may ask for per second (each makes the scan take a set)
+MAX_TREND_CHANGES = 10
+#: messages waiting for a client beyond which status messages are skipped for it
+STATUS_BACKLOG = 10
 #: WebSocket connections served at once
 MAX_CONNECTIONS = 64
 SECURITY_HEADERS = [
@@ -471,13 +477,20 @@ class WebApp:
         client = TrendClient()
         client.say({"type": "hello", "user": session.user, "role": session.role.label})
         status_task: asyncio.Task[None] | None = None
+        changes: collections.deque[float] = collections.deque()
         sender = asyncio.create_task(self._send_loop(ws, client))
         try:
             while True:
                 try:
-                    text = await ws.receive_text()
-                except (WebSocketDisconnect, RuntimeError, KeyError):
+                    message = await ws.receive()
+                except (WebSocketDisconnect, RuntimeError):
                     return
+                if message["type"] == "websocket.disconnect":
+                    return
+                text = message.get("text")
+                if text is None:
+                    client.say({"type": "error", "message": "expected a JSON text message"})
+                    continue
                 try:
                     msg = json.loads(text)
                     if not isinstance(msg, dict):
@@ -498,6 +511,14 @@ class WebApp:
                         rate = min(float(hz), MAX_STATUS_HZ)
                         status_task = asyncio.create_task(self._status_loop(client, rate))
                 elif kind == "trend":
+                    now = time.monotonic()
+                    while changes and now - changes[0] > 1.0:
+                        changes.popleft()
+                    if len(changes) >= MAX_TREND_CHANGES:
+                        limit = f"trend: at most {MAX_TREND_CHANGES} changes a second"
+                        client.say({"type": "error", "message": limit})
+                        continue
+                    changes.append(now)
                     self._trend(client, msg.get("channels"))
                 else:
                     client.say({"type": "error", "message": f"unknown message type {kind!r}"})
@@ -536,6 +557,12 @@ class WebApp:
         last: np.ndarray | None = None
         view = self.view
         while True:
+            if client.queue.qsize() > STATUS_BACKLOG:
+                # the client reads too slowly: skip, and send every value next time (a
+                # message of changes only would leave it with stale ones)
+                last = None
+                await asyncio.sleep(1.0 / hz)
+                continue
             values = view.values()
             now = values[self._status_slots]
             if last is None:
