@@ -650,6 +650,7 @@ class WebFrontend:
             ws_per_message_deflate=False,
             lifespan="off",
             access_log=False,
+            log_config=None,  # the server's own log format (launch.setup_logging)
             log_level="warning",
             server_header=False,
         )

@@ -123,6 +123,12 @@ class Sessions:
                     "(set allow_insecure_remote as well to allow it)",
                     cfg.host,
                 )
+        if not users and self.anonymous is None:
+            log.warning(
+                "web: no user configured and no anonymous access: nobody can log in "
+                "([[opcua.users]] or the users secret file; OPC UA's generated admin "
+                "exists only when OPC UA is served)"
+            )
         ua = site.opcua
         self.limiter = Limiter(ua.max_login_failures, ua.login_window_s, ua.login_lockout_s)
         self._sessions: dict[str, Session] = {}
