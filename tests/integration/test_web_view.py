@@ -73,6 +73,17 @@ def test_an_admin_steps_the_clock(server: MotionServer) -> None:
     assert int(server.read("Clock.Cycle")) == before + 25
     assert body["tick"] == before + 25
     assert http.post("/api/clock", {"action": "step", "cycles": 0})[0] == 400
+    status, body = http.post("/api/snapshot", {"action": "save", "number": 5})
+    assert status == 200 and body["result"] == "ok", body
+    http.post("/api/clock", {"action": "step", "cycles": 10})
+    status, body = http.post("/api/snapshot", {"action": "restore", "number": 5})
+    assert status == 200 and body["result"] == "ok", body
+    assert int(server.read("Clock.Cycle")) == before + 25  # the saved cycle is back
+    assert http.post("/api/clock", {"action": "run"})[1]["result"] == "ok"
+    assert server.read("Clock.Mode") == 0  # REALTIME: the map's manual mode is not "run"
+    assert http.post("/api/clock", {"action": "pause"})[1]["result"] == "ok"
+    assert server.read("Clock.Mode") == 1  # MANUAL
+    assert http.post("/api/clock", {"action": "spin"})[0] == 400
 
 
 async def test_a_trend_holds_every_cycle_with_the_values_modbus_reads(
