@@ -204,3 +204,35 @@ def test_a_trigger_whose_tag_is_high_gives_a_new_edge_in_realtime(tmp_path: Path
                 time.sleep(0.05)
     finally:
         server.finish()
+
+
+async def test_a_trend_follows_the_controller_a_snapshot_restores(server: MotionServer) -> None:
+    """A restore replaces the controller the scan runs: the trend then shows the restored
+    one's values (its ring reads the new system), as Modbus does."""
+    http = Http(server.web_url)
+    http.login("ada")
+    channel = f"Axis{AXIS}.CommandPosition"
+    server.trigger("MSO_1", Axis=AXIS)
+    http.post("/api/snapshot", {"action": "save", "number": 7})  # at rest
+    _jog(server, http)
+    server.step(100)
+    rows: dict[int, float] = {}
+    async with http.connect() as ws:
+        await ws.send(json.dumps({"type": "trend", "channels": [channel]}))
+        await asyncio.to_thread(server.step, 1)
+        await next_text(ws, "trend-layout")
+        status, body = http.post("/api/snapshot", {"action": "restore", "number": 7})
+        assert status == 200 and body["result"] == "ok", body
+        await asyncio.to_thread(server.step, 5)
+        values = await asyncio.to_thread(server.read_many, ["Clock.Cycle", channel])
+        tick, position = int(values["Clock.Cycle"]), float(values[channel])
+
+        async def collect() -> None:
+            while tick not in rows:
+                msg = await ws.recv()
+                if isinstance(msg, bytes):
+                    _, _, ticks, vals = parse_frame(msg)
+                    rows.update(zip(ticks.tolist(), vals[:, 0].tolist(), strict=True))
+
+        await asyncio.wait_for(collect(), 20)
+    assert rows[tick] == position  # the restored axis at rest, not the jog going on
