@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_server.image.trend import RingReader, RingWriter, ring_bytes
+from motion_server.image.trend import _WRITTEN, RingReader, RingWriter, ring_bytes
 
 
 class Source:
@@ -124,3 +124,21 @@ def test_a_request_half_written_is_not_taken() -> None:
     a, b = reader.drain()
     assert (a.generation, a.ticks.tolist()) == (first, [1, 2])  # the old set meanwhile
     assert (b.generation, b.ticks.tolist(), b.values[:, 0].tolist()) == (first + 2, [3], [2.0])
+
+
+async def test_a_restarted_web_process_clears_the_set_its_predecessor_left() -> None:
+    from motion_server.frontends.web_stream import TrendHub
+
+    buf = bytearray(ring_bytes(16))
+    src = Source(4)
+    writer = RingWriter(buf, src.getter, 4, 16)
+    RingReader(buf).request([1, 2])  # the web process that died
+    writer.cycle(1)
+    hub = TrendHub(RingReader(buf))  # the one started after it
+    hub.start()
+    try:
+        for tick in range(2, 10):
+            writer.cycle(tick)
+        assert int(writer.control[_WRITTEN]) == 1  # no row since: nobody asks
+    finally:
+        await hub.stop()

@@ -112,6 +112,9 @@ class TrendHub:
 
     def start(self) -> None:
         if self.ring is not None:
+            # a web process that died may have left a set asked for: the scan would go
+            # on writing its rows for nobody
+            self._gen = self.ring.request([])
             self._task = asyncio.create_task(self._run())
 
     async def stop(self) -> None:
