@@ -404,12 +404,14 @@ class WebApp:
                 await self._write(session, request, {"Clock.Step": False}, wait=True)
                 await self._write(session, request, {"Clock.Step": True})
             elif action == "pause":
-                await self._write(session, request, {"Clock.Mode": int(ClockMode.MANUAL)})
+                await self._write(
+                    session, request, {"Clock.Mode": int(ClockMode.MANUAL)}, wait=True
+                )
             elif action == "run":
                 mode = ClockMode[self.site.controller.clock.upper()]
                 if mode == ClockMode.MANUAL:
                     mode = ClockMode.REALTIME
-                await self._write(session, request, {"Clock.Mode": int(mode)})
+                await self._write(session, request, {"Clock.Mode": int(mode)}, wait=True)
             else:
                 raise HttpError(400, 'action: expected "step", "pause" or "run"')
         except (WriteRefused, TimeoutError, TagAccessError) as exc:
