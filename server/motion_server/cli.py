@@ -45,7 +45,8 @@ def _setting(
     model: type[config.ControllerSection]
     | type[config.ModbusSection]
     | type[config.OpcUaSection]
-    | type[config.EthernetIpSection],
+    | type[config.EthernetIpSection]
+    | type[config.WebSection],
     name: str,
     convert: Callable[[str], Any],
 ) -> Callable[[str], Any]:
@@ -87,15 +88,22 @@ _modbus_host = _setting(config.ModbusSection, "host", str)
 _modbus_port = _setting(config.ModbusSection, "port", int)
 _opcua_port = _setting(config.OpcUaSection, "port", int)
 _ethernetip_port = _setting(config.EthernetIpSection, "port", int)
+_web_port = _setting(config.WebSection, "port", int)
 
 
 def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteMap:
     """The site map as ``run`` (and ``check``) use it: the options that override its
     settings applied (``--clock``, ``--scale``, ``--modbus-host``, ``--modbus-port``,
-    ``--modbus-role``, ``--no-modbus``, ``--opcua-port``, ``--no-opcua``). Messages about
-    an overridden field name the option."""
-    sections: dict[str, dict[str, Any]] = {"controller": {}, "modbus": {}, "opcua": {}}
-    sections["ethernetip"] = {}
+    ``--modbus-role``, ``--no-modbus``, ``--opcua-port``, ``--no-opcua``, ``--web-port``,
+    ``--no-web``, ``--ethernetip-port``, ``--no-ethernetip``). Messages about an
+    overridden field name the option."""
+    sections: dict[str, dict[str, Any]] = {
+        "controller": {},
+        "modbus": {},
+        "opcua": {},
+        "web": {},
+        "ethernetip": {},
+    }
     # a port serves EtherNet/IP on any map (it is off unless the map turns it on)
     enip_port = getattr(args, "ethernetip_port", None)
     no_enip = bool(getattr(args, "no_ethernetip", False))
@@ -108,6 +116,8 @@ def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteM
         ("modbus", "enabled", "--no-modbus", False if args.no_modbus else None),
         ("opcua", "port", "--opcua-port", args.opcua_port),
         ("opcua", "enabled", "--no-opcua", False if args.no_opcua else None),
+        ("web", "port", "--web-port", getattr(args, "web_port", None)),
+        ("web", "enabled", "--no-web", False if getattr(args, "no_web", False) else None),
         ("ethernetip", "port", "--ethernetip-port", enip_port),
         ("ethernetip", "enabled", "--ethernetip-port", True if enip_port is not None else None),
         ("ethernetip", "enabled", "--no-ethernetip", False if no_enip else None),
@@ -152,7 +162,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         site,
         args.log_level,
         fresh=args.fresh,
-        users=users if serve_opcua else [],
+        # the web view has OPC UA's users (the generated admin only when OPC UA runs:
+        # the web view alone creates no files)
+        users=users if serve_opcua or site.web.enabled else [],
         ready_file=Path(args.ready_file) if args.ready_file else None,
     )
     try:
@@ -285,6 +297,12 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--opcua-port", type=_opcua_port, help="OPC UA port, 0 = ephemeral (site map: [opcua] port)"
     )
     p.add_argument("--no-opcua", action="store_true", help="do not serve OPC UA")
+    p.add_argument(
+        "--web-port",
+        type=_web_port,
+        help="web view port, 0 = ephemeral (site map: [web] port)",
+    )
+    p.add_argument("--no-web", action="store_true", help="do not serve the web view")
     p.add_argument(
         "--ethernetip-port",
         type=_ethernetip_port,

@@ -19,10 +19,12 @@ where ``motion-server`` is installed has these fixtures (docs/testing-with-pytes
 - ``motion_server_shared``: with ``motion_server_reuse`` = module or session, the server
   the tests of a module (or session) share (see the fast path below).
 
-Per test, the marker ``@pytest.mark.motion_server(site_map=..., clock="manual",
+Per test, the marker ``@pytest.mark.motion_server(site_map=..., clock="manual", web=True,
 opcua=False, args=[...])`` changes how ``motion_server`` is started. OPC UA is served
 when the site map says so unless ``opcua=False``; with no user configured the server
 creates ``admin`` in its data directory (:attr:`MotionServer.opcua_admin_password`).
+``web=True`` serves the web view (when the site map enables it) at
+:attr:`MotionServer.web_url`.
 
 The fast path: the ini option ``motion_server_reuse = module`` (or ``session``) starts one
 server per module (or per session) and gives each test a fresh controller all the same:
@@ -109,6 +111,7 @@ class MotionServer:
         *,
         clock: str = "manual",
         opcua: bool | None = None,
+        web: bool = False,
         args: Sequence[str] = (),
         env: Mapping[str, str] | None = None,
         timeout: float = START_TIMEOUT,
@@ -117,8 +120,10 @@ class MotionServer:
         """Start ``motion-server run`` in ``workdir`` (its data directories go there) on
         ephemeral ports and wait until every front-end listens; :class:`ServerError`
         with the log when it cannot. ``opcua``: False does not serve OPC UA, None serves
-        it when the site map does. ``ethernetip``: True serves EtherNet/IP on an ephemeral
-        port (:attr:`ethernetip_port`), False (the default) does not, whatever the map says.
+        it when the site map does. ``web``: True serves the web view on an ephemeral port
+        when the site map enables it (``[web]``; the demo map does), False never.
+        ``ethernetip``: True serves EtherNet/IP on an ephemeral port
+        (:attr:`ethernetip_port`), False (the default) does not, whatever the map says.
         ``args``: more ``motion-server run`` options."""
         work = Path(workdir)
         work.mkdir(parents=True, exist_ok=True)
@@ -135,6 +140,7 @@ class MotionServer:
         # which a map with users or TLS roles gives plain Modbus only when asked
         cmd += ["--modbus-role", "admin"]
         cmd += ["--no-opcua"] if opcua is False else ["--opcua-port", "0"]
+        cmd += ["--web-port", "0"] if web else ["--no-web"]
         cmd += ["--ethernetip-port", "0"] if ethernetip else ["--no-ethernetip"]
         cmd += list(args)
         (work / "ready.json").unlink(missing_ok=True)  # left by a server that was killed
@@ -226,6 +232,11 @@ class MotionServer:
     def ethernetip_port(self) -> int:
         """The EtherNet/IP port (0 when EtherNet/IP is not served)."""
         return int(self.info.get("ethernetip", {}).get("port", 0))
+
+    @property
+    def web_url(self) -> str:
+        """The web view's address ("" when it is not served)."""
+        return str(self.info.get("web", {}).get("url", ""))
 
     @property
     def opcua_port(self) -> int:
@@ -397,6 +408,7 @@ class ServerFactory:
         *,
         clock: str = "manual",
         opcua: bool | None = None,
+        web: bool = False,
         args: Sequence[str] = (),
         env: Mapping[str, str] | None = None,
         ethernetip: bool = False,
@@ -406,6 +418,7 @@ class ServerFactory:
             site_map,
             clock=clock,
             opcua=opcua,
+            web=web,
             args=args,
             env=env,
             timeout=self.timeout,

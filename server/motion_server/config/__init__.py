@@ -59,6 +59,7 @@ from .schema import (
     SiteSection,
     UsersFile,
     WatchdogSection,
+    WebSection,
     WriteRule,
 )
 
@@ -94,6 +95,7 @@ __all__ = [
     "SiteSection",
     "UsersFile",
     "WatchdogSection",
+    "WebSection",
     "WriteRule",
     "environment_settings",
     "load",

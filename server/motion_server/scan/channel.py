@@ -22,9 +22,16 @@ CONTROL = 0
 MODBUS = 1
 OPCUA = 2
 LOCAL = 3
+WEB = 4
 ETHERNETIP = 5
-NAMES = {CONTROL: "supervisor", MODBUS: "Modbus", OPCUA: "OPC UA", LOCAL: "local"}
-NAMES[ETHERNETIP] = "EtherNet/IP"
+NAMES = {
+    CONTROL: "supervisor",
+    MODBUS: "Modbus",
+    OPCUA: "OPC UA",
+    LOCAL: "local",
+    WEB: "web",
+    ETHERNETIP: "EtherNet/IP",
+}
 #: answers kept for a peer that does not read them before it is cut off
 OUTBOX_LIMIT = 10_000
 _RECV = 1 << 16
