@@ -42,7 +42,10 @@ def _load(path: str | None) -> config.SiteMap:
 
 # -- argument types: one line naming the option for a bad value ---------------------------------
 def _setting(
-    model: type[config.ControllerSection] | type[config.ModbusSection] | type[config.OpcUaSection],
+    model: type[config.ControllerSection]
+    | type[config.ModbusSection]
+    | type[config.OpcUaSection]
+    | type[config.WebSection],
     name: str,
     convert: Callable[[str], Any],
 ) -> Callable[[str], Any]:
@@ -83,14 +86,21 @@ _scale = _setting(config.ControllerSection, "scale", _finite)
 _modbus_host = _setting(config.ModbusSection, "host", str)
 _modbus_port = _setting(config.ModbusSection, "port", int)
 _opcua_port = _setting(config.OpcUaSection, "port", int)
+_web_port = _setting(config.WebSection, "port", int)
 
 
 def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteMap:
     """The site map as ``run`` (and ``check``) use it: the options that override its
     settings applied (``--clock``, ``--scale``, ``--modbus-host``, ``--modbus-port``,
-    ``--modbus-role``, ``--no-modbus``, ``--opcua-port``, ``--no-opcua``). Messages about
+    ``--modbus-role``, ``--no-modbus``, ``--opcua-port``, ``--no-opcua``, ``--web-port``,
+    ``--no-web``). Messages about
     an overridden field name the option."""
-    sections: dict[str, dict[str, Any]] = {"controller": {}, "modbus": {}, "opcua": {}}
+    sections: dict[str, dict[str, Any]] = {
+        "controller": {},
+        "modbus": {},
+        "opcua": {},
+        "web": {},
+    }
     origins: dict[tuple[str, str], str] = {}
     for section, key, option, value in (
         ("controller", "clock", "--clock", args.clock),
@@ -100,6 +110,8 @@ def site_for_run(site: config.SiteMap, args: argparse.Namespace) -> config.SiteM
         ("modbus", "enabled", "--no-modbus", False if args.no_modbus else None),
         ("opcua", "port", "--opcua-port", args.opcua_port),
         ("opcua", "enabled", "--no-opcua", False if args.no_opcua else None),
+        ("web", "port", "--web-port", getattr(args, "web_port", None)),
+        ("web", "enabled", "--no-web", False if getattr(args, "no_web", False) else None),
     ):
         if value is not None:
             sections[section][key] = value
@@ -128,7 +140,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         assembly = assemble(site, fresh=args.fresh)
     except config.SiteMapError as exc:
         raise SystemExit(f"motion-server: {exc}") from None
-    serve_opcua = site.opcua.enabled
+    serve_opcua = site.opcua.enabled or site.web.enabled  # the web view has OPC UA's users
     users = assembly.users
     if serve_opcua:
         try:
@@ -262,6 +274,12 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--opcua-port", type=_opcua_port, help="OPC UA port, 0 = ephemeral (site map: [opcua] port)"
     )
     p.add_argument("--no-opcua", action="store_true", help="do not serve OPC UA")
+    p.add_argument(
+        "--web-port",
+        type=_web_port,
+        help="web view port, 0 = ephemeral (site map: [web] port)",
+    )
+    p.add_argument("--no-web", action="store_true", help="do not serve the web view")
 
 
 def build_parser() -> argparse.ArgumentParser:

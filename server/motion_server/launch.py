@@ -42,6 +42,10 @@ class LaunchSpec:
     generation: int = 0
     #: the supervisor's pid (0: started by something else)
     supervisor: int = 0
+    #: the trend ring (:mod:`motion_server.image.trend`) of the web view: its memfd and
+    #: size (-1, 0: none)
+    trend_fd: int = -1
+    trend_size: int = 0
 
     @classmethod
     def build(

@@ -54,8 +54,9 @@ FRONTEND_BEAT = 0.5
 #: the PLCs and panels that command motion and does little work per request: 3 s (six
 #: missed beats). OPC UA does bulk work on its loop (an address space of thousands of
 #: nodes, large reads and browses within its OperationLimits, publishing): 10 s, so that
-#: a heavy but legitimate request is not mistaken for a hang
-FRONTEND_HANG = {"modbus": 3.0, "opcua": 10.0}
+#: a heavy but legitimate request is not mistaken for a hang. The web view serves a page
+#: and streams trends (small work per message): 5 s
+FRONTEND_HANG = {"modbus": 3.0, "opcua": 10.0, "web": 5.0}
 #: the supervisor's own gap between two looks beyond which it forgives everyone
 SELF_STALL = 1.0
 

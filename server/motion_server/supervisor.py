@@ -38,7 +38,8 @@ it writes there, atomically, a JSON object for test benches and tools::
 
     {"format": "motion-server-ready/1", "pid": 4242, "site": "demo",
      "modbus": {"host": "127.0.0.1", "port": 5020, "tls_port": 0},
-     "opcua": {"host": "127.0.0.1", "port": 4840, "endpoint": "opc.tcp://..."}}
+     "opcua": {"host": "127.0.0.1", "port": 4840, "endpoint": "opc.tcp://..."},
+     "web": {"host": "127.0.0.1", "port": 8080, "url": "http://127.0.0.1:8080/"}}
 
 (a protocol not served is absent), and removes it when the server begins to stop.
 """
@@ -60,14 +61,14 @@ from pathlib import Path
 from typing import IO, Any
 
 from .config import OpcUaUser, SiteMap, opcua_users
-from .image import wire
+from .image import trend, wire
 from .image.buffer import Progress, create_shared, image_bytes, map_shared
 from .image.layout import ImageLayout
 from .launch import LaunchSpec
 from .liveness import FRONTEND_HANG, SCAN_HANG, SCAN_KILL_GRACE, Liveness
 from .safety import retain
 from .safety.audit import AuditLog
-from .scan.channel import CONTROL, MODBUS, OPCUA
+from .scan.channel import CONTROL, MODBUS, OPCUA, WEB
 from .tagmap import build_tagmap
 
 log = logging.getLogger("motion_server.supervisor")
@@ -95,7 +96,7 @@ class StartError(RuntimeError):
 class _Child:
     """One process the supervisor started."""
 
-    role: str  # "scan", "modbus", "opcua"
+    role: str  # "scan", "modbus", "opcua", "web"
     proc: subprocess.Popen[bytes]
     started: float
     listening: dict[str, Any] = field(default_factory=dict)
@@ -130,6 +131,7 @@ class Supervisor:
         modbus: bool | None = None,
         opcua: bool | None = None,
         users: list[OpcUaUser] | None = None,
+        web: bool | None = None,
         ready_file: Path | None = None,
     ) -> None:
         self.site = site
@@ -140,9 +142,11 @@ class Supervisor:
             self.roles["modbus"] = MODBUS
         if site.opcua.enabled if opcua is None else opcua:
             self.roles["opcua"] = OPCUA
+        if site.web.enabled if web is None else web:
+            self.roles["web"] = WEB
         self.layout = ImageLayout(build_tagmap(site))
         self.size = image_bytes(self.layout.size)
-        if "opcua" not in self.roles:
+        if "opcua" not in self.roles and "web" not in self.roles:
             self.users: list[OpcUaUser] = []
         else:
             self.users = opcua_users(site) if users is None else users
@@ -196,6 +200,11 @@ class Supervisor:
             # refuse a bad retain file here, in one line, before anything starts
             retain.load(self.retain_file, self.site.site.name)
         self.image_fd = create_shared(self.size)
+        # the web view's trend ring: the scan writes every cycle's trended values there
+        self.trend_fd, self.trend_size = -1, 0
+        if "web" in self.roles:
+            self.trend_size = trend.ring_bytes()
+            self.trend_fd = create_shared(self.trend_size)
         # read-only: what shows that the scan works (its publish count and its beat)
         self._progress = Progress(map_shared(self.image_fd, self.size, writable=False))
         self.control, scan_control = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
@@ -216,6 +225,8 @@ class Supervisor:
             scan_fds,
             fresh=self.fresh,
             supervisor=os.getpid(),
+            trend_fd=self.trend_fd,
+            trend_size=self.trend_size,
         )
         scan = self._spawn("scan", [sys.executable, "-m", "motion_server.scan"], spec)
         for sock in scan_socks:  # the scan holds them now
@@ -237,6 +248,8 @@ class Supervisor:
 
     def _spawn(self, role: str, argv: list[str], spec: LaunchSpec) -> _Child:
         fds = [self.image_fd, *spec.channels.values()]
+        if spec.trend_fd >= 0:
+            fds.append(spec.trend_fd)
         proc = subprocess.Popen(
             argv,
             stdin=subprocess.PIPE,
@@ -265,6 +278,9 @@ class Supervisor:
                 if port.get("tls_port"):
                     tls = tls.model_copy(update={"port": port["tls_port"]})
                 site = site.model_copy(update={"modbus": modbus.model_copy(update={"tls": tls})})
+            elif role == "web":
+                web = site.web.model_copy(update={"port": port.get("port", 0)})
+                site = site.model_copy(update={"web": web})
             else:
                 opcua = site.opcua.model_copy(update={"port": port.get("port", 0)})
                 site = site.model_copy(update={"opcua": opcua})
@@ -275,9 +291,10 @@ class Supervisor:
             self.image_fd,
             self.size,
             {self.roles[role]: fe_end.fileno()},
-            users=self.users if role == "opcua" else None,
+            users=self.users if role in ("opcua", "web") else None,
             generation=generation,
             supervisor=os.getpid(),
+            **({"trend_fd": self.trend_fd, "trend_size": self.trend_size} if role == "web" else {}),
         )
         self._spawn(role, [sys.executable, "-m", "motion_server.frontends", role], spec)
         if self._serving:  # a restart: it must listen in time as well (then beat)
@@ -336,6 +353,8 @@ class Supervisor:
                     parts.append(f"Modbus TCP port {msg['port']}")
                 if msg.get("tls_port"):
                     parts.append(f"Modbus/TCP Security port {msg['tls_port']}")
+            elif role == "web":
+                parts.append(f"web view {msg.get('url', '')}")
             else:
                 parts.append(f"OPC UA {msg.get('endpoint', '')}")
         return ", ".join(parts) or "no front-end"
@@ -625,6 +644,13 @@ class Supervisor:
                 "host": self.site.opcua.host,
                 "port": int(at.get("port", 0)),
                 "endpoint": str(at.get("endpoint", "")),
+            }
+        if "web" in self.roles:
+            at = self._ports.get("web", {})
+            info["web"] = {
+                "host": self.site.web.host,
+                "port": int(at.get("port", 0)),
+                "url": str(at.get("url", "")),
             }
         path = self.ready_file
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")

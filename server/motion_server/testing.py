@@ -109,6 +109,7 @@ class MotionServer:
         *,
         clock: str = "manual",
         opcua: bool | None = None,
+        web: bool = False,
         args: Sequence[str] = (),
         env: Mapping[str, str] | None = None,
         timeout: float = START_TIMEOUT,
@@ -116,7 +117,9 @@ class MotionServer:
         """Start ``motion-server run`` in ``workdir`` (its data directories go there) on
         ephemeral ports and wait until every front-end listens; :class:`ServerError`
         with the log when it cannot. ``opcua``: False does not serve OPC UA, None serves
-        it when the site map does. ``args``: more ``motion-server run`` options."""
+        it when the site map does. ``web``: True serves the web view on an ephemeral port
+        when the site map enables it (``[web]``; the demo map does), False never.
+        ``args``: more ``motion-server run`` options."""
         work = Path(workdir)
         work.mkdir(parents=True, exist_ok=True)
         site = Path(site_map).resolve() if site_map is not None else None
@@ -132,6 +135,7 @@ class MotionServer:
         # which a map with users or TLS roles gives plain Modbus only when asked
         cmd += ["--modbus-role", "admin"]
         cmd += ["--no-opcua"] if opcua is False else ["--opcua-port", "0"]
+        cmd += ["--web-port", "0"] if web else ["--no-web"]
         cmd += list(args)
         (work / "ready.json").unlink(missing_ok=True)  # left by a server that was killed
         with (work / "server.log").open("ab") as log:
@@ -217,6 +221,11 @@ class MotionServer:
     def opcua_endpoint(self) -> str:
         """The OPC UA endpoint URL ("" when OPC UA is not served)."""
         return str(self.info.get("opcua", {}).get("endpoint", ""))
+
+    @property
+    def web_url(self) -> str:
+        """The web view's address ("" when it is not served)."""
+        return str(self.info.get("web", {}).get("url", ""))
 
     @property
     def opcua_port(self) -> int:
@@ -388,6 +397,7 @@ class ServerFactory:
         *,
         clock: str = "manual",
         opcua: bool | None = None,
+        web: bool = False,
         args: Sequence[str] = (),
         env: Mapping[str, str] | None = None,
     ) -> MotionServer:
@@ -396,6 +406,7 @@ class ServerFactory:
             site_map,
             clock=clock,
             opcua=opcua,
+            web=web,
             args=args,
             env=env,
             timeout=self.timeout,

@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from tests.web_support import SKIP_REASON, STATIC, ContractStub, chromium, frame
+from tests.web_browser_support import SKIP_REASON, STATIC, ContractStub, chromium, frame
 
 pytestmark = pytest.mark.skipif(SKIP_REASON is not None, reason=SKIP_REASON or "")
 

@@ -57,6 +57,7 @@ from .schema import (
     SiteSection,
     UsersFile,
     WatchdogSection,
+    WebSection,
     WriteRule,
 )
 
@@ -90,6 +91,7 @@ __all__ = [
     "SiteSection",
     "UsersFile",
     "WatchdogSection",
+    "WebSection",
     "WriteRule",
     "environment_settings",
     "load",

@@ -617,6 +617,31 @@ class OpcUaSection(_Model):
         return self
 
 
+class WebSection(_Model):
+    """The web view (``docs/web.md``): one page and a WebSocket, on loopback by default.
+    ``port = 0`` binds an ephemeral port (tests). ``cert_file`` with ``key_file``: HTTPS.
+    Users and roles are OPC UA's; anonymous access (with ``anonymous_role``) only when
+    asked for, and honoured on a loopback bind only unless ``allow_insecure_remote``."""
+
+    enabled: bool = False
+    host: BindAddress = "127.0.0.1"
+    port: Annotated[int, Field(ge=0, le=65535)] = 8080
+    cert_file: OptionalPath = ""
+    key_file: OptionalPath = ""
+    allow_anonymous: bool = False
+    anonymous_role: RoleName = "viewer"
+    allow_insecure_remote: bool = False
+    #: host names (besides the bind address, and localhost on loopback) the browser may
+    #: use in the address bar: a WebSocket whose Host is another name is refused
+    allowed_hosts: list[str] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _pair(self) -> WebSection:
+        if bool(self.cert_file) != bool(self.key_file):
+            raise ValueError("cert_file and key_file go together (both set: HTTPS)")
+        return self
+
+
 class UsersFile(_Model):
     """The users secret file: ``[[users]]`` entries like ``[[opcua.users]]``."""
 
@@ -647,6 +672,7 @@ class SiteMap(_Model):
     instructions: InstructionsSection = InstructionsSection()
     modbus: ModbusSection = ModbusSection()
     opcua: OpcUaSection = OpcUaSection()
+    web: WebSection = WebSection()
     watchdogs: list[WatchdogSection] = Field(default_factory=list)
     cams: list[CamSection] = Field(default_factory=list)
     audit: AuditSection = AuditSection()

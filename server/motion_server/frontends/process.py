@@ -1,4 +1,4 @@
-"""A front-end process: ``python -m motion_server.frontends modbus|opcua``.
+"""A front-end process: ``python -m motion_server.frontends modbus|opcua|web``.
 
 Started by the supervisor once the scan runs, with its :class:`LaunchSpec` on standard
 input: the site map, the shared image (mapped read-only: a front-end cannot change what
@@ -37,7 +37,7 @@ from ..launch import LaunchSpec, follow_supervisor, setup_logging
 from ..liveness import FRONTEND_BEAT
 from ..safety.access import AccessPolicy, plain_role
 from ..safety.audit import AuditLog
-from ..scan.channel import MODBUS, OPCUA
+from ..scan.channel import MODBUS, OPCUA, WEB
 from ..scheduling import LOAD_WINDOW, MODBUS_RT_PRIORITY, CpuLoad, Policy
 from ..tagmap import build_tagmap
 from ..tagmap.judge import Judge
@@ -48,7 +48,7 @@ from .view import ImageView
 
 log = logging.getLogger("motion_server.frontends")
 
-KINDS = {"modbus": MODBUS, "opcua": OPCUA}
+KINDS = {"modbus": MODBUS, "opcua": OPCUA, "web": WEB}
 #: connection numbers of the n-th start of a front-end begin at n * this + 1
 GENERATION_SPAN = 1_000_000
 #: the Modbus front-end's load (% of a core each second) beyond which it leaves the
@@ -102,6 +102,8 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
         frontend = modbus_module.ModbusFrontend(
             view, cfg.host, cfg.port, cfg.unit_id, policy, audit, cfg.tls
         )
+    elif kind == "web":
+        frontend = _web_frontend(view, site, spec, audit)
     else:
         from .opcua import OpcUaFrontend
 
@@ -129,6 +131,8 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
         tls_port = frontend.tls_port if frontend.tls_server is not None else 0
         port = frontend.port if frontend.server is not None else 0
         _say({"listening": kind, "port": port, "tls_port": tls_port})
+    elif kind == "web":
+        _say({"listening": kind, "port": frontend.port, "url": frontend.url})
     else:
         _say({"listening": kind, "port": frontend.port, "endpoint": frontend.endpoint})
     loop = asyncio.get_running_loop()
@@ -162,8 +166,24 @@ async def serve(kind: str, spec: LaunchSpec) -> int:
     return 0
 
 
+def _web_frontend(view: ImageView, site: SiteMap, spec: LaunchSpec, audit: Any) -> Any:
+    """The web view, reading the scan's trend ring when the supervisor made one."""
+    from ..image.trend import RingError, RingReader, map_ring
+    from . import web
+    from .web_stream import TrendHub
+
+    web._connection_numbers = itertools.count(spec.generation * GENERATION_SPAN + 1)
+    ring = None
+    if spec.trend_fd >= 0:
+        try:
+            ring = RingReader(map_ring(spec.trend_fd, spec.trend_size))
+        except RingError as exc:
+            log.error("web front-end: %s: no trends", exc)
+    return web.WebFrontend(view, site, spec.opcua_users(), audit, TrendHub(ring))
+
+
 def _where(site: SiteMap, kind: str) -> str:
-    cfg = site.modbus if kind == "modbus" else site.opcua
+    cfg = site.modbus if kind == "modbus" else site.web if kind == "web" else site.opcua
     return f"{cfg.host}:{cfg.port}"
 
 
@@ -198,7 +218,7 @@ async def _follow_policy(policy: Policy) -> None:
 def main() -> int:
     kind = sys.argv[1] if len(sys.argv) > 1 else ""
     if kind not in KINDS:
-        print("usage: python -m motion_server.frontends modbus|opcua", file=sys.stderr)
+        print("usage: python -m motion_server.frontends modbus|opcua|web", file=sys.stderr)
         return 2
     spec = LaunchSpec.read(sys.stdin.buffer)
     follow_supervisor(spec)

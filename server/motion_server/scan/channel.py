@@ -22,7 +22,8 @@ CONTROL = 0
 MODBUS = 1
 OPCUA = 2
 LOCAL = 3
-NAMES = {CONTROL: "supervisor", MODBUS: "Modbus", OPCUA: "OPC UA", LOCAL: "local"}
+WEB = 4
+NAMES = {CONTROL: "supervisor", MODBUS: "Modbus", OPCUA: "OPC UA", LOCAL: "local", WEB: "web"}
 #: answers kept for a peer that does not read them before it is cut off
 OUTBOX_LIMIT = 10_000
 _RECV = 1 << 16

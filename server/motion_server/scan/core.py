@@ -52,6 +52,7 @@ from ..config import SiteMap
 from ..image import wire
 from ..image.buffer import META_WORDS, ImageWriter, Meta, ScanState, image_bytes
 from ..image.layout import ImageLayout
+from ..image.trend import RingWriter
 from ..instructions import MotionSystem
 from ..kernel import GroupStop
 from ..kernel.group import OperatingMode
@@ -164,6 +165,8 @@ class Scan:
         buf = buffer if buffer is not None else bytearray(image_bytes(size))
         self.writer = ImageWriter(buf, size, self.layout.fingerprint)
         self.meta = np.zeros(META_WORDS, dtype=np.int64)
+        #: the web view's trend ring (:mod:`motion_server.image.trend`), when it is served
+        self.trend: RingWriter | None = None
         # channels and the write queue (and the budget of each cycle for it)
         self.channels: dict[int, Channel] = {}
         budget = ctl_cfg.write_budget or default_budget(self.period)
@@ -233,11 +236,19 @@ class Scan:
             self.image.step_cycles = old.step_cycles
             self.image.observers = old.observers
         self.filler = served.filler
+        trend: RingWriter | None = getattr(self, "trend", None)
+        if trend is not None:  # a restore: the getters read the new system
+            trend.renew()
 
     # -- set-up ---------------------------------------------------------------------------
     def attach(self, channel: Channel) -> None:
         """Serve ``channel`` (a front-end's write queue, or the supervisor's control)."""
         self.channels[channel.number] = channel
+
+    def attach_trend(self, buf: Any) -> None:
+        """Write the web view's trend ring (``buf``: its shared memory) after every cycle."""
+        tags = self.layout.tags
+        self.trend = RingWriter(buf, lambda s: self.image.getter(tags[s].name), len(tags))
 
     def start(self, now: float) -> None:
         """Publish the first image and begin running (the controller is ready)."""
@@ -587,6 +598,8 @@ class Scan:
         if self.ctl.internal_errors:
             self._log_kernel_errors(self.ctl.take_internal_errors())
         self.heartbeat = (self.heartbeat + 1) & 0xFFFFFFFF
+        if self.trend is not None:  # the web view's trend ring: one word read when idle
+            self.trend.cycle(self.ctl.tick)
         # Diagnostics.CycleTime: the cycle's own work (watchdogs, instructions, kernel);
         # copying it into the image is counted in the scan load
         spent = time.perf_counter() - t0

@@ -31,6 +31,7 @@ import time
 from ..config import SiteMapError
 from ..image import wire
 from ..image.buffer import map_shared
+from ..image.trend import map_ring
 from ..launch import LaunchSpec, follow_supervisor, setup_logging
 from ..liveness import SCAN_BEAT
 from ..safety.retain import RetainError
@@ -100,6 +101,8 @@ def main() -> int:
         return 2
     for ch in channels.values():
         scan.attach(ch)
+    if spec.trend_fd >= 0:
+        scan.attach_trend(map_ring(spec.trend_fd, spec.trend_size))
     priority = scan_policy()
     priority.follow(_realtime(scan.mode), scan.load)
     # the start-up heap (the whole system) is never scanned by the collector again
