@@ -77,7 +77,7 @@ def chromium() -> Iterator[Any]:
 def frame(layout_id: int, rows: Sequence[Sequence[float]], gaps_before: int = 0) -> bytes:
     """A binary trend frame as docs/web.md § "Protocol" defines it; row = (tick, values…)."""
     nchan = len(rows[0]) - 1 if rows else 0
-    out = [struct.pack("<IHHIII", MAGIC, 1, nchan, layout_id, len(rows), gaps_before)]
+    out = [struct.pack("<IHHIIII", MAGIC, 1, nchan, layout_id, len(rows), gaps_before, 0)]
     for row in rows:
         out.append(struct.pack("<Q", int(row[0])))
         out.append(struct.pack(f"<{nchan}d", *(float(v) for v in row[1:])))
@@ -85,7 +85,7 @@ def frame(layout_id: int, rows: Sequence[Sequence[float]], gaps_before: int = 0)
 
 
 STUB_MODEL: dict[str, Any] = {
-    "controller": {"name": "stub", "period_us": 2000, "clock": "manual"},
+    "controller": {"name": "stub", "period_us": 2000, "clock": "MANUAL"},
     "axes": [
         {
             "name": name,
@@ -108,7 +108,7 @@ STUB_MODEL: dict[str, Any] = {
                 {"name": "Axis", "tag": "MAJ_1.Axis", "type": "DINT", "writable": True},
                 {"name": "Speed", "tag": "MAJ_1.Speed", "type": "REAL", "writable": True},
             ],
-            "trigger": "MAJ_1.EN",
+            "trigger": "MAJ_1.Execute",
         }
     ],
     "channels": [
@@ -201,6 +201,8 @@ class ContractStub:
                 stub.calls.append((path, body))
                 if path == "write":
                     return JSONResponse({"results": dict.fromkeys(body["writes"], "ok")})
+                if path in ("trigger", "snapshot", "clock"):
+                    return JSONResponse({"result": "ok"})
                 if path == "logout":
                     stub.sessions.pop(request.cookies.get("ms_session", ""), None)
                 return JSONResponse({"ok": True})

@@ -180,6 +180,7 @@ function onText(text) {
     return;
   }
   if (msg.type === "status") onStatus(msg);
+  else if (msg.type === "hello") view.hello = msg;
   else if (msg.type === "trend-layout") view.trend.onLayout(msg);
   else if (msg.type === "error") say(`server: ${msg.message}`, true);
 }
@@ -198,7 +199,8 @@ function onStatus(msg) {
   view.status = msg;
   view.statusCount += 1;
   $("tick").textContent = fmt(msg.tick);
-  $("cycle-us").textContent = fmt(msg.cycle_us);
+  $("cycle-us").textContent =
+    typeof msg.cycle_us === "number" ? msg.cycle_us.toFixed(0) : fmt(msg.cycle_us);
   $("overruns").textContent = fmt(msg.overruns);
   const clock = msg.clock;
   $("clock-mode").textContent =
@@ -237,7 +239,8 @@ function showFrontends(frontends) {
     span.className = "health";
     let state = info;
     if (info && typeof info === "object") state = info.state ?? info.status ?? info.alive;
-    const good = state === true || state === "up" || state === "ok" || state === "running";
+    // a count (restarts) is information; a state says up or down
+    const good = typeof state === "number" || [true, "up", "ok", "running"].includes(state);
     span.dataset.ok = good ? "1" : "0";
     span.textContent = `${name}: ${state === true ? "up" : state === false ? "down" : state}`;
     el.appendChild(span);
@@ -265,14 +268,20 @@ function header(table, names) {
   table.appendChild(thead);
 }
 
+/** The entries of ``list`` with a name not seen before (a model lists each once). */
+function unique(list) {
+  const seen = new Set();
+  return (list || []).filter((x) => !seen.has(x.name) && seen.add(x.name));
+}
+
 function buildTables(model) {
   const ctl = model.controller || {};
   $("controller-name").textContent = ctl.name || "motion-server";
   if (ctl.clock !== undefined) $("clock-mode").textContent = fmt(ctl.clock);
-  if (ctl.period_us !== undefined) $("cycle-us").textContent = fmt(ctl.period_us);
-  buildAxes(model.axes || []);
-  buildGroups(model.groups || []);
-  buildInstructions(model.instructions || []);
+  if (ctl.period_us !== undefined) $("period-us").textContent = fmt(ctl.period_us);
+  buildAxes(unique(model.axes));
+  buildGroups(unique(model.groups));
+  buildInstructions(unique(model.instructions));
   const list = $("channel-list");
   list.textContent = "";
   for (const ch of model.channels || []) {
@@ -444,8 +453,16 @@ async function execute(ins, tr) {
   }
   const res = await api("POST", "/api/trigger", { instruction: ins.name });
   view.lastResult = res;
-  if (res.ok) say(`${ins.name} triggered`);
-  else say(`${ins.name}: trigger refused: ${errorText(res)}`, true);
+  const result = resultText(res);
+  if (result === "ok") say(`${ins.name} triggered`);
+  else say(`${ins.name}: trigger refused: ${result}`, true);
+}
+
+/** "ok", or the one-line reason: an HTTP error or a 200 whose result is not "ok". */
+function resultText(res) {
+  if (!res.ok) return errorText(res);
+  const result = res.data && res.data.result;
+  return result === undefined || result === "ok" ? "ok" : String(result);
 }
 
 async function clock(action) {
@@ -453,17 +470,19 @@ async function clock(action) {
   if (action === "step") body.cycles = Number($("step-cycles").value) || 1;
   const res = await api("POST", "/api/clock", body);
   view.lastResult = res;
-  say(res.ok ? `clock ${action} done` : `clock ${action} refused: ${errorText(res)}`, !res.ok);
+  const result = resultText(res);
+  const tick = res.data && res.data.tick !== undefined ? ` (tick ${res.data.tick})` : "";
+  if (result === "ok") say(`clock ${action} done${tick}`);
+  else say(`clock ${action} refused: ${result}`, true);
 }
 
 async function snapshot(action) {
   const number = Number($("snapshot-number").value);
   const res = await api("POST", "/api/snapshot", { action, number });
   view.lastResult = res;
-  say(
-    res.ok ? `snapshot ${number} ${action}d` : `snapshot ${action} refused: ${errorText(res)}`,
-    !res.ok,
-  );
+  const result = resultText(res);
+  if (result === "ok") say(`snapshot ${number}: ${action} done`);
+  else say(`snapshot ${action} refused: ${result}`, true);
 }
 
 function filterInstructions() {

@@ -6,7 +6,7 @@
 // writes the whole capture or the visible range, one row per tick, full float64 precision.
 
 const MAGIC = 0x4d535452; // 'MSTR'
-const HEADER_BYTES = 20;
+const HEADER_BYTES = 24; // u32 magic, u16 version, u16 nchan, u32 layout, nrows, gaps, reserved
 const MAX_CHANNELS = 16;
 const MAX_ROWS = 120000; // two minutes at 1 kHz; the oldest rows go first
 const MAX_MARKERS = 2000;
