@@ -32,11 +32,16 @@ test: lint typecheck tools node-tools
 	$(BIN)/pytest -q
 
 # mbpoll: the Modbus client that is not Python, for the interop tests (Debian package;
-# installed when missing and we are root, as on a fresh CI machine)
+# installed when missing and we are root, as on a fresh CI machine). chromium likewise:
+# Debian's browser, which the pinned Playwright (pyproject [test]) drives in the web page's
+# browser tests; Playwright never downloads a browser of its own here
 tools:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll) \
 		>/dev/null 2>&1 || echo "note: mbpoll not installed; its interop test will be skipped"; }
+	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium) \
+		>/dev/null 2>&1 || echo "note: chromium not installed; the web browser tests will be skipped"; }
 
 # node-opcua: the OPC UA client that is not Python, for the interop test. `npm ci` from the
 # lock file when node_modules is missing or older than the lock (quiet; when it cannot run,
