@@ -474,10 +474,13 @@ export class Trend {
       if (b < xMin || a > xMax) continue;
       ctx.fillRect(px(a), top, Math.max(2, px(b) - px(a)), height);
     }
-    // instruction bit changes
+    // instruction bit changes (labels at one pixel stacked, not overprinted)
+    const stacked = new Map();
     for (const m of this.markers) {
       if (!inView(m.tick)) continue;
       const x = px(m.tick);
+      const row = stacked.get(Math.round(x)) || 0;
+      stacked.set(Math.round(x), row + 1);
       ctx.strokeStyle = m.on ? "rgba(44, 160, 44, 0.8)" : "rgba(127, 127, 127, 0.8)";
       ctx.setLineDash(m.exact ? [] : [3 * dpr, 3 * dpr]);
       ctx.beginPath();
@@ -485,7 +488,7 @@ export class Trend {
       ctx.lineTo(x, top + height);
       ctx.stroke();
       ctx.fillStyle = ctx.strokeStyle;
-      ctx.fillText(`${m.tag}${m.on ? "↑" : "↓"}`, x + 2 * dpr, top + 12 * dpr);
+      ctx.fillText(`${m.tag}${m.on ? "↑" : "↓"}`, x + 2 * dpr, top + (12 + 11 * row) * dpr);
     }
     ctx.setLineDash([]);
     // the trigger row
@@ -721,5 +724,6 @@ export class Trend {
     $("csv-visible").addEventListener("click", () => this.download("visible"));
     this.view.setCursor = (which, tick) => this.setCursor(which, tick);
     this.view.zoom = (min, max) => this.zoom(min, max);
+    this.view.trendChannels = (channels) => this.setChannels(channels);
   }
 }
