@@ -28,8 +28,8 @@ def demo_text() -> str:
 
 
 def users_map(directory: Path, anonymous: bool = False) -> Path:
-    """The demo map with :data:`USERS` and (unless ``anonymous``) no anonymous access
-    to the web view."""
+    """The demo map with :data:`USERS`, the audit log on and (unless ``anonymous``) no
+    anonymous access to the web view."""
     text = demo_text()
     if not anonymous:
         old = 'enabled = true\nhost = "127.0.0.1"\nport = 8080\nallow_anonymous = true'
@@ -40,6 +40,7 @@ def users_map(directory: Path, anonymous: bool = False) -> Path:
             f'\n[[opcua.users]]\nname = "{name}"\nrole = "{role}"\n'
             f'password_hash = "{hash_password(password)}"\n'
         )
+    text += "\n[audit]\nenabled = true\n"  # audit.jsonl in the server's data directory
     path = directory / "web-site.toml"
     path.write_text(text, "utf-8")
     return path

@@ -53,6 +53,9 @@ ACK_TIMEOUT = 60.0
 MAX_STEP = 100_000
 #: status messages per second a client may ask for
 MAX_STATUS_HZ = 50.0
+#: bytes of a connection's kernel send buffer (no autotuning to megabytes: a slow client
+#: would see trends seconds old instead of a counted gap)
+SEND_BUFFER = 128 * 1024
 #: WebSocket connections served at once
 MAX_CONNECTIONS = 64
 SECURITY_HEADERS = [
@@ -499,7 +502,7 @@ class WebApp:
 
     async def _send_loop(self, ws: WebSocket, client: TrendClient) -> None:
         while True:
-            item = await client.queue.get()
+            item = await client.next()
             if isinstance(item, bytes):
                 await ws.send_bytes(item)
             else:
@@ -603,6 +606,9 @@ class WebFrontend:
         family = socket.AF_INET6 if ":" in cfg.host else socket.AF_INET
         sock = socket.socket(family, socket.SOCK_STREAM)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        # the connections inherit it: a client that reads slowly has at most this much
+        # of old trend data waiting in the kernel, then frames are dropped (and counted)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
         try:
             sock.bind((cfg.host, cfg.port))
             sock.listen(128)

@@ -31,8 +31,8 @@ HEADER = struct.Struct("<IHHIIII")
 DRAIN_PERIOD = 0.02
 #: channels of one client's trend
 MAX_CLIENT_CHANNELS = 16
-#: frames queued for one client before frames are dropped for it (about 2 s)
-QUEUE_FRAMES = 100
+#: rows queued for one client beyond which its frames are dropped (2 s of a 1 ms scan)
+QUEUE_ROWS = 2000
 
 
 def frame(layout: int, ticks: np.ndarray, values: np.ndarray, gaps: int) -> bytes:
@@ -53,11 +53,15 @@ def parse_frame(data: bytes) -> tuple[int, int, np.ndarray, np.ndarray]:
     return layout, gaps, rows.view("<u8")[:, 0].astype(np.int64), rows[:, 1:]
 
 
-@dataclass
+@dataclass(eq=False)
 class TrendClient:
     """One WebSocket's trend: its channels (image slots), its layout id, its queue."""
 
-    queue: asyncio.Queue[bytes | dict[str, object]] = field(default_factory=asyncio.Queue)
+    queue: asyncio.Queue[tuple[bytes, int] | dict[str, object]] = field(
+        default_factory=asyncio.Queue
+    )
+    #: rows in the queue
+    queued_rows: int = 0
     names: list[str] = field(default_factory=list)
     slots: tuple[int, ...] = ()
     layout: int = 0
@@ -71,14 +75,24 @@ class TrendClient:
         """Queue a text message (never dropped)."""
         self.queue.put_nowait(message)
 
-    def offer(self, item: bytes) -> bool:
-        """Queue a frame; False (dropped) when :data:`QUEUE_FRAMES` wait already: the
-        client is behind, and the ticks of the next frame it gets show the gap."""
-        if self.queue.qsize() >= QUEUE_FRAMES:
+    def offer(self, item: bytes, rows: int) -> bool:
+        """Queue a frame of ``rows`` rows; False (dropped) when :data:`QUEUE_ROWS` rows
+        wait already: the client is behind, and the ticks of the next frame it gets show
+        the gap."""
+        if self.queued_rows >= QUEUE_ROWS:
             self.dropped_frames += 1
             return False
-        self.queue.put_nowait(item)
+        self.queued_rows += rows
+        self.queue.put_nowait((item, rows))
         return True
+
+    async def next(self) -> bytes | dict[str, object]:
+        """The next frame or text message to send."""
+        item = await self.queue.get()
+        if isinstance(item, tuple):
+            self.queued_rows -= item[1]
+            return item[0]
+        return item
 
 
 class TrendHub:
@@ -166,5 +180,5 @@ class TrendHub:
                 gaps = 0
                 if c.last_tick is not None:
                     gaps = max(0, int(ticks[0]) - c.last_tick - 1)
-                if c.offer(frame(c.layout, ticks, rows.values[:, cols], gaps)):
+                if c.offer(frame(c.layout, ticks, rows.values[:, cols], gaps), len(ticks)):
                     c.last_tick = int(ticks[-1])
