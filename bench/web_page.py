@@ -63,7 +63,13 @@ def set_channels(page: Any, srv: Any, channels: list[str]) -> None:
     raise RuntimeError("the trend layout never took effect")
 
 
-def latency(page: Any, srv: Any, samples: int) -> list[float]:
+def first_at(marks: list[list[float]], tick: int) -> float | None:
+    """The time of the first mark (``[tick, ms]``, in order) whose tick is ≥ ``tick``."""
+    return next((at for tk, at in marks if tk >= tick), None)
+
+
+def latency(page: Any, srv: Any, samples: int) -> tuple[list[float], list[float]]:
+    """Publish → render and, of that, frame arrival → render, per stepped tick (ms)."""
     tick = int(srv.read("Clock.Cycle"))
     published: dict[int, float] = {}
     for _ in range(samples):
@@ -73,12 +79,15 @@ def latency(page: Any, srv: Any, samples: int) -> list[float]:
         time.sleep(random.uniform(0.030, 0.060))
     page.wait_for_function("(t) => msView.drawn.length && msView.drawn.at(-1)[0] >= t", arg=tick)
     drawn = page.evaluate("msView.drawn")
-    out = []
+    arrived = page.evaluate("msView.arrived")
+    total, page_part = [], []
     for t, at in published.items():
-        first = next((d for tk, d in drawn if tk >= t), None)
-        if first is not None:
-            out.append(first - at)
-    return out
+        shown = first_at(drawn, t)
+        came = first_at(arrived, t)
+        if shown is not None and came is not None:
+            total.append(shown - at)
+            page_part.append(shown - came)
+    return total, page_part
 
 
 def streaming(page: Any, srv: Any, seconds: float) -> dict[str, float]:
@@ -179,13 +188,17 @@ def main() -> int:
                 srv.trigger("MSO_1")
                 srv.trigger("MAJ_1")
                 set_channels(page, srv, CHANNELS)
-                lat = latency(page, srv, args.samples)
-                print(
-                    f"publish → render, {len(lat)} stepped ticks, 8 channels: "
-                    f"p50 {percentile(lat, 0.5):.0f} ms, p95 {percentile(lat, 0.95):.0f} ms, "
-                    f"p99 {percentile(lat, 0.99):.0f} ms, max {max(lat):.0f} ms "
-                    f"(target p95 ≤ 100 ms)"
-                )
+                lat, in_page = latency(page, srv, args.samples)
+                for label, xs in (
+                    ("publish → render", lat),
+                    ("  of which frame → render", in_page),
+                ):
+                    print(
+                        f"{label}, {len(xs)} stepped ticks, 8 channels: "
+                        f"p50 {percentile(xs, 0.5):.0f} ms, p95 {percentile(xs, 0.95):.0f} ms, "
+                        f"p99 {percentile(xs, 0.99):.0f} ms, max {max(xs):.0f} ms"
+                    )
+                print("target: publish → render p95 ≤ 100 ms")
                 s = streaming(page, srv, args.seconds)
                 print(
                     f"realtime {args.seconds:.0f} s, 8 channels: {s['ticks']} ticks advanced; "

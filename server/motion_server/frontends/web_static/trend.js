@@ -121,6 +121,7 @@ export class Trend {
     this.periodUs = 0;
     this.renders = 0;
     this.drawn = []; // [newest tick drawn, Date.now()] per render, the latest 5000
+    this.arrived = []; // [newest tick of a frame, Date.now()] per frame, the latest 5000
     this.plot = null;
     this.pending = false;
     this.wire();
@@ -256,6 +257,10 @@ export class Trend {
         this.gapTicks += missing;
       }
       this.onFrameRow(cap, tick, values, missing);
+    }
+    if (nrows) {
+      this.arrived.push([this.capture.ticks[this.capture.length - 1], Date.now()]);
+      if (this.arrived.length > 5000) this.arrived.splice(0, 1000);
     }
     if (this.capture.length > MAX_ROWS) {
       const n = this.capture.length - MAX_ROWS + Math.floor(MAX_ROWS / 10);
@@ -663,6 +668,7 @@ export class Trend {
     this.view.frames = this.frames;
     this.view.renders = this.renders;
     this.view.drawn = this.drawn;
+    this.view.arrived = this.arrived;
     this.view.layout = this.layout;
     this.view.markers = this.markers;
   }
