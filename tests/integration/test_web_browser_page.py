@@ -239,6 +239,73 @@ def test_status_values_land_in_the_tables_and_the_bar(browser: Any, stub: Contra
     page.context.close()
 
 
+def test_a_bit_change_seen_in_the_status_is_a_marker(browser: Any, stub: ContractStub) -> None:
+    page = open_page(browser, stub, "viewer")
+    status = {"type": "status", "cycle_us": 9.0, "overruns": 0, "clock": "MANUAL"}
+    # the first message gives the state (IP already true): no change, no marker
+    stub.send({**status, "tick": 100, "values": {"MAJ_1.IP": True, "MAJ_1.DN": False}})
+    stub.send({**status, "tick": 120, "values": {"MAJ_1.IP": False}})
+    stub.send({**status, "tick": 140, "values": {"MAJ_1.DN": True}})
+    page.wait_for_function("() => msView.status.tick === 140")
+    assert page.evaluate("msView.markers") == [
+        {"tick": 120, "tag": "MAJ_1.IP", "on": False, "exact": False},
+        {"tick": 140, "tag": "MAJ_1.DN", "on": True, "exact": False},
+    ]
+    page.context.close()
+
+
+def test_zoom_pan_and_a_cursor_with_the_mouse(browser: Any, stub: ContractStub) -> None:
+    page = open_page(browser, stub, "viewer")
+    lid = layout_id(page)
+    stub.send(frame(lid, [(t, float(t), 0.0) for t in range(1, 1001)]))
+    wait_rows(page, 1000)
+    page.wait_for_function("() => msView.renders > 0")
+    over = page.locator("#chart .u-over").bounding_box()
+    assert over is not None
+    y = over["y"] + over["height"] / 2
+    # drag across the middle fifth of the plot: the chart stops following and zooms there
+    page.mouse.move(over["x"] + over["width"] * 0.4, y)
+    page.mouse.down()
+    page.mouse.move(over["x"] + over["width"] * 0.6, y, steps=5)
+    page.mouse.up()
+    page.wait_for_function("() => document.getElementById('run-stop').textContent === 'Run'")
+    ticks = [int(r.split(",")[0]) for r in page.evaluate("msView.csv('visible')").split()[1:]]
+    lo, hi = ticks[0], ticks[-1]
+    assert 350 < lo < 450 and 550 < hi < 650  # about 400..600 of ticks 1..1000
+    # pan right by half the width
+    page.click("#pan-right")
+    page.wait_for_timeout(100)
+    moved = [int(r.split(",")[0]) for r in page.evaluate("msView.csv('visible')").split()[1:]]
+    assert abs((moved[0] - lo) - (hi - lo) / 2) <= 2
+    # a click puts cursor A on the nearest row
+    page.mouse.click(over["x"] + over["width"] / 2, y)
+    page.wait_for_function("() => msView.cursors && msView.cursors.a !== null")
+    a = page.evaluate("msView.cursors.a")
+    assert moved[0] <= a <= moved[-1]
+    assert page.evaluate("msView.cursors.channels['Axis1.ActualPosition'].a") == float(a)
+    # Follow: back to the newest window
+    page.click("#zoom-reset")
+    page.wait_for_function("() => document.getElementById('run-stop').textContent === 'Stop'")
+    page.context.close()
+
+
+def test_anonymous_viewers_may_still_log_in(browser: Any) -> None:
+    with ContractStub(anonymous_role="viewer") as stub:
+        page = browser.new_page()
+        page.goto(stub.url)
+        page.wait_for_function("() => window.msView && msView.session !== null")
+        assert page.inner_text("#who") == "anonymous (viewer)"
+        assert page.locator("#admin").is_hidden()
+        page.click("#login-open")
+        page.fill("#login-user", "admin")
+        page.fill("#login-password", "admin")
+        page.click("#login-submit")
+        page.wait_for_function("() => msView.session.role === 'admin'")
+        assert page.locator("#admin").is_visible()
+        assert page.locator("#login").is_hidden()
+        page.close()
+
+
 def test_nothing_leaves_the_origin_and_the_csp_holds(browser: Any, stub: ContractStub) -> None:
     context = browser.new_context()
     page = context.new_page()

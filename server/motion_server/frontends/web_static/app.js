@@ -78,6 +78,7 @@ function showLogin(error) {
   $("main").hidden = true;
   $("login").hidden = false;
   $("logout").hidden = true;
+  $("login-open").hidden = true;
   $("login-error").textContent = error || "";
   $("who").textContent = "";
   document.body.dataset.role = "";
@@ -111,8 +112,11 @@ async function enter(session) {
   view.session = session;
   document.body.dataset.role = session.role;
   $("who").textContent = `${session.user ?? "anonymous"} (${session.role})`;
-  $("logout").hidden = session.user === null || session.user === undefined;
+  const anonymous = session.user === null || session.user === undefined;
+  $("logout").hidden = anonymous;
+  $("login-open").hidden = !anonymous; // anonymous access allowed: a user may still log in
   $("login").hidden = true;
+  $("login-error").textContent = "";
   $("main").hidden = false;
   const res = await api("GET", "/api/model");
   if (!res.ok || !res.data) {
@@ -213,7 +217,7 @@ function onStatus(msg) {
     if (view.bits.has(tag)) {
       const before = view.bits.get(tag);
       const now = Boolean(value);
-      if (before !== now) view.trend.marker(msg.tick, tag, now);
+      if (before !== null && before !== now) view.trend.marker(msg.tick, tag, now);
       view.bits.set(tag, now);
     }
   }
@@ -354,7 +358,7 @@ function buildInstructions(instructions) {
       span.textContent = b;
       const tag = b.includes(".") ? b : `${ins.name}.${b}`;
       span.dataset.tag = tag;
-      view.bits.set(tag, false);
+      view.bits.set(tag, null); // unknown until the first status message
       bits.appendChild(span);
     }
     const ops = cell(tr, undefined, "operands");
@@ -495,6 +499,10 @@ function filterInstructions() {
 function wireStatic() {
   $("login-form").addEventListener("submit", login);
   $("logout").addEventListener("click", logout);
+  $("login-open").addEventListener("click", () => {
+    $("login").hidden = false;
+    $("login-user").focus();
+  });
   $("clock-step").addEventListener("click", () => clock("step"));
   $("clock-pause").addEventListener("click", () => clock("pause"));
   $("clock-run").addEventListener("click", () => clock("run"));
