@@ -218,8 +218,10 @@ class ContractStub:
             origin = websocket.headers.get("origin")
             stub.ws_origins.append(origin)
             host = websocket.headers.get("host")
-            if origin != f"http://{host}":
-                await websocket.close(code=1008)
+            sid = websocket.cookies.get("ms_session")
+            known = sid in stub.sessions or stub.anonymous_role is not None
+            if origin != f"http://{host}" or not known:
+                await websocket.close(code=1008)  # before accept: the handshake gets 403
                 return
             await websocket.accept()
             queue: asyncio.Queue[Any] = asyncio.Queue()
@@ -247,6 +249,9 @@ class ContractStub:
                 while True:
                     item = await queue.get()
                     if item is None:
+                        break
+                    if item == "close":
+                        await websocket.close()
                         break
                     if isinstance(item, bytes):
                         await websocket.send_bytes(item)
@@ -322,7 +327,15 @@ class ContractStub:
     def url(self) -> str:
         return f"http://127.0.0.1:{self.port}"
 
-    def send(self, item: bytes | dict[str, Any]) -> None:
+    def drop(self) -> None:
+        """Close the page's WebSocket from the server's side (a restarted front-end)."""
+        self.send("close")
+
+    def forget_sessions(self) -> None:
+        """Forget every session, as a restarted front-end does."""
+        self.sessions.clear()
+
+    def send(self, item: bytes | str | dict[str, Any]) -> None:
         """Send a frame or a JSON message to the page's WebSocket (the latest one)."""
         assert self._loop is not None and self._queue is not None, "no page connected"
         self._loop.call_soon_threadsafe(self._queue.put_nowait, item)

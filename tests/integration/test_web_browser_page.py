@@ -306,6 +306,23 @@ def test_anonymous_viewers_may_still_log_in(browser: Any) -> None:
         page.close()
 
 
+def test_the_page_reconnects_and_asks_for_a_login_once_the_session_is_gone(
+    browser: Any, stub: ContractStub
+) -> None:
+    page = open_page(browser, stub, "operator")
+    first = layout_id(page)
+    stub.drop()  # the socket closes; the session is still good: the page comes back
+    page.wait_for_function(f"() => msView.layout.id > {first}")
+    assert page.inner_text("#link-state") == "online"
+    assert stub.layouts[-1] == CHANNELS  # the trend asked again
+    stub.forget_sessions()
+    stub.drop()  # and now the server forgot the session: log in again
+    page.wait_for_function("() => !document.getElementById('login').hidden")
+    assert page.inner_text("#login-error") == "the session ended: log in again"
+    assert page.locator("#main").is_hidden()
+    page.context.close()
+
+
 def test_nothing_leaves_the_origin_and_the_csp_holds(browser: Any, stub: ContractStub) -> None:
     context = browser.new_context()
     page = context.new_page()

@@ -12,6 +12,7 @@ const $ = (id) => document.getElementById(id);
 const ROLE_RANK = { viewer: 0, operator: 1, admin: 2 };
 const STATUS_HZ = 20;
 const ARM_SECONDS = 10;
+const RECONNECT_MS = 1000;
 // the axis fields shown, in this order, when the model has them
 const AXIS_FIELDS = [
   "AxisState", "PLCopenState", "MotionStatus", "ActualPosition", "CommandPosition",
@@ -28,6 +29,7 @@ const view = {
   socket: null,
   trend: null,
   lastResult: null,
+  reconnects: 0,
   bits: new Map(), // tag -> last value, for the bit-change markers
 };
 window.msView = view;
@@ -157,10 +159,35 @@ function connect() {
   ws.onclose = () => {
     if (view.socket !== ws) return;
     setLink("down", "offline");
-    setTimeout(() => {
-      if (view.socket === ws && view.session) connect();
-    }, 2000);
+    setTimeout(() => reconnect(ws), RECONNECT_MS);
   };
+}
+
+/** After the socket closed (a restarted front-end, a network blip): is the session still
+ * good? Then connect again; if it ended (the server forgot it), ask for a login. */
+async function reconnect(ws) {
+  if (view.socket !== ws || !view.session) return;
+  view.reconnects += 1;
+  let res;
+  try {
+    res = await api("GET", "/api/session");
+  } catch {
+    setTimeout(() => reconnect(ws), RECONNECT_MS); // the server is not back yet
+    return;
+  }
+  if (view.socket !== ws) return;
+  if (res.status === 200 && res.data) {
+    if (res.data.user === view.session.user && res.data.role === view.session.role) {
+      view.session = res.data; // the CSRF token may be new
+      connect();
+    } else {
+      await enter(res.data);
+    }
+  } else {
+    view.socket = null;
+    view.session = null;
+    showLogin("the session ended: log in again");
+  }
 }
 
 function setLink(state, text) {
