@@ -119,6 +119,27 @@ def test_admin_steps_the_clock_from_the_page(browser: Any, srv: Any) -> None:
     page.context.close()
 
 
+def test_admin_saves_and_restores_a_snapshot_from_the_page(browser: Any, srv: Any) -> None:
+    enable_axis1(srv)
+    srv.trigger("MAJ_1")
+    srv.step(50)
+    page = open_page(browser, srv, "admin")
+    page.fill("#snapshot-number", "7")
+    page.click("#snapshot-save")
+    page.wait_for_function("() => document.getElementById('message').textContent.includes('7')")
+    assert page.inner_text("#message") == "snapshot 7: save done"
+    saved = srv.read("Axis1.ActualPosition")
+    srv.step(100)
+    assert srv.read("Axis1.ActualPosition") != saved  # the jog went on
+    page.click("#snapshot-restore")
+    page.wait_for_function(
+        "() => document.getElementById('message').textContent.includes('restore')"
+    )
+    assert page.inner_text("#message") == "snapshot 7: restore done"
+    assert srv.read("Axis1.ActualPosition") == saved
+    page.context.close()
+
+
 def test_the_axis_table_follows_a_jog(browser: Any, srv: Any) -> None:
     enable_axis1(srv)
     page = open_page(browser, srv, "operator")
