@@ -650,7 +650,9 @@ export class Trend {
       tr.dataset.channel = name;
       for (const v of [name, va, vb, d]) {
         const td = document.createElement("td");
-        td.textContent = v === null ? "–" : typeof v === "number" ? String(v) : v;
+        // nine significant digits on screen; msView.cursors and the CSV keep every bit
+        td.textContent =
+          v === null ? "–" : typeof v === "number" ? String(Number(v.toPrecision(9))) : v;
         tr.appendChild(td);
       }
       table.appendChild(tr);
