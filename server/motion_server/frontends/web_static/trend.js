@@ -728,6 +728,10 @@ export class Trend {
       if (this.layout) this.onLayout(this.layout);
     });
     $("trig-arm").addEventListener("click", () => this.arm());
+    window.addEventListener("resize", () => {
+      const width = $("chart").clientWidth;
+      if (this.plot && width) this.plot.setSize({ width: Math.max(400, width), height: 320 });
+    });
     $("csv-all").addEventListener("click", () => this.download("all"));
     $("csv-visible").addEventListener("click", () => this.download("visible"));
     this.view.setCursor = (which, tick) => this.setCursor(which, tick);
