@@ -8,6 +8,7 @@ from __future__ import annotations
 import asyncio
 import json
 import socket
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -171,3 +172,24 @@ async def test_a_client_that_stops_reading_is_told_the_gap(server: MotionServer)
         await asyncio.to_thread(server.step, 10)
         await collect(int(await asyncio.to_thread(server.read, "Clock.Cycle")))
     assert reported > 0
+
+
+def test_a_trigger_whose_tag_is_high_gives_a_new_edge_in_realtime(tmp_path: Path) -> None:
+    """MSO_1 triggered for Axis1 leaves its Execute high; triggered again for Axis2 the
+    web view must write it low, let a cycle scan it low, then high: a new rising edge."""
+    server = MotionServer.start(
+        tmp_path, users_map(tmp_path), clock="realtime", opcua=False, web=True
+    )
+    try:
+        http = Http(server.web_url)
+        http.login("otto")
+        for axis in (1, 2):
+            assert http.post("/api/write", {"writes": {"MSO_1.Axis": axis}})[0] == 200
+            status, body = http.post("/api/trigger", {"instruction": "MSO_1"})
+            assert status == 200 and body["result"] == "ok", body
+            give_up = time.monotonic() + 10
+            while int(server.read(f"Axis{axis}.AxisState")) != 2:  # 2 = Servo Control
+                assert time.monotonic() < give_up, f"Axis{axis} not enabled"
+                time.sleep(0.05)
+    finally:
+        server.finish()

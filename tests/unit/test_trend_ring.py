@@ -107,3 +107,20 @@ def test_a_slot_out_of_range_trends_nothing() -> None:
     writer.cycle(1)
     assert reader.drain() == []
     assert np.all(reader.words[:, 0] == 0)
+
+
+def test_a_request_half_written_is_not_taken() -> None:
+    src, writer, reader = ring()
+    first = reader.request([1])
+    writer.cycle(1)
+    # the web process is writing another request: G odd, slots changing
+    reader.control[3] = first + 1
+    reader.control[8] = 2
+    writer.cycle(2)
+    reader.control[3] = first + 2
+    reader.sets[first + 2] = (2,)
+    src.values[1], src.values[2] = 1.0, 2.0
+    writer.cycle(3)
+    a, b = reader.drain()
+    assert (a.generation, a.ticks.tolist()) == (first, [1, 2])  # the old set meanwhile
+    assert (b.generation, b.ticks.tolist(), b.values[:, 0].tolist()) == (first + 2, [3], [2.0])

@@ -300,12 +300,16 @@ class WebApp:
             return tag, str(exc)
         return tag, ""
 
-    async def _write(self, session: Session, request: Request, values: dict[str, Any]) -> None:
+    async def _write(
+        self, session: Session, request: Request, values: dict[str, Any], wait: bool = False
+    ) -> None:
         """Write ``values`` (already judged) as one batch; WriteRefused when the scan
-        refuses it, TimeoutError when it does not answer."""
+        refuses it, TimeoutError when it does not answer. ``wait``: until the image shows
+        it, even when the protocol answer need not wait (a trigger's low level must be
+        scanned before the high one is written)."""
         with writing_as(self._client(request, session)):
             ticket = self.view.write_many(values.items())
-        if ticket.waits:
+        if ticket.waits or wait:
             await asyncio.wait_for(outcome(ticket), ACK_TIMEOUT)
 
     async def write(self, request: Request) -> Response:
@@ -351,7 +355,7 @@ class WebApp:
         note = ""
         try:
             if self.view.read(trigger):
-                await self._write(session, request, {trigger: False})
+                await self._write(session, request, {trigger: False}, wait=True)
                 if self.view.mode == ClockMode.MANUAL:
                     note = " (manual clock: step the clock to see the edge)"
             await self._write(session, request, {trigger: True})
@@ -373,7 +377,7 @@ class WebApp:
                 if self.view.mode != ClockMode.MANUAL:
                     raise HttpError(409, "step needs the manual clock: pause first")
                 await self._write(session, request, {"Clock.StepCycles": cycles})
-                await self._write(session, request, {"Clock.Step": False})
+                await self._write(session, request, {"Clock.Step": False}, wait=True)
                 await self._write(session, request, {"Clock.Step": True})
             elif action == "pause":
                 await self._write(session, request, {"Clock.Mode": int(ClockMode.MANUAL)})
@@ -398,7 +402,9 @@ class WebApp:
             raise HttpError(400, "number: expected an integer ≥ 0")
         command = "Clock.SnapshotSave" if action == "save" else "Clock.SnapshotRestore"
         try:
-            await self._write(session, request, {"Clock.Snapshot": number, command: False})
+            await self._write(
+                session, request, {"Clock.Snapshot": number, command: False}, wait=True
+            )
             await self._write(session, request, {command: True})
         except (WriteRefused, TimeoutError, TagAccessError) as exc:
             return self._respond(request, {"result": str(exc) or "the scan did not answer"})

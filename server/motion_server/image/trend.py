@@ -12,9 +12,11 @@ process drains. Memory layout (8-byte words)::
               taken generation, written rows W, spare x6
     rows      capacity x (sequence, tick, generation, MAX_CHANNELS float64 values)
 
-The web process (the only writer of the request) writes the slot numbers and the count,
-then G + 1. The scan compares G with the generation it took once per cycle (one word):
-with no trend asked for (n = 0) it does nothing more. Row ``w`` (the w-th row written,
+The web process (the only writer of the request) makes G odd, writes the slot numbers
+and the count, then makes G even again (G + 2 in all). The scan compares G with the
+generation it took once per cycle (one word): with no trend asked for (n = 0) it does
+nothing more. It takes a new request only when G is even and unchanged after it read the
+slots, so it never trends a set half written. Row ``w`` (the w-th row written,
 0-based) lives at ``w % capacity``; the scan makes its sequence ``2w + 1`` while it writes
 it and ``2w + 2`` once complete, then sets W = w + 1. A reader copies rows ``[r, W)``
 and checks each row's sequence after the copy: a row the scan overwrote meanwhile (its
@@ -28,6 +30,7 @@ program order, and x86-64 keeps stores ordered with stores and loads with loads.
 from __future__ import annotations
 
 import mmap
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -48,6 +51,11 @@ _WRITTEN = _TAKEN + 1
 CONTROL_WORDS = _WRITTEN + 7
 # row words
 _SEQ, _TICK, _GEN = range(3)
+_ROWS_AT = 8 * CONTROL_WORDS
+_ROW_BYTES = 8 * ROW_WORDS
+_WRITTEN_AT = 8 * _WRITTEN
+_REQ_GEN_AT = 8 * _REQ_GEN
+_WORD = struct.Struct("<q")
 
 
 def ring_bytes(capacity: int = CAPACITY) -> int:
@@ -94,29 +102,29 @@ class RingWriter(_Ring):
             c[_MAGIC] = MAGIC
         self._getter = getter
         self._slots = slots
+        self._buf = buf
+        self._body = struct.Struct("<qq")
         self._taken = int(c[_TAKEN])
         self._written = int(c[_WRITTEN])
         self._reading: list[Any] = []
 
     def cycle(self, tick: int) -> None:
         """Write this cycle's row (nothing when no channel is asked for)."""
-        c = self.control
-        gen = int(c[_REQ_GEN])
+        gen = _WORD.unpack_from(self._buf, _REQ_GEN_AT)[0]  # the idle cost: this read
         if gen != self._taken:
             self._take(gen)
         reading = self._reading
         if not reading:
             return
+        # one C call per store (struct), in the order the reader relies on
         w = self._written
-        row = w % self.capacity
-        words = self.words
-        words[row, _SEQ] = 2 * w + 1
-        words[row, _TICK] = tick
-        words[row, _GEN] = self._taken
-        self.floats[row, 3 : 3 + len(reading)] = [get() for get in reading]
-        words[row, _SEQ] = 2 * w + 2
+        at = _ROWS_AT + (w % self.capacity) * _ROW_BYTES
+        buf = self._buf
+        _WORD.pack_into(buf, at, 2 * w + 1)
+        self._body.pack_into(buf, at + 8, tick, self._taken, *[get() for get in reading])
+        _WORD.pack_into(buf, at, 2 * w + 2)
         self._written = w + 1
-        c[_WRITTEN] = w + 1
+        _WORD.pack_into(buf, _WRITTEN_AT, w + 1)
 
     def renew(self) -> None:
         """Take the channel set again at the next cycle (the getters read another
@@ -124,12 +132,20 @@ class RingWriter(_Ring):
         self._taken = -1
 
     def _take(self, gen: int) -> None:
+        """Take request ``gen`` unless the web process is writing one (G odd, or G moved
+        while read): then the rows keep the set taken before, and the next cycle looks
+        again."""
+        if gen & 1:
+            return
         c = self.control
         n = max(0, min(int(c[_REQ_N]), MAX_CHANNELS))
         slots = [int(s) for s in c[_REQ_SLOTS : _REQ_SLOTS + n]]
+        if int(c[_REQ_GEN]) != gen:
+            return
         self._reading = [self._getter(s) for s in slots if 0 <= s < self._slots]
         if len(self._reading) != n:  # a slot out of range: trend nothing rather than wrong
             self._reading = []
+        self._body = struct.Struct(f"<qq{len(self._reading)}d")
         self._taken = gen
         c[_TAKEN] = gen
 
@@ -173,10 +189,12 @@ class RingReader(_Ring):
         if len(slots) > MAX_CHANNELS:
             raise ValueError(f"{len(slots)} channels: at most {MAX_CHANNELS}")
         c = self.control
+        before = int(c[_REQ_GEN])
+        c[_REQ_GEN] = before + 1  # odd: being written
         c[_REQ_SLOTS : _REQ_SLOTS + len(slots)] = slots
         c[_REQ_N] = len(slots)
-        gen = int(c[_REQ_GEN]) + 1
-        c[_REQ_GEN] = gen
+        gen = before + 2
+        c[_REQ_GEN] = gen  # even: complete
         self.sets[gen] = tuple(slots)
         return gen
 
