@@ -324,6 +324,9 @@ class Supervisor:
         while time.monotonic() < give_up:
             self._poll(0.2)
             failed = [c for c in self._children.values() if c.failed]
+            for c in [c for c in failed if c.role == "web"]:
+                self._without_web(c)
+            failed = [c for c in failed if c.role != "web"]
             if failed or self._stopping:
                 asked = self._stopping
                 for c in failed:
@@ -344,6 +347,19 @@ class Supervisor:
                 log.info("serving: %s", self._where())
                 return None
         raise StartError(f"the front-ends did not listen within {FRONTEND_START_TIMEOUT:.0f} s")
+
+    def _without_web(self, child: _Child) -> None:
+        """The web view could not start (its port in use, a certificate file): one line,
+        and the server goes on without it. A viewer is not what PLCs and panels command
+        the controller through; a port taken on a shared host must not stop motion."""
+        log.error("motion-server: the web view cannot serve: %s; serving without it", child.failed)
+        del self.roles["web"]
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            child.proc.wait(TERMINATE_GRACE)
+        if child.proc.poll() is None:
+            child.proc.kill()
+            child.proc.wait()
+        self._drop(child)
 
     def _where(self) -> str:
         parts = []

@@ -8,6 +8,7 @@ import http.client
 import json
 import os
 import signal
+import socket
 import ssl
 import time
 from pathlib import Path
@@ -122,3 +123,19 @@ async def test_https_with_a_configured_certificate(tmp_path: Path) -> None:
                 pass
     finally:
         server.finish()
+
+
+def test_a_web_port_in_use_leaves_the_server_serving_without_it(tmp_path: Path) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        server = MotionServer.start(
+            tmp_path, None, opcua=False, web=True, args=["--web-port", str(port)]
+        )
+        try:
+            assert "web" not in server.info and server.web_url == ""
+            assert "the web view cannot serve" in server.log()
+            server.step(3)  # the controller and Modbus serve
+        finally:
+            server.finish()
