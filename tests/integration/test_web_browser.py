@@ -29,6 +29,7 @@ from tests.web_browser_support import SKIP_REASON, chromium
 pytestmark = pytest.mark.skipif(SKIP_REASON is not None, reason=SKIP_REASON or "")
 
 if SKIP_REASON is None:
+    from motion_server.frontends.certificates import pem_copy, server_certificate
     from motion_server.testing import MotionServer
     from tests.web_support import USERS, users_map
 
@@ -324,3 +325,38 @@ def test_no_request_leaves_the_origin(browser: Any, srv: Any) -> None:
     # the server's CSP let everything the page does run: no violation, no script error
     assert problems == []
     page.context.close()
+
+
+def test_the_page_over_https_uses_wss(browser: Any, tmp_path: Path) -> None:
+    """With a certificate the page is served over HTTPS and its WebSocket is wss: on the
+    same origin (the browser trusts the test's self-signed certificate only)."""
+    found = server_certificate(tmp_path / "pki", "127.0.0.1", "web")
+    cert, key = pem_copy(found.cert), found.key
+    site = tmp_path / "tls.toml"
+    site.write_text(
+        users_map(tmp_path)
+        .read_text("utf-8")
+        .replace(
+            "allow_anonymous = false",
+            f'allow_anonymous = false\ncert_file = "{cert}"\nkey_file = "{key}"',
+            1,
+        ),
+        "utf-8",
+    )
+    tls = MotionServer.start(tmp_path, site, opcua=False, web=True)
+    try:
+        assert tls.web_url.startswith("https://")
+        urls: list[str] = []
+        context = browser.new_context(ignore_https_errors=True)
+        page = context.new_page()
+        page.on("websocket", lambda ws: urls.append(ws.url))
+        page.goto(tls.web_url)
+        page.fill("#login-user", "ada")
+        page.fill("#login-password", USERS["ada"][0])
+        page.click("#login-submit")
+        page.wait_for_function("() => window.msView && msView.statusCount > 0")
+        assert urls == [tls.web_url.replace("https://", "wss://") + "ws"]
+        assert page.inner_text("#link-state") == "online"
+        context.close()
+    finally:
+        tls.stop()
