@@ -19,13 +19,13 @@ import pytest
 
 from tests.web_browser_support import SKIP_REASON, STATIC, ContractStub, chromium, frame
 
-pytestmark = pytest.mark.skipif(SKIP_REASON is not None, reason=SKIP_REASON or "")
-
 CHANNELS = ["Axis1.ActualPosition", "Axis1.ActualVelocity"]
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
+    if SKIP_REASON is not None:
+        pytest.skip(SKIP_REASON)
     with chromium() as b:
         yield b
 
