@@ -246,7 +246,7 @@ def test_a_bit_change_seen_in_the_status_is_a_marker(browser: Any, stub: Contrac
     stub.send({**status, "tick": 100, "values": {"MAJ_1.IP": True, "MAJ_1.DN": False}})
     stub.send({**status, "tick": 120, "values": {"MAJ_1.IP": False}})
     stub.send({**status, "tick": 140, "values": {"MAJ_1.DN": True}})
-    page.wait_for_function("() => msView.status.tick === 140")
+    page.wait_for_function("() => msView.status && msView.status.tick === 140")
     assert page.evaluate("msView.markers") == [
         {"tick": 120, "tag": "MAJ_1.IP", "on": False, "exact": False},
         {"tick": 140, "tag": "MAJ_1.DN", "on": True, "exact": False},
@@ -286,6 +286,30 @@ def test_zoom_pan_and_a_cursor_with_the_mouse(browser: Any, stub: ContractStub) 
     # Follow: back to the newest window
     page.click("#zoom-reset")
     page.wait_for_function("() => document.getElementById('run-stop').textContent === 'Stop'")
+    page.context.close()
+
+
+def test_a_long_range_is_drawn_as_an_envelope_that_keeps_every_peak(
+    browser: Any, stub: ContractStub
+) -> None:
+    page = open_page(browser, stub, "viewer")
+    lid = layout_id(page)
+    n = 60_000
+    rows = [(t, 1000.0 if t == 31_234 else float(t % 100), -2.0 if t == 7_777 else 0.0)
+            for t in range(1, n + 1)]  # fmt: skip
+    for k in range(0, n, 10_000):
+        stub.send(frame(lid, rows[k : k + 10_000]))
+    wait_rows(page, n)
+    page.evaluate(f"msView.zoom(1, {n})")
+    page.wait_for_function("() => msView.plotted && msView.plotted[0][0] === 1")
+    x, pos, vel = page.evaluate("msView.plotted")
+    width = page.evaluate("document.querySelector('#chart .uplot').clientWidth")
+    assert len(x) <= 4 * max(400, width) + 2  # no more than ~4 points per pixel
+    assert max(pos) == 1000.0 and min(pos) == 0.0  # the single-row spike is kept
+    assert min(vel) == -2.0
+    assert x == sorted(x) and x[-1] == n
+    # the CSV still has every row
+    assert len(page.evaluate("msView.csv('visible')").splitlines()) == 1 + n
     page.context.close()
 
 

@@ -73,8 +73,12 @@ class Capture {
     return out;
   }
 
-  /** uPlot data: x = tick, one array per channel, a null row at every gap (a break). */
-  plotData(from = 0, to = this.length) {
+  /** uPlot data: x = tick, one array per channel, a null row at every gap (a break).
+   * More than ``maxRows`` rows are drawn as an envelope: per bucket of rows, each
+   * channel's minimum and maximum in the order they came (so no peak is lost), at the
+   * bucket's first and last tick; a bucket holding a gap starts with the break. */
+  plotData(from = 0, to = this.length, maxRows = Infinity) {
+    if (to - from > maxRows) return this.envelope(from, to, maxRows);
     const x = [];
     const ys = this.cols.map(() => []);
     for (let i = from; i < to; i++) {
@@ -84,6 +88,40 @@ class Capture {
       }
       x.push(this.ticks[i]);
       for (let c = 0; c < ys.length; c++) ys[c].push(this.cols[c][i]);
+    }
+    return [x, ...ys];
+  }
+
+  envelope(from, to, maxRows) {
+    const per = Math.ceil((to - from) / Math.max(1, Math.floor(maxRows / 2)));
+    const gaps = [...this.gapAt.keys()].filter((g) => g > from && g < to).sort((a, b) => a - b);
+    let g = 0;
+    const x = [];
+    const ys = this.cols.map(() => []);
+    for (let b = from; b < to; b += per) {
+      const e = Math.min(to, b + per);
+      let broken = false;
+      while (g < gaps.length && gaps[g] < e) {
+        broken = true;
+        g += 1;
+      }
+      if (broken && x.length) {
+        x.push(this.ticks[b] - 0.5);
+        for (const y of ys) y.push(null);
+      }
+      x.push(this.ticks[b]);
+      if (e - 1 > b) x.push(this.ticks[e - 1]);
+      for (let c = 0; c < ys.length; c++) {
+        const col = this.cols[c];
+        let lo = b;
+        let hi = b;
+        for (let i = b + 1; i < e; i++) {
+          if (col[i] < col[lo]) lo = i;
+          if (col[i] > col[hi]) hi = i;
+        }
+        if (e - 1 > b) ys[c].push(col[Math.min(lo, hi)], col[Math.max(lo, hi)]);
+        else ys[c].push(col[b]);
+      }
     }
     return [x, ...ys];
   }
@@ -123,6 +161,7 @@ export class Trend {
     this.drawn = []; // [newest tick drawn, Date.now()] per render, the latest 5000
     this.arrived = []; // [newest tick of a frame, Date.now()] per frame, the latest 5000
     this.plot = null;
+    this.plotted = null; // the data last given to uPlot
     this.pending = false;
     this.wire();
     view.capture = () => this.capture;
@@ -267,7 +306,9 @@ export class Trend {
       this.capture.dropFront(n);
       if (this.trigger.hit !== undefined) this.trigger.hit -= n;
     }
-    this.schedule();
+    // a held view (zoomed, panned, stopped, a trigger's capture) is not redrawn per frame
+    if (this.follow && !this.frozen) this.schedule();
+    else this.showCounts();
   }
 
   onFrameRow(cap, tick, values, missing) {
@@ -339,6 +380,7 @@ export class Trend {
       this.follow = false;
       this.range = [this.frozen.ticks[0], this.frozen.ticks[this.frozen.length - 1]];
       this.showTrigger();
+      this.schedule();
     }
   }
 
@@ -424,7 +466,9 @@ export class Trend {
     }
     if (xyMode) this.drawXY(src, from, to);
     else if (this.plot) {
-      const data = src.plotData(from, to);
+      // at most ~4 points per pixel: beyond that uPlot slows and nothing more shows
+      const data = src.plotData(from, to, 4 * Math.max(400, this.plot.width));
+      this.plotted = data;
       this.plot.setData(data, false);
       const x = data[0];
       if (x.length) {
@@ -670,6 +714,7 @@ export class Trend {
     this.view.frames = this.frames;
     this.view.renders = this.renders;
     this.view.drawn = this.drawn;
+    this.view.plotted = this.plotted;
     this.view.arrived = this.arrived;
     this.view.layout = this.layout;
     this.view.markers = this.markers;
