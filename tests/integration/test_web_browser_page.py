@@ -382,7 +382,7 @@ def test_vendored_assets_match_their_checksums_and_the_size_budget() -> None:
         assert hashlib.sha256((STATIC / name).read_bytes()).hexdigest() == digest, name
     total = sum(p.stat().st_size for p in STATIC.iterdir() if p.suffix != ".md")
     assert total <= 300 * 1024
-    for page_file in ("index.html", "app.js", "trend.js", "style.css"):
+    for page_file in ("index.html", "app.js", "trend.js", "capture.js", "style.css"):
         text = (STATIC / page_file).read_text()
         assert not re.search(r"https?://", text), page_file  # no other host named
     assert "<script>" not in (STATIC / "index.html").read_text()  # no inline script
