@@ -140,7 +140,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         assembly = assemble(site, fresh=args.fresh)
     except config.SiteMapError as exc:
         raise SystemExit(f"motion-server: {exc}") from None
-    serve_opcua = site.opcua.enabled or site.web.enabled  # the web view has OPC UA's users
+    serve_opcua = site.opcua.enabled
     users = assembly.users
     if serve_opcua:
         try:
@@ -153,7 +153,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         site,
         args.log_level,
         fresh=args.fresh,
-        users=users if serve_opcua else [],
+        # the web view has OPC UA's users (the generated admin only when OPC UA runs:
+        # the web view alone creates no files)
+        users=users if serve_opcua or site.web.enabled else [],
         ready_file=Path(args.ready_file) if args.ready_file else None,
     )
     try:

@@ -19,10 +19,12 @@ where ``motion-server`` is installed has these fixtures (docs/testing-with-pytes
 - ``motion_server_shared``: with ``motion_server_reuse`` = module or session, the server
   the tests of a module (or session) share (see the fast path below).
 
-Per test, the marker ``@pytest.mark.motion_server(site_map=..., clock="manual",
+Per test, the marker ``@pytest.mark.motion_server(site_map=..., clock="manual", web=True,
 opcua=False, args=[...])`` changes how ``motion_server`` is started. OPC UA is served
 when the site map says so unless ``opcua=False``; with no user configured the server
 creates ``admin`` in its data directory (:attr:`MotionServer.opcua_admin_password`).
+``web=True`` serves the web view (when the site map enables it) at
+:attr:`MotionServer.web_url`.
 
 The fast path: the ini option ``motion_server_reuse = module`` (or ``session``) starts one
 server per module (or per session) and gives each test a fresh controller all the same:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -151,6 +152,11 @@ async def test_bad_websocket_messages_get_an_error(server: MotionServer) -> None
         ]
         await ws.send(json.dumps({"type": "trend", "channels": many[:17]}))
         assert "at most 16" in (await next_text(ws, "error"))["message"]
+        await ws.send(b"\x00binary")
+        assert "JSON text" in (await next_text(ws, "error"))["message"]
+        for _ in range(11):  # each change makes the scan take a set: limited per second
+            await ws.send(json.dumps({"type": "trend", "channels": ["Axis1.ActualPosition"]}))
+        assert "changes a second" in (await next_text(ws, "error"))["message"]
         await ws.send(json.dumps({"type": "status", "hz": 20}))
         status = await next_text(ws, "status")
         assert "Axis1.ActualPosition" in status["values"]
@@ -162,3 +168,30 @@ async def test_bad_websocket_messages_get_an_error(server: MotionServer) -> None
         assert closed.value.rcvd is not None and closed.value.rcvd.code == 1009
     async with http.connect() as ws:  # ... and the web view still serves
         assert (await next_text(ws, "hello"))["role"] == "viewer"
+
+
+def test_a_cross_origin_post_is_refused_even_with_the_token(server: MotionServer) -> None:
+    http = Http(server.web_url)
+    http.login("otto")
+    own = http.origin
+    http.origin = "http://evil.example"
+    status, body = http.post("/api/write", {"writes": {"MAJ_1.Speed": 3.0}})
+    assert status == 403 and "cross-origin" in body["error"]
+    assert http.post("/api/login", {"user": "otto", "password": "operator-pass-2"})[0] == 403
+    http.origin = own
+    assert http.post("/api/write", {"writes": {"MAJ_1.Speed": 3.0}})[0] == 200
+
+
+def test_logins_are_audited_without_the_password(server: MotionServer) -> None:
+    http = Http(server.web_url)
+    http.post("/api/login", {"user": "otto", "password": "guess-1"})
+    http.login("otto")
+    give_up = time.monotonic() + 10
+    while True:
+        audit = (server.workdir / "audit.jsonl").read_text("utf-8")
+        logins = [json.loads(x) for x in audit.splitlines() if '"event":"login"' in x]
+        if len(logins) >= 2 or time.monotonic() > give_up:
+            break
+        time.sleep(0.1)
+    assert {(r["user"], r["result"]) for r in logins} >= {("otto", "refused"), ("otto", "accepted")}
+    assert "guess-1" not in audit and "operator-pass-2" not in audit

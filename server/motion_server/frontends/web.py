@@ -12,11 +12,13 @@ headers (:class:`_Headers`); a bad request gets a one-line error, never a traceb
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import itertools
 import json
 import logging
 import socket
+import time
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -56,6 +58,10 @@ MAX_STATUS_HZ = 50.0
 #: bytes of a connection's kernel send buffer (no autotuning to megabytes: a slow client
 #: would see trends seconds old instead of a counted gap)
 SEND_BUFFER = 128 * 1024
+#: trend set changes a connection may ask for per second (each makes the scan take a set)
+MAX_TREND_CHANGES = 10
+#: messages waiting for a client beyond which status messages are skipped for it
+STATUS_BACKLOG = 10
 #: WebSocket connections served at once
 MAX_CONNECTIONS = 64
 SECURITY_HEADERS = [
@@ -162,11 +168,21 @@ class WebApp:
             session = self._anonymous(request)
         if session is None:
             raise HttpError(401, "log in first")
+        if post:
+            self._same_origin(request)
         if post and not csrf_ok(session, request.headers.get("x-csrf-token")):
             raise HttpError(403, "missing or wrong X-CSRF-Token")
         if session.role < role:
             raise HttpError(403, f"role {session.role.label} may not do this ({role.label} needed)")
         return session
+
+    def _same_origin(self, request: Request) -> None:
+        """403 for a POST a browser sent from another origin (an Origin header that is
+        not this server's); a client that sends none (not a browser) passes, the CSRF
+        token still applies."""
+        origin = request.headers.get("origin")
+        if origin is not None and not self.origin_ok(request):
+            raise HttpError(403, "cross-origin request refused")
 
     def _anonymous(self, request: Request) -> Session | None:
         """An anonymous session when allowed (its cookie is set on the answer)."""
@@ -244,6 +260,7 @@ class WebApp:
                 "login refused: a password is never sent over plain HTTP to a non-loopback "
                 "address; configure [web] cert_file and key_file (HTTPS)",
             )
+        self._same_origin(request)
         data = await self._json(request)
         user, password = data.get("user"), data.get("password")
         if not isinstance(user, str) or not isinstance(password, str):
@@ -252,13 +269,20 @@ class WebApp:
         if limiter.locked(peer):
             raise HttpError(401, "too many failed logins from this address: try again later")
         role = await asyncio.to_thread(self.sessions.check, user, password)
+        port = request.client.port if request.client else 0
         if role is None:
             limiter.failed(peer)
             log.warning("web: failed login for user %r from %s", user[:64], peer)
+            if self.audit is not None:
+                who = ClientInfo("web", peer, port, 0, user[:64])
+                self.audit.connection(who, "login", "refused", "wrong user name or password")
             raise HttpError(401, "wrong user name or password")
         limiter.succeeded(peer)
         self.sessions.logout(request.cookies.get(COOKIE))
         session = self.sessions.login(user, role)
+        if self.audit is not None:
+            who = ClientInfo("web", peer, port, 0, user, role.label)
+            self.audit.connection(who, "login", "accepted")
         log.info("web: %s logged in from %s (%s)", user, peer, role.label)
         response = JSONResponse(self._who(session))
         self._set_cookie(response, session)
@@ -411,8 +435,8 @@ class WebApp:
         return self._respond(request, {"result": "ok"})
 
     # -- WebSocket ------------------------------------------------------------------------
-    def origin_ok(self, ws: WebSocket) -> bool:
-        """The handshake's Origin is this server's own origin, for a Host this server
+    def origin_ok(self, ws: WebSocket | Request) -> bool:
+        """The request's Origin is this server's own origin, for a Host this server
         answers to (a DNS name pointed at it by someone else is not)."""
         origin = ws.headers.get("origin", "")
         host = ws.headers.get("host", "")
@@ -453,13 +477,20 @@ class WebApp:
         client = TrendClient()
         client.say({"type": "hello", "user": session.user, "role": session.role.label})
         status_task: asyncio.Task[None] | None = None
+        changes: collections.deque[float] = collections.deque()
         sender = asyncio.create_task(self._send_loop(ws, client))
         try:
             while True:
                 try:
-                    text = await ws.receive_text()
-                except (WebSocketDisconnect, RuntimeError, KeyError):
+                    message = await ws.receive()
+                except (WebSocketDisconnect, RuntimeError):
                     return
+                if message["type"] == "websocket.disconnect":
+                    return
+                text = message.get("text")
+                if text is None:
+                    client.say({"type": "error", "message": "expected a JSON text message"})
+                    continue
                 try:
                     msg = json.loads(text)
                     if not isinstance(msg, dict):
@@ -480,6 +511,14 @@ class WebApp:
                         rate = min(float(hz), MAX_STATUS_HZ)
                         status_task = asyncio.create_task(self._status_loop(client, rate))
                 elif kind == "trend":
+                    now = time.monotonic()
+                    while changes and now - changes[0] > 1.0:
+                        changes.popleft()
+                    if len(changes) >= MAX_TREND_CHANGES:
+                        limit = f"trend: at most {MAX_TREND_CHANGES} changes a second"
+                        client.say({"type": "error", "message": limit})
+                        continue
+                    changes.append(now)
                     self._trend(client, msg.get("channels"))
                 else:
                     client.say({"type": "error", "message": f"unknown message type {kind!r}"})
@@ -518,6 +557,12 @@ class WebApp:
         last: np.ndarray | None = None
         view = self.view
         while True:
+            if client.queue.qsize() > STATUS_BACKLOG:
+                # the client reads too slowly: skip, and send every value next time (a
+                # message of changes only would leave it with stale ones)
+                last = None
+                await asyncio.sleep(1.0 / hz)
+                continue
             values = view.values()
             now = values[self._status_slots]
             if last is None:
@@ -605,6 +650,7 @@ class WebFrontend:
             ws_per_message_deflate=False,
             lifespan="off",
             access_log=False,
+            log_config=None,  # the server's own log format (launch.setup_logging)
             log_level="warning",
             server_header=False,
         )

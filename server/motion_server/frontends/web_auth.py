@@ -49,6 +49,10 @@ def is_loopback(host: str) -> bool:
         return host == "localhost"
 
 
+class SessionsFull(RuntimeError):
+    """No room for another anonymous session."""
+
+
 @dataclass
 class Session:
     """One browser's login (``user`` None: anonymous)."""
@@ -119,6 +123,12 @@ class Sessions:
                     "(set allow_insecure_remote as well to allow it)",
                     cfg.host,
                 )
+        if not users and self.anonymous is None:
+            log.warning(
+                "web: no user configured and no anonymous access: nobody can log in "
+                "([[opcua.users]] or the users secret file; OPC UA's generated admin "
+                "exists only when OPC UA is served)"
+            )
         ua = site.opcua
         self.limiter = Limiter(ua.max_login_failures, ua.login_window_s, ua.login_lockout_s)
         self._sessions: dict[str, Session] = {}
@@ -143,10 +153,13 @@ class Sessions:
         return s
 
     def anonymous_session(self) -> Session | None:
-        """A new anonymous session when the site allows it."""
+        """A new anonymous session when the site allows it (and there is room)."""
         if self.anonymous is None:
             return None
-        return self._new(None, self.anonymous)
+        try:
+            return self._new(None, self.anonymous)
+        except SessionsFull:
+            return None
 
     def check(self, user: str, password: str) -> Role | None:
         """The role of ``user`` when ``password`` is right (slow: scrypt; call it in a
@@ -169,7 +182,13 @@ class Sessions:
 
     def _new(self, user: str | None, role: Role) -> Session:
         if len(self._sessions) >= MAX_SESSIONS:
-            oldest = min(self._sessions.values(), key=lambda s: s.seen)
+            # anonymous ones go first: requests without a cookie (anyone's, as many as
+            # they like) must not end the sessions of users who logged in
+            anonymous = [s for s in self._sessions.values() if s.user is None]
+            pool = anonymous or (list(self._sessions.values()) if user is not None else [])
+            if not pool:  # full of logged-in users: no anonymous session now
+                raise SessionsFull("too many sessions: try again later")
+            oldest = min(pool, key=lambda s: s.seen)
             del self._sessions[oldest.id]
         now = time.monotonic()
         s = Session(secrets.token_urlsafe(32), user, role, secrets.token_urlsafe(32), now, now)

@@ -33,6 +33,8 @@ DRAIN_PERIOD = 0.02
 MAX_CLIENT_CHANNELS = 16
 #: rows queued for one client beyond which its frames are dropped (2 s of a 1 ms scan)
 QUEUE_ROWS = 2000
+#: messages queued for one client beyond which error messages are dropped for it
+BACKLOG = 1000
 
 
 def frame(layout: int, ticks: np.ndarray, values: np.ndarray, gaps: int) -> bytes:
@@ -72,7 +74,10 @@ class TrendClient:
     dropped_frames: int = 0
 
     def say(self, message: dict[str, object]) -> None:
-        """Queue a text message (never dropped)."""
+        """Queue a text message; an error message is dropped when :data:`BACKLOG`
+        messages wait already (a client that sends bad messages and reads nothing)."""
+        if message.get("type") == "error" and self.queue.qsize() >= BACKLOG:
+            return
         self.queue.put_nowait(message)
 
     def offer(self, item: bytes, rows: int) -> bool:

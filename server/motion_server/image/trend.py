@@ -219,21 +219,19 @@ class RingReader(_Ring):
         good = (words[:, _SEQ] == expect) & (seq_after == expect)
         self._next = written
         out: list[Rows] = []
-        gens = words[:, _GEN]
-        i, n = 0, len(idx)
-        while i < n:
-            if not good[i]:
-                lost += 1
-                i += 1
+        # runs of rows of one generation (-1: rows lost), found with numpy, not row by row
+        keys = np.where(good, words[:, _GEN], -1)
+        cuts = np.flatnonzero(np.diff(keys)) + 1
+        starts = [0, *cuts.tolist()]
+        ends = [*cuts.tolist(), len(keys)]
+        for i, j in zip(starts, ends, strict=True):
+            gen = int(keys[i])
+            if gen < 0:
+                lost += j - i
                 continue
-            gen = int(gens[i])
-            j = i
-            while j < n and good[j] and gens[j] == gen:
-                j += 1
             width = len(self.sets.get(gen, ()))
             out.append(Rows(gen, words[i:j, _TICK].copy(), floats[i:j, 3 : 3 + width], lost))
             lost = 0
-            i = j
         if lost:
             out.append(Rows(-1, np.zeros(0, np.int64), np.zeros((0, 0)), lost))
         return out
