@@ -153,8 +153,23 @@ def screenshots(browser: Any, srv: Any, url: str, out: Path) -> None:
     page.locator('tr[data-instruction="MAJ_1"] button.arm').click()
     page.wait_for_timeout(200)
     page.locator("#instructions").screenshot(path=out / "instructions.png")
+    # a trigger on the DN edge of an MAS that stops the jog: pre and post rows around it
+    page.fill("#instr-filter", "")
+    page.click("#zoom-reset")
+    page.evaluate("() => { msView.setCursor('A', null); msView.setCursor('B', null); }")
+    set_channels(page, srv, ["Axis1.ActualPosition", "Axis1.ActualVelocity", "MAS_1.DN"])
+    page.select_option("#trig-channel", "MAS_1.DN")
+    page.fill("#trig-pre", "60")
+    page.fill("#trig-post", "120")
+    page.click("#trig-arm")
+    srv.step(80)
+    srv.trigger("MAS_1")
+    srv.step(150)
+    page.wait_for_function("() => msView.trigger.state === 'triggered'")
+    page.wait_for_timeout(300)
+    page.locator("#trend").screenshot(path=out / "trigger.png")
     ctx.close()
-    for name in ("overview.png", "trend.png", "instructions.png"):
+    for name in ("overview.png", "trend.png", "instructions.png", "trigger.png"):
         small_png(out / name)
         print(f"  {out / name}: {(out / name).stat().st_size} bytes")
 
