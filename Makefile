@@ -32,8 +32,10 @@ test: lint typecheck tools node-tools kube-tools
 	$(BIN)/pytest -q
 
 # mbpoll: the Modbus client that is not Python, for the interop tests; gcc: compiles the
-# FMU's C host (tests/fmi/host.c) (Debian packages; installed when missing and we are
-# root, as on a fresh CI machine)
+# FMU's C host (tests/fmi/host.c); chromium: Debian's browser, which the pinned Playwright
+# (pyproject [test]) drives in the web page's browser tests (Playwright never downloads a
+# browser of its own here). Debian packages, installed when missing and we are root, as on
+# a fresh CI machine.
 tools:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll) \
@@ -41,6 +43,9 @@ tools:
 	@command -v gcc >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gcc libc6-dev) \
 		>/dev/null 2>&1 || echo "note: gcc not installed; the FMU's C host test will be skipped"; }
+	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+		&& (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium) \
+		>/dev/null 2>&1 || echo "note: chromium not installed; the web browser tests will be skipped"; }
 
 # kubectl: renders the Kubernetes manifests offline (`kubectl kustomize`) for
 # tests/deploy. When missing and we are root: the Kubernetes project's apt repository,
