@@ -260,3 +260,10 @@ def test_kind_bases_come_from_the_modbus_section() -> None:
     assert m.block("Group1").base == 400
     assert m.block("Axis1").base == 2000
     assert m.block("X").base == 30000
+
+
+def test_owners_names_each_owner_once_in_block_order(demo: TagMap) -> None:
+    # the demo's axes have more than one block each (their words and fault inputs)
+    blocks = [b.owner for b in demo.blocks if b.folder == Folder.AXES]
+    assert len(blocks) > len(set(blocks))
+    assert demo.owners(Folder.AXES) == ["Axis1", "Axis2", "Axis3", "Axis4"]

@@ -234,5 +234,7 @@ class TagMap:
         return list(self._by_entry.get(entry, ()))
 
     def owners(self, folder: Folder) -> list[str]:
-        """Owners of a folder in block order (instances, axes ...)."""
-        return [b.owner for b in self.blocks if b.folder == folder]
+        """Owners of a folder in block order (instances, axes ...), each once: an owner
+        with more than one block (an axis and its fault-injection words) is named where
+        its first block is."""
+        return list(dict.fromkeys(b.owner for b in self.blocks if b.folder == folder))
