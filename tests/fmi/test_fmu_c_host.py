@@ -18,6 +18,9 @@ from typing import Any
 
 import pytest
 
+import motion_clients
+import motion_server
+
 from .conftest import need
 
 HERE = Path(__file__).parent
@@ -74,7 +77,12 @@ def run_host(host: Path, fmu: Path, steps: int, step: float, env: dict[str, str]
 
 
 def python_env(libpython: Path | None) -> dict[str, str]:
-    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": ":".join(p for p in sys.path if p)}
+    # the embedded Python is the base interpreter, not the venv's: it needs the venv's
+    # packages on its path, and the folders of our own packages as well, since an editable
+    # install reaches them through a .pth file, which only a site directory reads
+    roots = [str(Path(m.__file__).resolve().parents[1]) for m in (motion_server, motion_clients)]
+    path = [*roots, *(p for p in sys.path if p)]
+    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": ":".join(path)}
     if libpython is not None:
         env["LD_PRELOAD"] = str(libpython)
     return env
