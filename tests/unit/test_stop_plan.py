@@ -345,3 +345,112 @@ def test_a_ramp_the_batch_would_refuse_is_refused_as_axis_by_axis() -> None:
             ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
         out.append((exc.value.code, [[process_state(p) for p in ax.processes] for ax in ctl.axes]))
     assert out[0] == out[1]
+
+
+# -- ramps left as rows, their objects made when read -----------------------------------
+def assert_same_unread(fast: Controller, ref: Controller, fs: list[Any], rs: list[Any],
+                       where: str) -> None:  # fmt: skip
+    """:func:`assert_same` without reading any axis's processes (which would make the
+    ramps the stop left as rows): the arrays, the status, the axes' other state and the
+    stops."""
+    for name in ARRAYS:
+        assert np.array_equal(getattr(fast, name), getattr(ref, name)), f"{where}: {name}"
+    for x, y in zip(fast.status_arrays(), ref.status_arrays(), strict=True):
+        assert np.array_equal(x, y), where
+    for af, ar in zip(fast.axes, ref.axes, strict=True):
+        assert (af.state, af.base, af.after_stop, af.stop_latch is None, af.buffered) == (
+            ar.state, ar.base, ar.after_stop, ar.stop_latch is None, ar.buffered,
+        ), f"{where}: {af.name}"  # fmt: skip
+    assert [(s.initiated, s.complete) for s in fs] == [(s.initiated, s.complete) for s in rs]
+    assert fast.groups[0].after_stops == ref.groups[0].after_stops, where
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    modes=st.lists(st.sampled_from(MODES), min_size=N_AXES, max_size=N_AXES),
+    before=scans(NAMES, 4),
+    stop=command(STOPS),
+    after=st.lists(st.tuples(st.lists(command(NAMES), max_size=3), st.integers(1, 40)),
+                   max_size=3),
+    reads=st.lists(st.integers(0, 200), max_size=4),
+    peeks=st.lists(st.tuples(st.integers(0, 200), st.integers(0, N_AXES - 1)), max_size=6),
+)  # fmt: skip
+def test_ramps_made_when_read_at_random_moments_equal_the_stop_axis_by_axis(
+    modes: list[ProgrammedStopMode],
+    before: list[tuple[list[Command], int]],
+    stop: Command,
+    after: list[tuple[list[Command], int]],
+    reads: list[int],
+    peeks: list[tuple[int, int]],
+) -> None:
+    """As above, but the processes are read only at random moments (``reads``: every
+    axis's, ``peeks``: one axis's, counted in cycles after the stop), so that the ramps
+    the stop left as rows of the stop lane are stepped, brought to rest, or made (and
+    then stepped as objects in the lane, or moved out by a command) at any point; the
+    arrays, the status and the axes agree after every command and every cycle, the
+    processes whenever they are read, and everything at the end."""
+    fast, ref = pair(modes)
+    fp: list[Process] = []
+    rp: list[Process] = []
+    fs: list[Any] = []
+    rs: list[Any] = []
+    script = [*before, ([stop], 0), *after, ([], 150)]
+    cycle = 0  # cycles since the stop
+    stopped = False
+    rowed = 0
+    for i, (cmds, cycles) in enumerate(script):
+        for cmd in cmds:
+            assert apply(fast, cmd, fp, fs) == apply(ref, cmd, rp, rs), f"{i}: {cmd}"
+        if i == len(before):
+            stopped = True
+            rowed = sum(len(r) for r in fast.motion.lanes[1].stops.rows)
+            event(f"ramps left as rows by the stop: {min(rowed, 5)}")
+        if not stopped:
+            assert_same(fast, ref, fp, rp, fs, rs, f"after the commands of step {i}")
+            for ctl, procs in ((fast, fp), (ref, rp)):
+                seen = {id(p) for p in procs}
+                procs.extend(p for ax in ctl.axes for p in ax.processes if id(p) not in seen)
+        else:
+            assert_same_unread(fast, ref, fs, rs, f"after the commands of step {i}")
+        for k in range(cycles + 1):
+            fast.step()
+            ref.step()
+            where = f"step {i} ({cmds}), cycle {k}"
+            if stopped:
+                cycle += 1
+                assert_same_unread(fast, ref, fs, rs, where)
+                for at, n in peeks:
+                    if at == cycle:
+                        assert [process_state(p) for p in fast.axes[n].processes] == [
+                            process_state(p) for p in ref.axes[n].processes
+                        ], f"{where}: axis {n} read"
+                if cycle in reads:
+                    assert_same(fast, ref, fp, rp, fs, rs, f"{where}: read")
+            else:
+                assert_same(fast, ref, fp, rp, fs, rs, where)
+    assert_same(fast, ref, fp, rp, fs, rs, "at the end")
+
+
+def test_a_group_stop_leaves_its_ramps_as_rows_until_they_are_read() -> None:
+    """The design's point: after a Fast Stop of 14 jogging axes the stop lane holds 14
+    rows and no ramp object exists until an axis's processes are read; reading one
+    makes that ramp alone, a member of the stop lane, where it stays."""
+    fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
+    for ctl in (fast, ref):
+        for ax in ctl.axes[: N_AXES - 2]:
+            ctl.start(ax, lambda v, a: JogProcess(DT, 50.0, Limits(50.0, 5e3, 5e3), v, a))
+        ctl.run(20)
+        ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+        ctl.run(3)
+    stops = fast.motion.lanes[1].stops
+    assert [len(r) for r in stops.rows] == [N_AXES - 2]
+    assert all(ax.stop_rows is not None for ax in fast.axes[: N_AXES - 2])
+    (made,) = fast.axes[4].processes
+    assert made.lane is stops and fast.axes[4].stop_rows is None
+    assert sum(ax.stop_rows is not None for ax in fast.axes) == N_AXES - 3
+    assert process_state(made) == process_state(ref.axes[4].processes[0])
+    fast.run(2)
+    ref.run(2)
+    assert made.lane is stops  # read, not moved out: still stepped by the lane
+    assert process_state(made) == process_state(ref.axes[4].processes[0])
+    assert np.array_equal(fast.cmd_pos, ref.cmd_pos)

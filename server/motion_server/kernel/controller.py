@@ -30,7 +30,7 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
-from .axis import Axis
+from .axis import Axis, latch_stops
 from .cam_tables import CamStore, CamTableConfig
 from .config import MAX_PERIOD, MIN_PERIOD, AxisConfig, GroupConfig
 from .drive import DriveModel
@@ -810,16 +810,14 @@ class Controller:
             return
         axes = [ax for ax, _ in ramping]
         owner = handle.owner
-        if stop_axes(self.motion, axes, owner) is None:
+        if not stop_axes(self.motion, axes, owner):
             for ax, action in ramping:
                 self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = action
                 g.after_stops = True
                 ax.stop_latch = handle
         else:
-            for ax, action in ramping:
-                ax.after_stop = action
-                ax.stop_latch = handle
+            latch_stops(self.arrays, ramping, handle)
             g.after_stops = True
         ramping.clear()
 

@@ -112,7 +112,8 @@ class Motion:
             order: list[Axis] = []
             placed: set[int] = set()
             for ax in g.axes:
-                procs = ax.processes
+                # a ramp still in the stop lane's rows reads no master (not made for this)
+                procs = ax.processes if ax.stop_rows is None else ()
                 if not procs or (len(procs) == 1 and not procs[0].masters):
                     # reads no master: where _visit would place it, without the call
                     if ax.index not in placed:

@@ -137,6 +137,8 @@ class GroupLanes:
                     schedule.append((lane, level))
         self.schedule = schedule
         laned = {id(ax) for lane in self.all for ax in lane.axes}
+        if self.stops.rows:
+            laned.update(id(ax) for ax in self.stops.row_axes)
         self.python_order = [ax for ax in self.group.order if id(ax) not in laned]
         for ax in self.python_order:
             # membership changed: a follower's master may have joined a lane
@@ -159,6 +161,7 @@ class GroupLanes:
             *self.followers[MasterReference.ACTUAL],
         )
         stepped_first = {id(ax) for lane in first for ax in lane.axes}
+        stepped_first.update(id(ax) for ax in self.stops.row_axes)
         memo: dict[int, int | None] = {}
 
         def level(ax: Axis) -> int | None:
@@ -201,7 +204,7 @@ class GroupLanes:
             self.cruise.step(s)
         if self.profiles.members:
             self.profiles.step(s, compose)
-        if self.stops.members:
+        if self.stops.members or self.stops.rows:
             self.stops.step(s, dt, compose)
         if self.scurves.members:
             self.scurves.step(s, compose)
