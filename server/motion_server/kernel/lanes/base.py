@@ -232,8 +232,16 @@ class LevelledLane(Lane):
 
     def order(self, levels: list[int]) -> None:
         """Sort the members by ``levels`` (one per member, in member order)."""
-        if not self.members and not self.levels:
-            return  # empty and already ordered: what the sort below would leave
+        if not self.members:
+            if self.levels:
+                # emptied (a group stop): what the sort below leaves, without sorting
+                # every field's empty array again
+                self.levels = []
+                self.slaves = []
+                self.masters = []
+                self.whole = []
+                self.midx = np.zeros(0, dtype=np.intp)
+            return
         perm = sorted(range(len(self.members)), key=levels.__getitem__)
         sel = np.array(perm, dtype=np.intp)
         for f in self.FIELDS:
