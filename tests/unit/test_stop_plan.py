@@ -8,6 +8,8 @@ its lane's sync, which leaves it in the lane)."""
 
 from __future__ import annotations
 
+import gc
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -34,6 +36,7 @@ from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference,
 from motion_server.kernel.group import OperatingMode
 from motion_server.kernel.processes import Process, StopRamp
 from motion_server.kernel.stop_plan import ramp
+from motion_server.scan import statecodec
 
 DT = 0.002
 N_AXES = 16
@@ -454,3 +457,52 @@ def test_a_group_stop_leaves_its_ramps_as_rows_until_they_are_read() -> None:
     assert made.lane is stops  # read, not moved out: still stepped by the lane
     assert process_state(made) == process_state(ref.axes[4].processes[0])
     assert np.array_equal(fast.cmd_pos, ref.cmd_pos)
+
+
+def test_ramps_left_as_rows_round_trip_through_a_snapshot() -> None:
+    """A snapshot taken while a group stop's ramps are rows (one of them made) runs on
+    as the original and as the reference: the rows, the made ramp and its place in the
+    lane survive the copy."""
+    fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
+    for ctl in (fast, ref):
+        for ax in ctl.axes[: N_AXES - 2]:
+            ctl.start(ax, lambda v, a: JogProcess(DT, 80.0, Limits(80.0, 5e3, 5e3), v, a))
+        ctl.run(20)
+        ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+        ctl.run(3)
+    made = fast.axes[2].processes[0]
+    copy = statecodec.loads(statecodec.dumps(fast))
+    assert [len(r) for r in copy.motion.lanes[1].stops.rows] == [N_AXES - 2]
+    (copied,) = copy.axes[2].processes
+    assert copied is not made and copied.lane is copy.motion.lanes[1].stops
+    for k in range(40):
+        for ctl in (fast, copy, ref):
+            ctl.step()
+        assert_same_unread(copy, ref, [], [], f"cycle {k}")
+        assert_same_unread(fast, ref, [], [], f"cycle {k}")
+    assert_same(copy, ref, [], [], [], [], "at the end")
+    assert process_state(copied) == process_state(made)
+    assert not copy.motion.lanes[1].stops.rows
+
+
+def test_the_members_a_group_stop_evicts_are_freed_over_the_next_steps() -> None:
+    """64 jogs evicted by a group stop are not freed in the first step after it (the
+    cycle that executes the stop) but within the next few, 32 a step."""
+    cfg = [
+        AxisConfig(n, f"A{n}", AxisType.VIRTUAL, max_velocity=1000.0, max_deceleration=1e4)
+        for n in range(1, 65)
+    ]
+    ctl = Controller(cfg, [GroupConfig(1, "G", tuple(range(1, 65)), DT)], True)
+    for ax in ctl.axes:
+        ctl.servo_on(ax)
+        ctl.start(ax, lambda v, a: JogProcess(DT, 20.0, Limits(20.0, 1e4, 1e4), v, a))
+    ctl.run(5)
+    jogs = [weakref.ref(ax.processes[0]) for ax in ctl.axes]
+    ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+    gc.collect()
+    ctl.step()
+    assert sum(r() is not None for r in jogs) == 64
+    ctl.step()
+    assert sum(r() is not None for r in jogs) == 32
+    ctl.step()
+    assert all(r() is None for r in jogs)

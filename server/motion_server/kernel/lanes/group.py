@@ -163,12 +163,14 @@ class GroupLanes:
         group stop evicts (256 jogs and gears, their profiles and limits) would
         otherwise all be freed in this rebuild, in the cycle that must stop the machine
         on time, for about half a microsecond each. They are released RELEASE_CHUNK at
-        a time, one chunk per step (:meth:`step`), if nothing else holds them."""
+        a time, one chunk per step from the next one on (:meth:`step`), if nothing else
+        holds them."""
         if not any(len(members) > RELEASE_CHUNK for members in dropped):
             return  # few: freed here, as they always were
         self._release = [
             *self._release,
             *(m[k : k + RELEASE_CHUNK] for m in dropped for k in range(0, len(m), RELEASE_CHUNK)),
+            [],  # popped first (the list is popped from its end): nothing freed this step
         ]
 
     def __getstate__(self) -> dict[str, object]:
