@@ -43,6 +43,11 @@ class CruiseLane(Lane):
         p.profile.position = pos
         p.position = pos
 
+    def _store_columns(self, members: list[Any], columns: dict[str, list[Any]]) -> None:
+        for p, pos in zip(members, columns["pos"], strict=True):
+            p.profile.position = pos
+            p.position = pos
+
     def place(self, s: AxisArrays) -> None:
         """After a rebuild: the members' velocity and acceleration, which stay constant
         while they cruise (nothing else writes them while the axis is in the lane)."""
@@ -229,6 +234,13 @@ class StopLane(Lane):
         p.position = float(a["pos"][k])
         p.velocity = float(a["vel"][k])
         p.acceleration = float(a["acc"][k])
+
+    def _store_columns(self, members: list[Any], columns: dict[str, list[Any]]) -> None:
+        for p, x, v, a in zip(members, columns["pos"], columns["vel"], columns["acc"],
+                              strict=True):  # fmt: skip
+            p.position = x
+            p.velocity = v
+            p.acceleration = a
 
     def step(self, s: AxisArrays, dt: float, compose: Compose) -> None:
         if self.members:
