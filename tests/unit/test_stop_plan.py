@@ -506,3 +506,27 @@ def test_the_members_a_group_stop_evicts_are_freed_over_the_next_steps() -> None
     assert sum(r() is not None for r in jogs) == 32
     ctl.step()
     assert all(r() is None for r in jogs)
+
+
+@pytest.mark.parametrize("second", ["mgs", "program"])
+def test_a_second_group_stop_while_the_rows_ramp_equals_the_reference(second: str) -> None:
+    """A group stop commanded while the ramps of the first are still rows (none read)
+    replaces them as the reference replaces the first ramps: the same state after
+    every cycle."""
+    fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
+    procs: tuple[list[Process], list[Process]] = ([], [])
+    stops: tuple[list[Any], list[Any]] = ([], [])
+    for ctl, ps, ss in ((fast, procs[0], stops[0]), (ref, procs[1], stops[1])):
+        for k in range(N_AXES - 2):
+            apply(ctl, ("jog", k, 0, 40.0 + 7.0 * k), ps, ss)
+        ctl.run(10)
+        apply(ctl, ("mgs", 0, 0, 0.0), ps, ss)
+        ctl.run(3)
+    assert sum(len(r) for r in fast.motion.lanes[1].stops.rows) == N_AXES - 2
+    for ctl, ps, ss in ((fast, procs[0], stops[0]), (ref, procs[1], stops[1])):
+        apply(ctl, (second, 0, 0, 1.0), ps, ss)
+    for k in range(60):
+        fast.step()
+        ref.step()
+        assert_same_unread(fast, ref, stops[0], stops[1], f"cycle {k}")
+    assert_same(fast, ref, procs[0], procs[1], stops[0], stops[1], "at the end")

@@ -307,7 +307,9 @@ class Controller:
         if g.number in self._laned:
             lanes.step(s, dt, compose)
         for ax in lanes.python_order:
-            if ax.processes or ax.buffered is not None:
+            # (Axis.processes without the property's call: an axis composed in Python
+            # has no stop row, see lanes.group)
+            if ax._processes or ax.buffered is not None or ax.stop_rows is not None:
                 compose(ax)
         if not s.commands_finite():
             for i in self.drive.repair_commands(g.idx):
