@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 from typing import Any, Protocol
 
+import numpy as np
+
 from .config import AxisConfig
 from .enums import (
     AfterStop,
@@ -355,15 +357,14 @@ class Axis:
         return f"Axis({self.number}, {self.name!r}, {self._state.name})"
 
 
-def latch_stops(s: AxisArrays, ramping: list[tuple[Axis, AfterStop]], holder: object) -> None:
-    """``ax.after_stop = action`` and ``ax.stop_latch = holder`` for every (axis, action)
-    of ``ramping``, the status arrays written once for all (a group stop's axes)."""
-    idx = []
-    actions = []
-    for ax, action in ramping:
+def latch_stops(
+    s: AxisArrays, axes: list[Axis], idx: np.ndarray, actions: list[AfterStop], holder: object
+) -> None:
+    """``ax.after_stop = action`` and ``ax.stop_latch = holder`` for every axis of
+    ``axes`` (array indices ``idx``) and its action, the status arrays written once for
+    all (a group stop's axes)."""
+    for ax, action in zip(axes, actions, strict=True):
         ax._after_stop = action
         ax._stop_latch = holder
-        idx.append(ax.index)
-        actions.append(action)
     s.after_stop[idx] = actions
-    s.dirty.update(idx)
+    s.dirty.update(idx.tolist())

@@ -265,6 +265,7 @@ def stop_axes(
     # the ramps left as rows: (position in ``axes``, axis, base)
     rowed: list[int] = []
     rowed_axes: list[Axis] = []
+    rowed_idx: list[int] = []
     bases: list[float] = []
     # equal limits are shared by the ramps of this batch (they are immutable)
     shared: dict[tuple[float, float], Limits] = {}
@@ -299,6 +300,7 @@ def stop_axes(
             # a ramp the stop lane takes at once: a row, its object made when read
             rowed.append(k)
             rowed_axes.append(ax)
+            rowed_idx.append(i)
             bases.append(base)
             ax._processes = []
             continue
@@ -321,6 +323,7 @@ def stop_axes(
             lanes.stops,
             lanes,
             rowed_axes,
+            np.array(rowed_idx, dtype=np.intp),
             np.array(bases, dtype=float),
             v_arr[sel],
             d_arr[sel],

@@ -54,6 +54,7 @@ class StopRows:
         lane: Any,
         owner_lanes: LaneOwner,
         axes: list[Axis],
+        idx: np.ndarray,
         base: np.ndarray,
         velocity: np.ndarray,
         deceleration: np.ndarray,
@@ -64,7 +65,7 @@ class StopRows:
         self.lane = lane
         self._lanes = owner_lanes
         self.axes = axes
-        self.idx = np.array([ax.index for ax in axes], dtype=np.intp)
+        self.idx = idx  # the axes' array indices
         self.at: Index = compact(self.idx)
         n = len(axes)
         self.base = base
