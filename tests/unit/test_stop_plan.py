@@ -8,6 +8,8 @@ its lane's sync, which leaves it in the lane)."""
 
 from __future__ import annotations
 
+import gc
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -34,6 +36,7 @@ from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference,
 from motion_server.kernel.group import OperatingMode
 from motion_server.kernel.processes import Process, StopRamp
 from motion_server.kernel.stop_plan import ramp
+from motion_server.scan import statecodec
 
 DT = 0.002
 N_AXES = 16
@@ -345,3 +348,185 @@ def test_a_ramp_the_batch_would_refuse_is_refused_as_axis_by_axis() -> None:
             ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
         out.append((exc.value.code, [[process_state(p) for p in ax.processes] for ax in ctl.axes]))
     assert out[0] == out[1]
+
+
+# -- ramps left as rows, their objects made when read -----------------------------------
+def assert_same_unread(fast: Controller, ref: Controller, fs: list[Any], rs: list[Any],
+                       where: str) -> None:  # fmt: skip
+    """:func:`assert_same` without reading any axis's processes (which would make the
+    ramps the stop left as rows): the arrays, the status, the axes' other state and the
+    stops."""
+    for name in ARRAYS:
+        assert np.array_equal(getattr(fast, name), getattr(ref, name)), f"{where}: {name}"
+    for x, y in zip(fast.status_arrays(), ref.status_arrays(), strict=True):
+        assert np.array_equal(x, y), where
+    for af, ar in zip(fast.axes, ref.axes, strict=True):
+        assert (af.state, af.base, af.after_stop, af.stop_latch is None, af.buffered) == (
+            ar.state, ar.base, ar.after_stop, ar.stop_latch is None, ar.buffered,
+        ), f"{where}: {af.name}"  # fmt: skip
+    assert [(s.initiated, s.complete) for s in fs] == [(s.initiated, s.complete) for s in rs]
+    assert fast.groups[0].after_stops == ref.groups[0].after_stops, where
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    modes=st.lists(st.sampled_from(MODES), min_size=N_AXES, max_size=N_AXES),
+    before=scans(NAMES, 4),
+    stop=command(STOPS),
+    after=st.lists(st.tuples(st.lists(command(NAMES), max_size=3), st.integers(1, 40)),
+                   max_size=3),
+    reads=st.lists(st.integers(0, 200), max_size=4),
+    peeks=st.lists(st.tuples(st.integers(0, 200), st.integers(0, N_AXES - 1)), max_size=6),
+)  # fmt: skip
+def test_ramps_made_when_read_at_random_moments_equal_the_stop_axis_by_axis(
+    modes: list[ProgrammedStopMode],
+    before: list[tuple[list[Command], int]],
+    stop: Command,
+    after: list[tuple[list[Command], int]],
+    reads: list[int],
+    peeks: list[tuple[int, int]],
+) -> None:
+    """As above, but the processes are read only at random moments (``reads``: every
+    axis's, ``peeks``: one axis's, counted in cycles after the stop), so that the ramps
+    the stop left as rows of the stop lane are stepped, brought to rest, or made (and
+    then stepped as objects in the lane, or moved out by a command) at any point; the
+    arrays, the status and the axes agree after every command and every cycle, the
+    processes whenever they are read, and everything at the end."""
+    fast, ref = pair(modes)
+    fp: list[Process] = []
+    rp: list[Process] = []
+    fs: list[Any] = []
+    rs: list[Any] = []
+    script = [*before, ([stop], 0), *after, ([], 150)]
+    cycle = 0  # cycles since the stop
+    stopped = False
+    rowed = 0
+    for i, (cmds, cycles) in enumerate(script):
+        for cmd in cmds:
+            assert apply(fast, cmd, fp, fs) == apply(ref, cmd, rp, rs), f"{i}: {cmd}"
+        if i == len(before):
+            stopped = True
+            rowed = sum(len(r) for r in fast.motion.lanes[1].stops.rows)
+            event(f"ramps left as rows by the stop: {min(rowed, 5)}")
+        if not stopped:
+            assert_same(fast, ref, fp, rp, fs, rs, f"after the commands of step {i}")
+            for ctl, procs in ((fast, fp), (ref, rp)):
+                seen = {id(p) for p in procs}
+                procs.extend(p for ax in ctl.axes for p in ax.processes if id(p) not in seen)
+        else:
+            assert_same_unread(fast, ref, fs, rs, f"after the commands of step {i}")
+        for k in range(cycles + 1):
+            fast.step()
+            ref.step()
+            where = f"step {i} ({cmds}), cycle {k}"
+            if stopped:
+                cycle += 1
+                assert_same_unread(fast, ref, fs, rs, where)
+                for at, n in peeks:
+                    if at == cycle:
+                        assert [process_state(p) for p in fast.axes[n].processes] == [
+                            process_state(p) for p in ref.axes[n].processes
+                        ], f"{where}: axis {n} read"
+                if cycle in reads:
+                    assert_same(fast, ref, fp, rp, fs, rs, f"{where}: read")
+            else:
+                assert_same(fast, ref, fp, rp, fs, rs, where)
+    assert_same(fast, ref, fp, rp, fs, rs, "at the end")
+
+
+def test_a_group_stop_leaves_its_ramps_as_rows_until_they_are_read() -> None:
+    """The design's point: after a Fast Stop of 14 jogging axes the stop lane holds 14
+    rows and no ramp object exists until an axis's processes are read; reading one
+    makes that ramp alone, a member of the stop lane, where it stays."""
+    fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
+    for ctl in (fast, ref):
+        for ax in ctl.axes[: N_AXES - 2]:
+            ctl.start(ax, lambda v, a: JogProcess(DT, 50.0, Limits(50.0, 5e3, 5e3), v, a))
+        ctl.run(20)
+        ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+        ctl.run(3)
+    stops = fast.motion.lanes[1].stops
+    assert [len(r) for r in stops.rows] == [N_AXES - 2]
+    assert all(ax.stop_rows is not None for ax in fast.axes[: N_AXES - 2])
+    (made,) = fast.axes[4].processes
+    assert made.lane is stops and fast.axes[4].stop_rows is None
+    assert sum(ax.stop_rows is not None for ax in fast.axes) == N_AXES - 3
+    assert process_state(made) == process_state(ref.axes[4].processes[0])
+    fast.run(2)
+    ref.run(2)
+    assert made.lane is stops  # read, not moved out: still stepped by the lane
+    assert process_state(made) == process_state(ref.axes[4].processes[0])
+    assert np.array_equal(fast.cmd_pos, ref.cmd_pos)
+
+
+def test_ramps_left_as_rows_round_trip_through_a_snapshot() -> None:
+    """A snapshot taken while a group stop's ramps are rows (one of them made) runs on
+    as the original and as the reference: the rows, the made ramp and its place in the
+    lane survive the copy."""
+    fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
+    for ctl in (fast, ref):
+        for ax in ctl.axes[: N_AXES - 2]:
+            ctl.start(ax, lambda v, a: JogProcess(DT, 80.0, Limits(80.0, 5e3, 5e3), v, a))
+        ctl.run(20)
+        ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+        ctl.run(3)
+    made = fast.axes[2].processes[0]
+    copy = statecodec.loads(statecodec.dumps(fast))
+    assert [len(r) for r in copy.motion.lanes[1].stops.rows] == [N_AXES - 2]
+    (copied,) = copy.axes[2].processes
+    assert copied is not made and copied.lane is copy.motion.lanes[1].stops
+    for k in range(40):
+        for ctl in (fast, copy, ref):
+            ctl.step()
+        assert_same_unread(copy, ref, [], [], f"cycle {k}")
+        assert_same_unread(fast, ref, [], [], f"cycle {k}")
+    assert_same(copy, ref, [], [], [], [], "at the end")
+    assert process_state(copied) == process_state(made)
+    assert not copy.motion.lanes[1].stops.rows
+
+
+def test_the_members_a_group_stop_evicts_are_freed_over_the_next_steps() -> None:
+    """64 jogs evicted by a group stop are not freed in the first step after it (the
+    cycle that executes the stop) but within the next few, 32 a step."""
+    cfg = [
+        AxisConfig(n, f"A{n}", AxisType.VIRTUAL, max_velocity=1000.0, max_deceleration=1e4)
+        for n in range(1, 65)
+    ]
+    ctl = Controller(cfg, [GroupConfig(1, "G", tuple(range(1, 65)), DT)], True)
+    for ax in ctl.axes:
+        ctl.servo_on(ax)
+        ctl.start(ax, lambda v, a: JogProcess(DT, 20.0, Limits(20.0, 1e4, 1e4), v, a))
+    ctl.run(5)
+    jogs = [weakref.ref(ax.processes[0]) for ax in ctl.axes]
+    ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+    gc.collect()
+    ctl.step()
+    assert sum(r() is not None for r in jogs) == 64
+    ctl.step()
+    assert sum(r() is not None for r in jogs) == 32
+    ctl.step()
+    assert all(r() is None for r in jogs)
+
+
+@pytest.mark.parametrize("second", ["mgs", "program"])
+def test_a_second_group_stop_while_the_rows_ramp_equals_the_reference(second: str) -> None:
+    """A group stop commanded while the ramps of the first are still rows (none read)
+    replaces them as the reference replaces the first ramps: the same state after
+    every cycle."""
+    fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
+    procs: tuple[list[Process], list[Process]] = ([], [])
+    stops: tuple[list[Any], list[Any]] = ([], [])
+    for ctl, ps, ss in ((fast, procs[0], stops[0]), (ref, procs[1], stops[1])):
+        for k in range(N_AXES - 2):
+            apply(ctl, ("jog", k, 0, 40.0 + 7.0 * k), ps, ss)
+        ctl.run(10)
+        apply(ctl, ("mgs", 0, 0, 0.0), ps, ss)
+        ctl.run(3)
+    assert sum(len(r) for r in fast.motion.lanes[1].stops.rows) == N_AXES - 2
+    for ctl, ps, ss in ((fast, procs[0], stops[0]), (ref, procs[1], stops[1])):
+        apply(ctl, (second, 0, 0, 1.0), ps, ss)
+    for k in range(60):
+        fast.step()
+        ref.step()
+        assert_same_unread(fast, ref, stops[0], stops[1], f"cycle {k}")
+    assert_same(fast, ref, procs[0], procs[1], stops[0], stops[1], "at the end")

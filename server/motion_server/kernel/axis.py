@@ -13,6 +13,9 @@ those axes.
 from __future__ import annotations
 
 import math
+from typing import Any, Protocol
+
+import numpy as np
 
 from .config import AxisConfig
 from .enums import (
@@ -52,6 +55,13 @@ _PENDING_BITS: dict[ProcessKind, int] = {
 _HOMING = 1 << MotionStatusBit.HOMING
 
 
+class StopRowsLike(Protocol):
+    """What an axis asks of the stop rows holding its ramp (:mod:`.lanes.stop_rows`)."""
+
+    def materialise(self, ax: Axis) -> None:
+        """Make the axis's ramp object and give the axis its processes."""
+
+
 class Axis:
     def __init__(self, arrays: AxisArrays, config: AxisConfig, index: int) -> None:
         self._s = arrays
@@ -72,7 +82,10 @@ class Axis:
         self._stop_latch: object | None = None
         self._after_stop = AfterStop.NOTHING
         self.base = 0.0
-        self.processes: list[Process] = []
+        self._processes: list[Process] = []
+        #: the stop rows (:class:`~.lanes.stop_rows.StopRows`) holding this axis's group
+        #: stop ramp as arrays, its object not made yet; reading :attr:`processes` makes it
+        self.stop_rows: StopRowsLike | None = None
         #: a buffered PLCopen process waiting for the active ones (factory, owner)
         self.buffered: Pending | None = None
         self.group: int = 0
@@ -100,6 +113,28 @@ class Axis:
         #: +1 (same) or -1 (opposite): the direction of the latest cam of this slave (MAPC
         #: and MATC Reverse and Unchanged act on it; +1 if it never cammed)
         self.cam_direction = 1
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # state saved before ``processes`` became a property kept it under that name
+        if "processes" in state:
+            state["_processes"] = state.pop("processes")
+        state.setdefault("stop_rows", None)
+        self.__dict__.update(state)
+
+    @property
+    def processes(self) -> list[Process]:
+        """The axis's motion processes, in the order they compose. A group stop planned
+        as arrays leaves its ramp as a row of the stop lane (``stop_rows``): the ramp's
+        object is made here, the first time anything reads the processes."""
+        if self.stop_rows is not None:
+            self.stop_rows.materialise(self)
+        return self._processes
+
+    @processes.setter
+    def processes(self, value: list[Process]) -> None:
+        if self.stop_rows is not None:
+            self.stop_rows.materialise(self)
+        self._processes = value
 
     # -- status attributes (each keeps the shared status arrays current) ---------------------
     @property
@@ -253,7 +288,10 @@ class Axis:
         """The MotionStatus bits that do not depend on the acceleration: the processes',
         the Stopping latch's and Homed."""
         bits = 0
-        for p in self.processes:
+        if self.stop_rows is not None:
+            # a ramp still in the stop lane's rows: active and stopping (not made for this)
+            bits |= 1 << MotionStatusBit.STOPPING
+        for p in self._processes if self.stop_rows is None else ():
             if not p.active:
                 continue
             if p.stopping:
@@ -317,3 +355,16 @@ class Axis:
 
     def __repr__(self) -> str:
         return f"Axis({self.number}, {self.name!r}, {self._state.name})"
+
+
+def latch_stops(
+    s: AxisArrays, axes: list[Axis], idx: np.ndarray, actions: list[AfterStop], holder: object
+) -> None:
+    """``ax.after_stop = action`` and ``ax.stop_latch = holder`` for every axis of
+    ``axes`` (array indices ``idx``) and its action, the status arrays written once for
+    all (a group stop's axes)."""
+    for ax, action in zip(axes, actions, strict=True):
+        ax._after_stop = action
+        ax._stop_latch = holder
+    s.after_stop[idx] = actions
+    s.dirty.update(idx.tolist())

@@ -30,7 +30,7 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
-from .axis import Axis
+from .axis import Axis, latch_stops
 from .cam_tables import CamStore, CamTableConfig
 from .config import MAX_PERIOD, MIN_PERIOD, AxisConfig, GroupConfig
 from .drive import DriveModel
@@ -69,6 +69,7 @@ __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArra
 #: a ramped stop mode (as a plain int: hashed in C) -> what follows the ramp
 _AFTER_RAMP = {int(mode): action for mode, action in AFTER_FAST_STOP.items()}
 _SERVO_CONTROL = AxisState.SERVO_CONTROL
+_SERVO_CONTROL_INT = int(AxisState.SERVO_CONTROL)  # (numpy compares a plain int faster)
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 # read every cycle, as a module constant (see .enums)
 _RUN = OperatingMode.RUN
@@ -307,7 +308,9 @@ class Controller:
         if g.number in self._laned:
             lanes.step(s, dt, compose)
         for ax in lanes.python_order:
-            if ax.processes or ax.buffered is not None:
+            # (Axis.processes without the property's call: an axis composed in Python
+            # has no stop row, see lanes.group)
+            if ax._processes or ax.buffered is not None or ax.stop_rows is not None:
                 compose(ax)
         if not s.commands_finite():
             for i in self.drive.repair_commands(g.idx):
@@ -664,10 +667,15 @@ class Controller:
         # the ramps of consecutive axes are planned together (:mod:`.stop_plan`), in axis
         # order: a shutdown, which releases the followers of its axis, comes after the
         # ramps of the axes before it, as it does axis by axis
-        ramping = self._all_ramping(g, forced)
-        if ramping is not None:
+        actions = self._all_ramping(g, forced)
+        if actions is not None:
             # the common case: every axis ramps
-            self._ramp_to_rest(g, ramping, handle)
+            axes = self._motion_axes[g.number]
+            if stop_axes(self.motion, axes, owner):
+                latch_stops(self.arrays, axes, g.motion_idx, actions, handle)
+                g.after_stops = True
+            else:
+                self._ramp_to_rest(g, list(zip(axes, actions, strict=True)), handle)
             g.stops.append(handle)
             return handle
         hard = self._all_hard(g, forced)
@@ -678,7 +686,7 @@ class Controller:
                 ax.stop_latch = handle
             g.stops.append(handle)
             return handle
-        ramping = []
+        ramping: list[tuple[Axis, AfterStop]] = []
         # who reads each master, found once for all the shutdowns of this stop
         followers: dict[int, list[Axis]] | None = None
         for ax in g.axes:
@@ -710,21 +718,22 @@ class Controller:
 
     def _all_ramping(
         self, g: MotionGroup, forced: ProgrammedStopMode | None
-    ) -> list[tuple[Axis, AfterStop]] | None:
+    ) -> list[AfterStop] | None:
         """If every driven axis of ``g`` is in Servo Control and stops with a ramp
-        (Fast Stop, Fast Disable, Fast Shutdown): each with its action after the stop,
-        found with array operations; else None (the axes are then sorted one by one)."""
+        (Fast Stop, Fast Disable, Fast Shutdown): the action after the stop of each
+        (``_motion_axes`` order), found with array operations; else None (the axes are
+        then sorted one by one)."""
         idx = g.motion_idx
-        if not (self.arrays.axis_state[idx] == AxisState.SERVO_CONTROL).all():
+        if not (self.arrays.axis_state[idx] == _SERVO_CONTROL_INT).all():
             return None
         axes = self._motion_axes[g.number]
         if forced is not None:
             action = _AFTER_RAMP.get(int(forced))
-            return None if action is None else [(ax, action) for ax in axes]
+            return None if action is None else [action] * len(axes)
         actions = [_AFTER_RAMP.get(int(ax.config.programmed_stop_mode)) for ax in axes]
         if None in actions:
             return None
-        return list(zip(axes, cast(list[AfterStop], actions), strict=True))
+        return cast(list[AfterStop], actions)
 
     def _all_hard(
         self, g: MotionGroup, forced: ProgrammedStopMode | None
@@ -810,16 +819,15 @@ class Controller:
             return
         axes = [ax for ax, _ in ramping]
         owner = handle.owner
-        if stop_axes(self.motion, axes, owner) is None:
+        if not stop_axes(self.motion, axes, owner):
             for ax, action in ramping:
                 self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = action
                 g.after_stops = True
                 ax.stop_latch = handle
         else:
-            for ax, action in ramping:
-                ax.after_stop = action
-                ax.stop_latch = handle
+            idx = np.array([ax.index for ax in axes], dtype=np.intp)
+            latch_stops(self.arrays, axes, idx, [action for _, action in ramping], handle)
             g.after_stops = True
         ramping.clear()
 

@@ -182,9 +182,16 @@ class GroupStop:
         if latched.size:
             rest = ~(moving(s, latched) | (s.after_stop[latched] != AfterStop.NOTHING))
             if rest.any():
-                for i in latched[rest]:
-                    a = self.group.by_index[int(i)]
-                    if a.stop_latch is self:
-                        a.stop_latch = None  # this axis is at rest: StoppingStatus ends
+                by_index = self.group.by_index
+                cleared = []
+                for i in latched[rest].tolist():
+                    a = by_index[i]
+                    if a._stop_latch is self:
+                        # this axis is at rest: StoppingStatus ends (``a.stop_latch = None``
+                        # with the status marked stale once for all: a group comes to
+                        # rest in one cycle)
+                        a._stop_latch = None
+                        cleared.append(i)
+                s.dirty.update(cleared)
                 self._latched = latched[~rest]
         self.complete = not waiting.any()

@@ -93,7 +93,8 @@ class Motion:
         """After a change or a composition: one active process on a driven axis, with
         nothing buffered, may go to a fast lane, if something happened to it since it was
         last offered (``Process.offer_pending``)."""
-        procs = ax.processes
+        # (the property's call saved: no stop row here unless its ramp is to be made)
+        procs = ax._processes if ax.stop_rows is None else ax.processes
         if len(procs) == 1 and ax.buffered is None:
             p = procs[0]
             if p.offer_pending and p.lane is None and p.state is ProcessState.ACTIVE:
@@ -112,7 +113,8 @@ class Motion:
             order: list[Axis] = []
             placed: set[int] = set()
             for ax in g.axes:
-                procs = ax.processes
+                # a ramp still in the stop lane's rows reads no master (not made for this)
+                procs = ax.processes if ax.stop_rows is None else ()
                 if not procs or (len(procs) == 1 and not procs[0].masters):
                     # reads no master: where _visit would place it, without the call
                     if ax.index not in placed:
@@ -345,7 +347,8 @@ class Motion:
         """Step ``ax``'s processes and sum them into its command (Logix superposition)."""
         s = self.s
         active = _ACTIVE
-        procs = ax.processes
+        # (the property's call saved on this hot path: see Axis.processes)
+        procs = ax._processes if ax.stop_rows is None else ax.processes
         failed_moving: list[Process] = []
         for p in procs:
             if p.state is active:

@@ -41,6 +41,7 @@ import numpy as np
 from .axis import Axis
 from .enums import AbortReason, AfterStop, AxisState, ProcessState
 from .lanes import GroupLanes
+from .lanes.stop_rows import StopRows
 from .limits import Limits
 from .motion import Motion
 from .power import ABORT_REASON, PowerEvent
@@ -209,16 +210,21 @@ def stop_axes(
     axes: Sequence[Axis],
     owner: object,
     reason: AbortReason = AbortReason.STOPPED,
-) -> list[StopRamp] | None:
+) -> bool:
     """Replace every process of each of ``axes`` (driven axes in Servo Control, in
     group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
     maximum deceleration, bounded as a group stop bounds it; cancel what is buffered.
 
-    Returns the ramps, or None without having changed anything if an axis's ramp would
-    be refused (a non-finite velocity, a deceleration out of range, a ramp too long):
-    the caller then stops them one by one, which raises as it always did."""
+    The ramps of axes whose drive is on, in a group with fast lanes, join its stop lane
+    as one :class:`~.lanes.stop_rows.StopRows`: their objects are made when something
+    reads the axis's processes. The others (a ramp from rest, done at once; no lanes)
+    are built here.
+
+    Returns False without having changed anything if an axis's ramp would be refused (a
+    non-finite velocity, a deceleration out of range, a ramp too long): the caller then
+    stops them one by one, which raises as it always did."""
     if not axes:
-        return []
+        return True
     lanes = _empty_lanes(motion, axes)
     n = len(axes)
     vs = [0.0] * n
@@ -248,18 +254,19 @@ def stop_axes(
         # group_stop_deceleration, element by element
         d_arr = np.where(absv <= vmax, dec, dec * (absv / vmax))
     if not (np.isfinite(dec) & (dec > 0.0)).all() or _refused(v_arr, d_arr):
-        return None
+        return False
     ds = d_arr.tolist()
     s = motion.s
     busy = s.scalars.busy
     dirty = s.dirty
-    ramps: list[StopRamp] = []
-    admit: list[tuple[StopRamp, Axis]] = []
-    admit_vel: list[float] = []
-    admit_decel: list[float] = []
     offered = motion.offers(axes[0].group)
     drive_on = s.drive_on
     coupling = False
+    # the ramps left as rows: (position in ``axes``, axis, base)
+    rowed: list[int] = []
+    rowed_axes: list[Axis] = []
+    rowed_idx: list[int] = []
+    bases: list[float] = []
     # equal limits are shared by the ramps of this batch (they are immutable)
     shared: dict[tuple[float, float], Limits] = {}
     for k, ax in enumerate(axes):
@@ -288,6 +295,15 @@ def stop_axes(
             ax.buffered.cancelled = True
             ax.buffered = None
         v = vs[k]
+        i = ax.index
+        if offered and not (v == 0.0 and accels[k] == 0.0) and drive_on.item(i):
+            # a ramp the stop lane takes at once: a row, its object made when read
+            rowed.append(k)
+            rowed_axes.append(ax)
+            rowed_idx.append(i)
+            bases.append(base)
+            ax._processes = []
+            continue
         d = ds[k]
         key = (v, d)
         limits = shared.get(key)
@@ -297,17 +313,27 @@ def stop_axes(
         if v == 0.0 and accels[k] == 0.0:
             r.state = _DONE
         ax.processes = [r]
-        ramps.append(r)
-        i = ax.index
         busy[i] = r.state is _ACTIVE
         dirty.add(i)
-        if offered and r.state is _ACTIVE and drive_on.item(i):
-            r.offer_pending = False
-            admit.append((r, ax))
-            admit_vel.append(v)
-            admit_decel.append(ds[k])
     if coupling:
         motion.coupling_changed()
-    if admit:
-        lanes.stops.admit_batch(admit, admit_vel, admit_decel)
-    return ramps
+    if rowed:
+        sel = np.array(rowed, dtype=np.intp)
+        rows = StopRows(
+            lanes.stops,
+            lanes,
+            rowed_axes,
+            np.array(rowed_idx, dtype=np.intp),
+            np.array(bases, dtype=float),
+            v_arr[sel],
+            d_arr[sel],
+            rowed_axes[0].period,
+            owner,
+            ramp,
+        )
+        for ax in rowed_axes:
+            ax.stop_rows = rows
+        s.busy[rows.idx] = True
+        dirty.update(rows.idx.tolist())
+        lanes.stops.add_rows(rows)
+    return True

@@ -121,7 +121,19 @@ class Lane:
         members are stored (``_store`` reads the same values, without a numpy scalar
         per field)."""
         slot = self._slot
-        if slot:
+        if (
+            slot
+            and len(slot) == len(self.members)
+            and type(self)._store_columns is not (Lane._store_columns)
+        ):
+            # every member still here, in row order: written column by column
+            members = self.members
+            self._store_columns(members, {f: a.tolist() for f, a in self.arrays.items()})
+            for p in members:
+                p.lane = None
+                p.offer_pending = True
+            self._slot = {}
+        elif slot:
             arrays = self.arrays
             self.arrays = cast(dict[str, np.ndarray], {f: a.tolist() for f, a in arrays.items()})
             try:
@@ -207,6 +219,12 @@ class Lane:
     def _store(self, p: Process, k: int) -> None:
         raise NotImplementedError
 
+    def _store_columns(self, members: list[Any], columns: dict[str, list[Any]]) -> None:
+        """:meth:`_store` of every member (``members[k]`` at row ``k``) from the
+        columns as lists: the same values, without a call per member (a lane that does
+        not define it is stored member by member)."""
+        raise NotImplementedError
+
 
 class LevelledLane(Lane):
     """A lane of followers: each member reads a master (``midx``) through ``source``.
@@ -232,8 +250,16 @@ class LevelledLane(Lane):
 
     def order(self, levels: list[int]) -> None:
         """Sort the members by ``levels`` (one per member, in member order)."""
-        if not self.members and not self.levels:
-            return  # empty and already ordered: what the sort below would leave
+        if not self.members:
+            if self.levels:
+                # emptied (a group stop): what the sort below leaves, without sorting
+                # every field's empty array again
+                self.levels = []
+                self.slaves = []
+                self.masters = []
+                self.whole = []
+                self.midx = np.zeros(0, dtype=np.intp)
+            return
         perm = sorted(range(len(self.members)), key=levels.__getitem__)
         sel = np.array(perm, dtype=np.intp)
         for f in self.FIELDS:

@@ -90,6 +90,14 @@ class GearLane(LevelledLane):
             return None
         return [np.asarray(col, dtype=float) for col in batch[2]]
 
+    def _store_columns(self, members: list[Any], columns: dict[str, list[Any]]) -> None:
+        for p, x, v, a, vp in zip(members, columns["pos"], columns["vel"], columns["acc"],
+                                  columns["v_prev"], strict=True):  # fmt: skip
+            p.position = x
+            p.velocity = v
+            p.acceleration = a
+            p.single.v_prev = vp
+
     def step(self, s: AxisArrays, lv: int, dt: float, compose: Compose) -> None:
         a = self.arrays
         level = self.levels[lv]

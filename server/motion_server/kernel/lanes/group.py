@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from ..axis import Axis
 from ..cams import CamProcess
 from ..enums import MasterReference
@@ -27,6 +29,9 @@ from .gears import CatchUpLane, FractionLane, GearLane, gear_source
 from .ramps import CruiseLane, ProfileLane, StopLane
 from .scurve import SCurveLane
 
+#: processes released per step after a rebuild dropped many (:meth:`GroupLanes.step`)
+RELEASE_CHUNK = 32
+
 
 class GroupLanes:
     """The lanes of one motion group, and the axes it still composes in Python."""
@@ -35,6 +40,11 @@ class GroupLanes:
     #: ordered (the same list object and levels again: nothing to sort); a class default
     #: for lanes restored from a snapshot saved before it existed
     _ordered: dict[LevelledLane, tuple[list[Process], list[int]]] | None = None
+    # what :meth:`_python_order` keeps (class defaults: lanes restored from older state)
+    _order: list[Axis] | None = None
+    _order_idx: np.ndarray = np.zeros(0, dtype=np.intp)
+    _n_axes = 0  # axis indices are below this
+    _release: list[list[Process]] = []  # noqa: RUF012 (replaced per instance, see __init__)
 
     def __init__(self, group: MotionGroup) -> None:
         self.group = group
@@ -67,6 +77,8 @@ class GroupLanes:
         self.python_order: list[Axis] = list(group.order)
         self.dirty = False
         self._ordered = {}
+        #: processes that left the lanes, freed a chunk per step (:meth:`_defer_release`)
+        self._release: list[list[Process]] = []
 
     def __len__(self) -> int:
         return sum(len(lane) for lane in self.all)
@@ -129,8 +141,10 @@ class GroupLanes:
 
     def rebuild(self, s: AxisArrays, axes: Sequence[Axis]) -> None:
         """Apply the changes of membership; order the command followers by level."""
+        dropped = [lane.members for lane in self.all if lane.changed and lane.members]
         for lane in self.all:
             lane.rebuild()
+        self._defer_release(dropped)
         self.cruise.place(s)
         for lane in self.followers[MasterReference.ACTUAL]:
             lane.order([0] * len(lane.members))
@@ -142,13 +156,52 @@ class GroupLanes:
                 if level < len(lane.levels) and lane.levels[level].stop > lane.levels[level].start:
                     schedule.append((lane, level))
         self.schedule = schedule
-        laned = {id(ax) for lane in self.all for ax in lane.axes}
-        self.python_order = [ax for ax in self.group.order if id(ax) not in laned]
+        self.python_order = self._python_order()
         for ax in self.python_order:
             # membership changed: a follower's master may have joined a lane
             for p in ax.processes:
                 p.offer_pending = True
         self.dirty = False  # evictions while levelling set it: they are rebuilt above
+
+    def _defer_release(self, dropped: list[list[Process]]) -> None:
+        """Keep the processes that left the lanes alive a little longer: the members a
+        group stop evicts (256 jogs and gears, their profiles and limits) would
+        otherwise all be freed in this rebuild, in the cycle that must stop the machine
+        on time, for about half a microsecond each. They are released RELEASE_CHUNK at
+        a time, one chunk per step from the next one on (:meth:`step`), if nothing else
+        holds them."""
+        if not any(len(members) > RELEASE_CHUNK for members in dropped):
+            return  # few: freed here, as they always were
+        self._release = [
+            *self._release,
+            *(m[k : k + RELEASE_CHUNK] for m in dropped for k in range(0, len(m), RELEASE_CHUNK)),
+            [],  # popped first (the list is popped from its end): nothing freed this step
+        ]
+
+    def __getstate__(self) -> dict[str, object]:
+        state = dict(self.__dict__)
+        state["_release"] = []  # references kept only to free them later
+        return state
+
+    def _python_order(self) -> list[Axis]:
+        """The group's axes in composition order without those in a lane: marked in
+        an array by the lanes' indices (a group stop puts every axis in the stop lane:
+        nothing is left to compose, and nothing is looked up axis by axis)."""
+        order = self.group.order
+        if order is not self._order:
+            self._order = order
+            self._order_idx = np.array([ax.index for ax in order], dtype=np.intp)
+            self._n_axes = int(self._order_idx.max()) + 1 if order else 0
+        laned = np.zeros(self._n_axes, dtype=bool)
+        for lane in self.all:
+            if lane.axes:
+                laned[lane.idx] = True
+        for rows in self.stops.rows:
+            laned[rows.idx] = True
+        left = np.flatnonzero(~laned[self._order_idx])
+        if left.size == len(order):
+            return list(order)
+        return [order[k] for k in left.tolist()]
 
     def _order_command_followers(self, axes: Sequence[Axis]) -> None:
         lanes = self.followers[MasterReference.COMMAND]
@@ -164,7 +217,10 @@ class GroupLanes:
             self.scurves,
             *self.followers[MasterReference.ACTUAL],
         )
-        stepped_first = {id(ax) for lane in first for ax in lane.axes}
+        stepped_first: set[int] = set()
+        if by_axis:
+            stepped_first = {id(ax) for lane in first for ax in lane.axes}
+            stepped_first.update(id(ax) for ax in self.stops.row_axes)
         memo: dict[int, int | None] = {}
 
         def level(ax: Axis) -> int | None:
@@ -211,6 +267,8 @@ class GroupLanes:
         self.depth = depth
 
     def step(self, s: AxisArrays, dt: float, compose: Compose) -> None:
+        if self._release:
+            self._release.pop()  # (see _defer_release)
         if self.cruise.members:
             self.cruise.step(s)
         if self.profiles.members:
@@ -222,7 +280,7 @@ class GroupLanes:
                 for p, ax in profiles.reached:
                     cruise.admit(p, ax)
                 profiles.reached = ()
-        if self.stops.members:
+        if self.stops.members or self.stops.rows:
             self.stops.step(s, dt, compose)
         if self.scurves.members:
             self.scurves.step(s, compose)

@@ -18,6 +18,7 @@ from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from ..trapezoid import SEGMENTS, TrapezoidProfile
 from .base import Compose, Lane
+from .stop_rows import StopRows
 
 _DONE = ProcessState.DONE
 
@@ -43,6 +44,11 @@ class CruiseLane(Lane):
         pos = float(self.arrays["pos"][k])
         p.profile.position = pos
         p.position = pos
+
+    def _store_columns(self, members: list[Any], columns: dict[str, list[Any]]) -> None:
+        for p, pos in zip(members, columns["pos"], strict=True):
+            p.profile.position = pos
+            p.position = pos
 
     def place(self, s: AxisArrays) -> None:
         """After a rebuild: the members' velocity and acceleration, which stay constant
@@ -309,9 +315,50 @@ class ProfileLane(PlanLane):
 class StopLane(Lane):
     """Trapezoidal stop ramps (``StopRamp.step`` without jerk): the velocity drops by
     deceleration x dt per step; the step that reaches rest is the ramp's own (moved
-    out)."""
+    out). The ramps of a group stop join as :class:`~.stop_rows.StopRows` (``rows``):
+    arrays whose ramp objects are made only when read; they step after the members."""
 
     FIELDS = ("base", "pos", "vel", "acc", "decel")
+    #: the group stops' rows (a class default for lanes restored from older state)
+    rows: list[StopRows] = []  # noqa: RUF012 (replaced per instance, never mutated here)
+
+    def __len__(self) -> int:
+        return super().__len__() + sum(len(r) for r in self.rows)
+
+    def add_rows(self, rows: StopRows) -> None:
+        """A group stop's ramps join (stepped from the next step on)."""
+        self.rows = [*self.rows, rows]
+        self._owner.dirty = True
+
+    @property
+    def row_axes(self) -> list[Axis]:
+        """The axes of the rows (after a rebuild: those whose ramp is in the lane)."""
+        if len(self.rows) == 1:
+            return self.rows[0].axes
+        return [ax for r in self.rows for ax in r.axes]
+
+    def evict(self, p: Process) -> None:
+        if p.lane is self and self.rows and id(p) not in self._slot:
+            for r in self.rows:
+                k = r.row(p)
+                if k is not None:
+                    r.evict(p, k)
+                    return
+        super().evict(p)
+
+    def sync(self, p: Process) -> None:
+        if p.lane is self and self.rows and id(p) not in self._slot:
+            for r in self.rows:
+                k = r.row(p)
+                if k is not None:
+                    r.store(p, k)
+                    return
+        super().sync(p)
+
+    def rebuild(self) -> None:
+        if self.rows:
+            self.rows = [r for r in self.rows if r.compact()]
+        super().rebuild()
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -321,42 +368,26 @@ class StopLane(Lane):
         assert isinstance(p, StopRamp)
         return (ax.base, p.position, p.velocity, p.acceleration, p.limits.deceleration)
 
-    def admit_batch(
-        self, joining: list[tuple[StopRamp, Axis]], velocity: list[float], decel: list[float]
-    ) -> None:
-        """Admit new ramps (position 0, no acceleration) with their velocity and
-        deceleration as lists: the next rebuild takes them as arrays (a group stop,
-        :mod:`..stop_plan`). The same as admitting them one by one, in order."""
-        empty = not self._joining
-        for p, _ in joining:
-            p.lane = self
-        self._joining.extend(joining)
-        self._batch = (joining[0][0], velocity, decel) if empty else None
-        self.changed = True
-        self._owner.dirty = True
-
-    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        batch = self._batch
-        if batch is None or not joining or joining[0][0] is not batch[0]:
-            return None
-        velocity, decel = batch[1], batch[2]
-        if len(velocity) != len(joining):
-            return None
-        n = len(joining)
-        # FIELDS: base (read now, as _load would), pos, vel, acc, decel
-        base = np.array([ax.base for _, ax in joining], dtype=float)
-        return [base, np.zeros(n), np.array(velocity, dtype=float), np.zeros(n),
-                np.array(decel, dtype=float)]  # fmt: skip
-
     def _store(self, p: Process, k: int) -> None:
         a = self.arrays
         p.position = float(a["pos"][k])
         p.velocity = float(a["vel"][k])
         p.acceleration = float(a["acc"][k])
 
+    def _store_columns(self, members: list[Any], columns: dict[str, list[Any]]) -> None:
+        for p, x, v, a in zip(members, columns["pos"], columns["vel"], columns["acc"],
+                              strict=True):  # fmt: skip
+            p.position = x
+            p.velocity = v
+            p.acceleration = a
+
     def step(self, s: AxisArrays, dt: float, compose: Compose) -> None:
-        if not self.members:
-            return
+        if self.members:
+            self._step_members(s, dt, compose)
+        for rows in self.rows:
+            rows.step(s, dt, compose)
+
+    def _step_members(self, s: AxisArrays, dt: float, compose: Compose) -> None:
         a = self.arrays
         v0 = a["vel"]
         dv = a["decel"] * dt
