@@ -219,8 +219,9 @@ def setup(tags: TagClient) -> None:
         for k in range(1, AXES + 1):
             tags.write(f"{name}.Axis", k)
             tags.write(f"{name}.Execute", True)
-            time.sleep(0.003)
+            time.sleep(0.003)  # a cycle sees the rising edge
             tags.write(f"{name}.Execute", False)
+            time.sleep(0.003)  # and one the falling edge: else the next one is lost
 
 
 def run(
