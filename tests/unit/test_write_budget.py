@@ -389,3 +389,46 @@ def test_a_clock_step_behind_a_backlog_is_acknowledged_once_its_own_cycles_ran()
     (ack,) = [a for a in b.channels[MODBUS].acks if a.seq == second]
     assert (ack.tick, ack.result) == (10, wire.Result.APPLIED)
     assert b.column("MAJ_1.Speed") == [2.0, 4.0, 6.0, 8.0, 10.0] + [10.0] * 5
+
+
+def test_a_connection_cannot_take_more_than_its_share_with_costly_batches() -> None:
+    """Budget 2: A's batches of 48 items cost 4 units each, B's cost 1 (both on Modbus). A
+    turn is worth one unit, so A, having taken 4, lets three of B's turns pass: after
+    every cycle A has taken at most one batch (4 units) more than B, not four times as
+    much as a turn per batch would give it."""
+    b = Bench(budget=2)
+    b.step(16)
+    costly = [("MAM_1.Speed", 77.0)] * (3 * ITEMS_PER_UNIT)
+    owner: dict[int, tuple[str, int]] = {}
+    for _ in range(6):
+        owner[b.put(A, *costly)] = ("A", 4)
+    for k in range(1, 25):
+        owner[b.put(B, ("MAJ_1.Speed", float(k)))] = ("B", 1)
+    b.run()
+    by_tick: dict[int, dict[str, int]] = {}
+    for ack in b.channels[MODBUS].acks:
+        who, units = owner[ack.seq]
+        by_tick.setdefault(ack.tick, {"A": 0, "B": 0})[who] += units
+    taken = {"A": 0, "B": 0}
+    for tick in range(16):
+        for who, units in by_tick.get(tick, {}).items():
+            taken[who] += units
+        assert taken["A"] - taken["B"] <= 4, (tick, taken)
+    assert taken["A"] >= 8  # A is not starved either
+
+
+def test_a_stop_is_not_behind_another_clients_backlog() -> None:
+    """Budget 2: B has ten operand writes waiting, then A's MGS (2 units) arrives: it is
+    applied before the next cycle, ahead of B's backlog; an operand write of A's behind
+    it waits its turn."""
+    b = Bench(budget=2)
+    b.step(3)
+    for k in range(1, 11):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    stop = b.put(A, ("MGS_1.Execute", 1))
+    after = b.put(A, ("MAM_1.Speed", 99.0))
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert ticks[stop] == 0
+    assert ticks[after] > 0
+    assert b.scan.system["MGS_1"].outputs["DN"]
