@@ -56,6 +56,8 @@ class ImageFiller:
         system = image.system
         ctl = system.ctl
         self.values = np.zeros(layout.size)
+        #: the same memory, stored to value by value where only a few slots change
+        self._cells = self.values.data.cast("B").cast("d")
         self._all: list[tuple[int, Getter]] = []
         self._each_cycle: list[tuple[int, Getter]] = []
         by_field: dict[str, tuple[list[int], list[int]]] = {}
@@ -159,10 +161,11 @@ class ImageFiller:
         if changed:
             instances = self._instances
             outputs = self._outputs
+            cells = self._cells  # a store through a memoryview: 40 ns, numpy's 100
             for name in changed:
                 out = instances[name].outputs
                 for key, slot in outputs.get(name, ()):
-                    values[slot] = out[key]
+                    cells[slot] = out[key]
             changed.clear()
 
     def refresh(self, tags: Iterable[Tag]) -> None:
