@@ -432,3 +432,20 @@ def test_a_stop_is_not_behind_another_clients_backlog() -> None:
     assert ticks[stop] == 0
     assert ticks[after] > 0
     assert b.scan.system["MGS_1"].outputs["DN"]
+
+
+def test_a_client_toggling_stops_gets_only_its_share() -> None:
+    """Budget 1: A toggles MGS_1 (a rising edge costs 2 units, a falling one 1) while B
+    has twelve operand writes (1 unit each) waiting. A's stop jumps the queue and, having
+    taken no turn, A owes 2 turns; then B's turns and A's alternate. Cycle by cycle: A's
+    stop (the credit goes to -1), nothing (0), B, A pays and B, A pays and B, A's falling
+    edge, A's next stop, nothing, B, B, B, A: in 12 cycles 6 units each."""
+    b = Bench(budget=1)
+    b.step(12)
+    for k in range(1, 13):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    stops = [b.put(A, ("MGS_1.Execute", k % 2)) for k in range(1, 9)]
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert [ticks[s] for s in stops[:4]] == [0, 5, 6, 11]
+    assert b.column("MAJ_1.Speed") == [10.0, 10.0, 1, 2, 3, 3, 3, 3, 4, 5, 6, 6]

@@ -41,9 +41,9 @@ trigger of a stop instruction (:data:`STOPS`: MGS, MGSD, MAS, MASD, MC_Stop, MC_
 is the next of its client's batches is taken right after the watchdog writes, ahead of
 every other client's, when its client owes nothing: a stop is not behind another client's
 backlog, nor behind the budget's debt. Its cost is charged as usual (the credit may go
-below zero: a debt the next cycles pay back; the client owes ``cost - 1`` turns), and one
-such stop is taken a cycle: a client that toggles stops as fast as it can gets them
-through at its share, like any other batch. A stop behind its own client's earlier
+below zero: a debt the next cycles pay back) and, as it took no turn, the client owes
+``cost`` turns; one such stop is taken a cycle: a client that toggles stops as fast as
+it can gets them through at its share, like any other batch. A stop behind its own client's earlier
 batches waits for them (their order is the client's), and those are few: a front-end
 lets a client have only a few batches unacknowledged.
 
@@ -289,7 +289,7 @@ class WriteQueue:
             if cq.clients[key][0] is not q or cq.owed.get(key, 0):
                 continue
             self.credit -= q.cost
-            self._owe(cq, key, q.cost)
+            self._owe(cq, key, q.cost + 1)  # it took no turn of its own
             self._take_head(number, key, rotate=True)
             self._taken(q)
             return [q]
