@@ -449,3 +449,22 @@ def test_a_client_toggling_stops_gets_only_its_share() -> None:
     ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
     assert [ticks[s] for s in stops[:4]] == [0, 5, 6, 11]
     assert b.column("MAJ_1.Speed") == [10.0, 10.0, 1, 2, 3, 3, 3, 3, 4, 5, 6, 6]
+
+
+def test_stops_go_before_the_queue_but_not_before_the_budgets_debt() -> None:
+    """Budget 1: two clients' stops (2 units each) wait with B's backlog. The first goes
+    before cycle 0 and leaves the credit at -1; the cycle after pays it back (credit 0:
+    nothing taken); the second stop goes before cycle 2, still ahead of B's backlog, and
+    cycle 3 pays for it: B's first write goes before cycle 4."""
+    b = Bench(budget=1)
+    b.step(5)
+    for k in range(1, 6):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    first = b.put(A, ("MGS_1.Execute", 1))
+    second = b.put(C, ("MGS_1.Execute", 1), channel=OPCUA)
+    b.run()
+    modbus = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    opcua = {a.seq: a.tick for a in b.channels[OPCUA].acks}
+    assert modbus[first] == 0
+    assert opcua[second] == 2
+    assert b.column("MAJ_1.Speed") == [10.0, 10.0, 10.0, 10.0, 1.0]

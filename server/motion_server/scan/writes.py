@@ -30,20 +30,25 @@ batches are always taken in the order they arrived, whatever the others do.
 
 A turn is worth one unit (deficit round robin): a client that took a batch of ``c`` units
 owes ``c - 1`` turns, and lets its turns pass until it paid them, while the others take
-theirs. So a connection cannot take more than its share of the budget by sending costly
-batches: a client toggling a group stop (34 units on 256 axes) gets one through per 34
-turns, while one writing operands gets one a turn. Batches of one unit each are taken one
-a turn, as before. What a client owes is forgotten in a cycle where everything waiting
+theirs. A round in which nobody takes anything pays debts only when nobody is waiting for
+credit (else a cycle would pay them all at once while the others wait). So a connection
+cannot take more than its share of the budget by sending costly batches: a client
+toggling a group stop (34 units on 256 axes) gets one through per 34 turns, while one
+writing operands gets one a turn. Batches of one unit each are taken one a turn, as
+before. What a client owes is forgotten in a cycle where everything waiting
 fits (nobody waited for it).
 
 Stops come before the queue. When not everything waiting fits, a batch that sets the
 trigger of a stop instruction (:data:`STOPS`: MGS, MGSD, MAS, MASD, MC_Stop, MC_Halt) and
 is the next of its client's batches is taken right after the watchdog writes, ahead of
-every other client's, when its client owes nothing: a stop is not behind another client's
-backlog, nor behind the budget's debt. Its cost is charged as usual (the credit may go
-below zero: a debt the next cycles pay back) and, as it took no turn, the client owes
-``cost`` turns; one such stop is taken a cycle: a client that toggles stops as fast as
-it can gets them through at its share, like any other batch. A stop behind its own client's earlier
+every other client's, when its client owes nothing and the cycle has credit: a stop is not
+behind another client's backlog. It is behind the budget's debt (at most the few cycles
+that pay back the last command larger than the budget, 4 after an MGS on 256 axes at
+1 ms): a stop executes a command on every axis it stops, and taking stops whatever the
+debt let four clients toggling MGS put one into almost every cycle. Its cost is charged
+as usual (the credit may go below zero) and, as it took no turn, the client owes ``cost``
+turns; one such stop is taken a cycle: a client that toggles stops as fast as it can gets
+them through at its share, like any other batch. A stop behind its own client's earlier
 batches waits for them (their order is the client's), and those are few: a front-end
 lets a client have only a few batches unacknowledged.
 
@@ -259,7 +264,7 @@ class WriteQueue:
             for cq in self._channels.values():  # nobody waits for anybody: nobody owes
                 if cq.owed:
                     cq.owed.clear()
-        elif self._stops:
+        elif self._stops and self.credit > 0:
             out.extend(self._stop_taken())
         if self._ordinary_cost and self._ordinary_cost <= self.credit:
             self.credit -= self._ordinary_cost
@@ -305,7 +310,7 @@ class WriteQueue:
         blocked: set[tuple[int, str]] = set()
         first_blocked: tuple[int, str] | None = None
         while self.credit > 0:
-            progress = False
+            progress = took = False
             for number in list(self._turns):
                 cq = self._channels[number]
                 key = next((k for k in cq.turns if (number, k) not in blocked), None)
@@ -324,14 +329,17 @@ class WriteQueue:
                     self._take_head(number, key, rotate=True)
                     self._taken(head)
                     out.append(head)
-                    progress = True
+                    progress = took = True
                     if self.credit <= 0:
                         break
                 else:
                     blocked.add((number, key))  # done for this cycle
                     if first_blocked is None:
                         first_blocked = (number, key)
-            if not progress:
+            if not progress or (not took and blocked):
+                # a round where nobody took anything pays no debt while others wait for
+                # credit: those would be turns of nobody's, and a client toggling stops
+                # would owe nothing after every cycle the budget was spent
                 break
         if first_blocked is not None:
             # the first client that did not fit has the first turn of the next cycle, so a
