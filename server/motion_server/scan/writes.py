@@ -52,6 +52,12 @@ them through at its share, like any other batch. A stop behind its own client's 
 batches waits for them (their order is the client's), and those are few: a front-end
 lets a client have only a few batches unacknowledged.
 
+Watchdog writes come first. A batch that writes only watchdog tags (``<name>.Heartbeat``,
+``<name>.Reset``: the Safety folder) is taken before every other batch of every cycle,
+outside the budget: a heartbeat is never behind a queue, not even its own client's. It is
+cheap (no instruction runs for it), and a front-end lets a client have only a few batches
+unacknowledged (:mod:`motion_server.frontends.link`), so their number is bounded too.
+
 Acknowledged order. The image's meta word ``APPLIED`` of a channel tells the front-end up
 to which sequence number its batches are in the image (it then stops laying its own
 values over the snapshot). Batches of one channel may now be taken out of order (a
@@ -285,7 +291,7 @@ class WriteQueue:
 
     def _stop_taken(self) -> list[Queued]:
         """The first stop waiting at the head of its client's batches, whose client owes
-        nothing: taken before the queue, whatever the credit (see the module)."""
+        nothing: taken before the queue (the cycle has credit; see the module)."""
         for q in self._arrived:
             if not q.stop or q.taken:
                 continue
