@@ -468,3 +468,43 @@ def test_stops_go_before_the_queue_but_not_before_the_budgets_debt() -> None:
     assert modbus[first] == 0
     assert opcua[second] == 2
     assert b.column("MAJ_1.Speed") == [10.0, 10.0, 10.0, 10.0, 1.0]
+
+
+def test_a_stop_larger_than_the_credit_left_waits_for_a_full_credit() -> None:
+    """Budget 3: B's batch of 64 items (5 units) leaves the credit at -2. The next cycle's
+    credit is 1: A's stop (2 units) does not fit it and the credit is not full, so it
+    waits; B, having taken 5 units, owes 4 turns and pays one. The cycle after, with its
+    credit full, the stop goes first, as a batch larger than what is left always does;
+    then, nobody waiting for credit, the debts are paid and B's first write goes; the next
+    cycle three of B's."""
+    b = Bench(budget=3)
+    b.step(1)
+    b.put(B, *[("MAM_1.Speed", 5.0)] * (4 * ITEMS_PER_UNIT))
+    b.run()
+    b.step(3)
+    stop = b.put(A, ("MGS_1.Execute", 1))
+    for k in range(1, 7):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert ticks[stop] == 2
+    assert b.column("MAJ_1.Speed")[1:] == [10.0, 1.0, 4.0]
+
+
+def test_a_client_that_does_not_fit_does_not_take_its_channel_mates_turn() -> None:
+    """Budget 2: D's batch of 32 items (3 units) leaves the credit at -1; then A's MAJ edge
+    (2 units) and B's operand write (1) arrive on the same channel, A first. The next
+    cycle's credit is 1: A does not fit and is set aside for the cycle; B, behind A in
+    the turns, fits and goes in that cycle, not one later."""
+    d = ClientInfo("modbus", "10.0.0.4", 50004, 4)
+    b = Bench(budget=2)
+    b.step(1)
+    b.put(d, *[("MAJ_1.Speed", 5.0)] * (2 * ITEMS_PER_UNIT))
+    b.run()
+    b.step(2)
+    edge = b.put(A, ("MAJ_1.Execute", 1))
+    write = b.put(B, ("MAM_1.Speed", 42.0))
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert ticks[write] == 1
+    assert ticks[edge] == 2

@@ -41,16 +41,19 @@ fits (nobody waited for it).
 Stops come before the queue. When not everything waiting fits, a batch that sets the
 trigger of a stop instruction (:data:`STOPS`: MGS, MGSD, MAS, MASD, MC_Stop, MC_Halt) and
 is the next of its client's batches is taken right after the watchdog writes, ahead of
-every other client's, when its client owes nothing and the cycle has credit: a stop is not
+every other client's, when its client owes nothing and the credit allows it as it allows
+any batch (it fits what is left, or the credit is full and it goes alone): a stop is not
 behind another client's backlog. It is behind the budget's debt (at most the few cycles
-that pay back the last command larger than the budget, 4 after an MGS on 256 axes at
+that pay back the last command larger than the budget, 5 after an MGS on 256 axes at
 1 ms): a stop executes a command on every axis it stops, and taking stops whatever the
-debt let four clients toggling MGS put one into almost every cycle. Its cost is charged
-as usual (the credit may go below zero) and, as it took no turn, the client owes ``cost``
-turns; one such stop is taken a cycle: a client that toggles stops as fast as it can gets
-them through at its share, like any other batch. A stop behind its own client's earlier
-batches waits for them (their order is the client's), and those are few: a front-end
-lets a client have only a few batches unacknowledged.
+debt let four clients toggling MGS put one into almost every cycle, and letting them in
+as soon as the credit was positive into every fourth cycle instead of every fifth, with
+more late cycles in ``bench/write_abuse.py``. Its cost is charged as usual and, as it took
+no turn, the client owes ``cost`` turns; one such stop is taken a cycle: a client that
+toggles stops as fast as it can gets them through at its share, like any other batch. A
+stop behind its own client's earlier batches waits for them (their order is the
+client's), and those are few: a front-end lets a client have only a few batches
+unacknowledged.
 
 Watchdog writes come first. A batch that writes only watchdog tags (``<name>.Heartbeat``,
 ``<name>.Reset``: the Safety folder) is taken before every other batch of every cycle,
@@ -291,7 +294,7 @@ class WriteQueue:
 
     def _stop_taken(self) -> list[Queued]:
         """The first stop waiting at the head of its client's batches, whose client owes
-        nothing: taken before the queue (the cycle has credit; see the module)."""
+        nothing: taken before the queue when the credit allows it (see the module)."""
         for q in self._arrived:
             if not q.stop or q.taken:
                 continue
@@ -299,6 +302,8 @@ class WriteQueue:
             cq = self._channels[number]
             if cq.clients[key][0] is not q or cq.owed.get(key, 0):
                 continue
+            if q.cost > self.credit and self.credit != self.budget:
+                return []  # larger than what is left: alone, in a cycle with its credit full
             self.credit -= q.cost
             self._owe(cq, key, q.cost + 1)  # it took no turn of its own
             self._take_head(number, key, rotate=True)
@@ -316,7 +321,7 @@ class WriteQueue:
         blocked: set[tuple[int, str]] = set()
         first_blocked: tuple[int, str] | None = None
         while self.credit > 0:
-            progress = took = False
+            progress = took = set_aside = False
             for number in list(self._turns):
                 cq = self._channels[number]
                 key = next((k for k in cq.turns if (number, k) not in blocked), None)
@@ -340,9 +345,10 @@ class WriteQueue:
                         break
                 else:
                     blocked.add((number, key))  # done for this cycle
+                    progress = set_aside = True  # its channel's next client may fit
                     if first_blocked is None:
                         first_blocked = (number, key)
-            if not progress or (not took and blocked):
+            if not progress or (not took and not set_aside and blocked):
                 # a round where nobody took anything pays no debt while others wait for
                 # credit: those would be turns of nobody's, and a client toggling stops
                 # would owe nothing after every cycle the budget was spent
