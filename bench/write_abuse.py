@@ -219,8 +219,9 @@ def setup(tags: TagClient) -> None:
         for k in range(1, AXES + 1):
             tags.write(f"{name}.Axis", k)
             tags.write(f"{name}.Execute", True)
-            time.sleep(0.003)
+            time.sleep(0.003)  # a cycle sees the rising edge
             tags.write(f"{name}.Execute", False)
+            time.sleep(0.003)  # and one the falling edge: else the next one is lost
 
 
 def run(
@@ -326,11 +327,13 @@ def main() -> None:
         default=",".join(p for p, _, _ in HEAVY),
         help="the instructions toggled (comma-separated: MAJ,MAM,GIP,MAH,MGS,MGSR)",
     )
+    parser.add_argument("--logs", help="keep the site maps and the servers' logs in this directory")
     args = parser.parse_args()
     here = str(Path(__file__).resolve().parent.parent / "server")
     print(f"load average before: {load_average()}", flush=True)
     results = []
-    with tempfile.TemporaryDirectory(prefix="write-abuse-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="write-abuse-") as scratch:
+        tmp = args.logs or scratch  # the site maps and the servers' logs
         runs: list[tuple[str, str, int | None]] = []
         if args.base:
             runs.append(("base", args.base, None))

@@ -389,3 +389,122 @@ def test_a_clock_step_behind_a_backlog_is_acknowledged_once_its_own_cycles_ran()
     (ack,) = [a for a in b.channels[MODBUS].acks if a.seq == second]
     assert (ack.tick, ack.result) == (10, wire.Result.APPLIED)
     assert b.column("MAJ_1.Speed") == [2.0, 4.0, 6.0, 8.0, 10.0] + [10.0] * 5
+
+
+def test_a_connection_cannot_take_more_than_its_share_with_costly_batches() -> None:
+    """Budget 2: A's batches of 48 items cost 4 units each, B's cost 1 (both on Modbus). A
+    turn is worth one unit, so A, having taken 4, lets three of B's turns pass: after
+    every cycle A has taken at most one batch (4 units) more than B, not four times as
+    much as a turn per batch would give it."""
+    b = Bench(budget=2)
+    b.step(16)
+    costly = [("MAM_1.Speed", 77.0)] * (3 * ITEMS_PER_UNIT)
+    owner: dict[int, tuple[str, int]] = {}
+    for _ in range(6):
+        owner[b.put(A, *costly)] = ("A", 4)
+    for k in range(1, 25):
+        owner[b.put(B, ("MAJ_1.Speed", float(k)))] = ("B", 1)
+    b.run()
+    by_tick: dict[int, dict[str, int]] = {}
+    for ack in b.channels[MODBUS].acks:
+        who, units = owner[ack.seq]
+        by_tick.setdefault(ack.tick, {"A": 0, "B": 0})[who] += units
+    taken = {"A": 0, "B": 0}
+    for tick in range(16):
+        for who, units in by_tick.get(tick, {}).items():
+            taken[who] += units
+        assert taken["A"] - taken["B"] <= 4, (tick, taken)
+    assert taken["A"] >= 8  # A is not starved either
+
+
+def test_a_stop_is_not_behind_another_clients_backlog() -> None:
+    """Budget 2: B has ten operand writes waiting, then A's MGS (2 units) arrives: it is
+    applied before the next cycle, ahead of B's backlog; an operand write of A's behind
+    it waits its turn."""
+    b = Bench(budget=2)
+    b.step(3)
+    for k in range(1, 11):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    stop = b.put(A, ("MGS_1.Execute", 1))
+    after = b.put(A, ("MAM_1.Speed", 99.0))
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert ticks[stop] == 0
+    assert ticks[after] > 0
+    assert b.scan.system["MGS_1"].outputs["DN"]
+
+
+def test_a_client_toggling_stops_gets_only_its_share() -> None:
+    """Budget 1: A toggles MGS_1 (a rising edge costs 2 units, a falling one 1) while B
+    has twelve operand writes (1 unit each) waiting. A's stop jumps the queue and, having
+    taken no turn, A owes 2 turns; then B's turns and A's alternate. Cycle by cycle: A's
+    stop (the credit goes to -1), nothing (0), B, A pays and B, A pays and B, A's falling
+    edge, A's next stop, nothing, B, B, B, A: in 12 cycles 6 units each."""
+    b = Bench(budget=1)
+    b.step(12)
+    for k in range(1, 13):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    stops = [b.put(A, ("MGS_1.Execute", k % 2)) for k in range(1, 9)]
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert [ticks[s] for s in stops[:4]] == [0, 5, 6, 11]
+    assert b.column("MAJ_1.Speed") == [10.0, 10.0, 1, 2, 3, 3, 3, 3, 4, 5, 6, 6]
+
+
+def test_stops_go_before_the_queue_but_not_before_the_budgets_debt() -> None:
+    """Budget 1: two clients' stops (2 units each) wait with B's backlog. The first goes
+    before cycle 0 and leaves the credit at -1; the cycle after pays it back (credit 0:
+    nothing taken); the second stop goes before cycle 2, still ahead of B's backlog, and
+    cycle 3 pays for it: B's first write goes before cycle 4."""
+    b = Bench(budget=1)
+    b.step(5)
+    for k in range(1, 6):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    first = b.put(A, ("MGS_1.Execute", 1))
+    second = b.put(C, ("MGS_1.Execute", 1), channel=OPCUA)
+    b.run()
+    modbus = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    opcua = {a.seq: a.tick for a in b.channels[OPCUA].acks}
+    assert modbus[first] == 0
+    assert opcua[second] == 2
+    assert b.column("MAJ_1.Speed") == [10.0, 10.0, 10.0, 10.0, 1.0]
+
+
+def test_a_stop_larger_than_the_credit_left_waits_for_a_full_credit() -> None:
+    """Budget 3: B's batch of 64 items (5 units) leaves the credit at -2. The next cycle's
+    credit is 1: A's stop (2 units) does not fit it and the credit is not full, so it
+    waits; B, having taken 5 units, owes 4 turns and pays one. The cycle after, with its
+    credit full, the stop goes first, as a batch larger than what is left always does;
+    then, nobody waiting for credit, the debts are paid and B's first write goes; the next
+    cycle three of B's."""
+    b = Bench(budget=3)
+    b.step(1)
+    b.put(B, *[("MAM_1.Speed", 5.0)] * (4 * ITEMS_PER_UNIT))
+    b.run()
+    b.step(3)
+    stop = b.put(A, ("MGS_1.Execute", 1))
+    for k in range(1, 7):
+        b.put(B, ("MAJ_1.Speed", float(k)))
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert ticks[stop] == 2
+    assert b.column("MAJ_1.Speed")[1:] == [10.0, 1.0, 4.0]
+
+
+def test_a_client_that_does_not_fit_does_not_take_its_channel_mates_turn() -> None:
+    """Budget 2: D's batch of 32 items (3 units) leaves the credit at -1; then A's MAJ edge
+    (2 units) and B's operand write (1) arrive on the same channel, A first. The next
+    cycle's credit is 1: A does not fit and is set aside for the cycle; B, behind A in
+    the turns, fits and goes in that cycle, not one later."""
+    d = ClientInfo("modbus", "10.0.0.4", 50004, 4)
+    b = Bench(budget=2)
+    b.step(1)
+    b.put(d, *[("MAJ_1.Speed", 5.0)] * (2 * ITEMS_PER_UNIT))
+    b.run()
+    b.step(2)
+    edge = b.put(A, ("MAJ_1.Execute", 1))
+    write = b.put(B, ("MAM_1.Speed", 42.0))
+    b.run()
+    ticks = {a.seq: a.tick for a in b.channels[MODBUS].acks}
+    assert ticks[write] == 1
+    assert ticks[edge] == 2

@@ -8,12 +8,14 @@ What changes how often decides how a slot is filled:
 - the axis status words (AxisState, PLCopenState, MotionStatus, AxisFault): every
   cycle, for every axis at once, from the kernel's status arrays (which cost Python work
   only for the axes whose processes or power changed);
-- group states, diagnostics, the clock and the watchdogs: every cycle, value by value;
+- group states, diagnostics, the clock's counters and the watchdogs' states: every
+  cycle, value by value;
 - instruction outputs: only of the instances whose outputs changed in the cycle (their
   output dictionaries note it: :class:`~motion_server.instructions.base.Outputs`);
-- writable tags (operands, triggers, cam points, hand-wheel inputs, clock commands): when
-  written (:meth:`ImageFiller.refresh`), and in :meth:`ImageFiller.fill_all`; the fault
-  injection bits also when the kernel ends a cause itself (an overtravel left behind).
+- writable tags (operands, triggers, cam points, hand-wheel inputs, clock commands,
+  heartbeats): when written (:meth:`ImageFiller.refresh`), and in
+  :meth:`ImageFiller.fill_all`; the fault injection bits also when the kernel ends a cause
+  itself (an overtravel left behind).
 """
 
 from __future__ import annotations
@@ -35,8 +37,10 @@ from ..tagmap.image import (
 from ..tagmap.model import Folder, Tag
 
 #: folders whose writable tags change only when a client writes them (a cam table of
-#: 1,000 points is 3,000 values nobody else changes)
-_WRITTEN_ONLY = frozenset({Folder.INSTRUCTIONS, Folder.CAMS})
+#: 1,000 points is 3,000 values nobody else changes; a watchdog's Heartbeat and Reset); the
+#: Clock's command tags the scan changes itself (a snapshot command done, a communication
+#: fault over) it refreshes when it changes them (``Scan._clock_commands``)
+_WRITTEN_ONLY = frozenset({Folder.INSTRUCTIONS, Folder.CAMS, Folder.CLOCK, Folder.SAFETY})
 _POSITIONS = frozenset({"ActualPosition", "CommandPosition"})
 #: axis fields filled for every axis at once
 _VECTORS = frozenset({*AXIS_ARRAYS, *AXIS_STATUS, *AXIS_FAULT_WORDS})
@@ -52,6 +56,8 @@ class ImageFiller:
         system = image.system
         ctl = system.ctl
         self.values = np.zeros(layout.size)
+        #: the same memory, stored to value by value where only a few slots change
+        self._cells = self.values.data.cast("B").cast("d")
         self._all: list[tuple[int, Getter]] = []
         self._each_cycle: list[tuple[int, Getter]] = []
         by_field: dict[str, tuple[list[int], list[int]]] = {}
@@ -155,10 +161,11 @@ class ImageFiller:
         if changed:
             instances = self._instances
             outputs = self._outputs
+            cells = self._cells  # a store through a memoryview: 40 ns, numpy's 100
             for name in changed:
                 out = instances[name].outputs
                 for key, slot in outputs.get(name, ()):
-                    values[slot] = out[key]
+                    cells[slot] = out[key]
             changed.clear()
 
     def refresh(self, tags: Iterable[Tag]) -> None:

@@ -22,11 +22,38 @@ take nothing until the credit is positive again). What is not taken waits for th
 cycle.
 
 Order and share. When everything waiting fits, batches are taken in arrival order, as
-they always were. When it does not, the channels (front-ends) take turns, one batch a turn,
-and inside a channel its clients (connections) do: a client whose batch does not fit is
-done for this cycle, and the first such client has the first turn of the next one, so a
-batch larger than the budget goes in the next cycle whose credit is full (not never). One
-client's batches are always taken in the order they arrived, whatever the others do.
+they always were. When it does not, the channels (front-ends) take turns, and inside a
+channel its clients (connections) do: a client whose batch does not fit is done for this
+cycle, and the first such client has the first turn of the next one, so a batch larger
+than the budget goes in the next cycle whose credit is full (not never). One client's
+batches are always taken in the order they arrived, whatever the others do.
+
+A turn is worth one unit (deficit round robin): a client that took a batch of ``c`` units
+owes ``c - 1`` turns, and lets its turns pass until it paid them, while the others take
+theirs. A round in which nobody takes anything pays debts only when nobody is waiting for
+credit (else a cycle would pay them all at once while the others wait). So a connection
+cannot take more than its share of the budget by sending costly batches: a client
+toggling a group stop (34 units on 256 axes) gets one through per 34 turns, while one
+writing operands gets one a turn. Batches of one unit each are taken one a turn, as
+before. What a client owes is forgotten in a cycle where everything waiting
+fits (nobody waited for it).
+
+Stops come before the queue. When not everything waiting fits, a batch that sets the
+trigger of a stop instruction (:data:`STOPS`: MGS, MGSD, MAS, MASD, MC_Stop, MC_Halt) and
+is the next of its client's batches is taken right after the watchdog writes, ahead of
+every other client's, when its client owes nothing and the credit allows it as it allows
+any batch (it fits what is left, or the credit is full and it goes alone): a stop is not
+behind another client's backlog. It is behind the budget's debt (at most the few cycles
+that pay back the last command larger than the budget, 5 after an MGS on 256 axes at
+1 ms): a stop executes a command on every axis it stops, and taking stops whatever the
+debt let four clients toggling MGS put one into almost every cycle, and letting them in
+as soon as the credit was positive into every fourth cycle instead of every fifth, with
+more late cycles in ``bench/write_abuse.py``. Its cost is charged as usual and, as it took
+no turn, the client owes ``cost`` turns; one such stop is taken a cycle: a client that
+toggles stops as fast as it can gets them through at its share, like any other batch. A
+stop behind its own client's earlier batches waits for them (their order is the
+client's), and those are few: a front-end lets a client have only a few batches
+unacknowledged.
 
 Watchdog writes come first. A batch that writes only watchdog tags (``<name>.Heartbeat``,
 ``<name>.Reset``: the Safety folder) is taken before every other batch of every cycle,
@@ -62,6 +89,8 @@ BUDGET_PER_MS = 8
 ITEMS_PER_UNIT = 16
 #: axes an instruction commands per extra unit of its execution
 AXES_PER_UNIT = 8
+#: instruction types whose trigger stops motion: a batch that sets one goes before the queue
+STOPS = frozenset({"MGS", "MGSD", "MAS", "MASD", "MC_Stop", "MC_Halt"})
 
 
 def default_budget(period: float) -> int:
@@ -77,6 +106,8 @@ class BatchCosts:
         largest_group = max((len(g.axes) for g in ctl.groups), default=0)
         #: slot of an instruction trigger -> what executing the instruction costs
         self.triggers: dict[int, int] = {}
+        #: slots of the triggers of the stop instructions (:data:`STOPS`)
+        stops: set[int] = set()
         watchdog: set[int] = set()
         for slot, tag in enumerate(layout.tags):
             if tag.folder == Folder.SAFETY:
@@ -92,7 +123,10 @@ class BatchCosts:
                     elif op.kind == Kind.GROUP:
                         axes += largest_group
                 self.triggers[slot] = 1 + axes // AXES_PER_UNIT
+                if tag.instruction in STOPS:
+                    stops.add(slot)
         self.watchdog = frozenset(watchdog)
+        self.stops = frozenset(stops)
 
     def of(self, items: list[tuple[int, float]]) -> tuple[int, bool]:
         """(cost, watchdog write) of a batch's items."""
@@ -106,6 +140,11 @@ class BatchCosts:
                 watchdog = False
         return cost, watchdog
 
+    def stops_motion(self, items: list[tuple[int, float]]) -> bool:
+        """Whether a batch sets the trigger of a stop instruction."""
+        stops = self.stops
+        return any(value and slot in stops for slot, value in items)
+
 
 @dataclass(eq=False)
 class Queued:
@@ -115,6 +154,8 @@ class Queued:
     batch: wire.Batch
     cost: int
     watchdog: bool
+    #: sets the trigger of a stop instruction (taken before the queue)
+    stop: bool = False
     #: taken by a cycle (or at once); then applied by the scan
     taken: bool = False
     #: applied, or refused: done with
@@ -135,6 +176,8 @@ class _ChannelQueue:
     turns: deque[str] = field(default_factory=deque)
     #: the sequence number of the last batch received
     last_seq: int = 0
+    #: turns a client owes for the units it took beyond one a turn (absent: none)
+    owed: dict[str, int] = field(default_factory=dict)
 
 
 class WriteQueue:
@@ -156,6 +199,8 @@ class WriteQueue:
         self._turns: deque[int] = deque()
         self._waiting = 0
         self._ordinary_cost = 0
+        #: stop batches waiting
+        self._stops = 0
 
     def __len__(self) -> int:
         """Batches waiting (not taken yet)."""
@@ -164,7 +209,8 @@ class WriteQueue:
     def put(self, ch: Channel, batch: wire.Batch) -> Queued:
         """Queue a batch that arrived on ``ch``."""
         cost, watchdog = self.costs.of(batch.items)
-        q = Queued(ch, batch, cost, watchdog)
+        stop = not watchdog and self.costs.stops_motion(batch.items)
+        q = Queued(ch, batch, cost, watchdog, stop)
         cq = self._channels.get(ch.number)
         if cq is None:
             cq = self._channels[ch.number] = _ChannelQueue()
@@ -172,6 +218,7 @@ class WriteQueue:
         cq.last_seq = batch.seq
         self._arrived.append(q)
         self._waiting += 1
+        self._stops += stop
         if watchdog:
             self._watchdog.append(q)
             return q
@@ -222,6 +269,12 @@ class WriteQueue:
             self._taken(q)
             out.append(q)
         self.credit = min(self.budget, self.credit + self.budget)
+        if self._ordinary_cost <= self.credit:
+            for cq in self._channels.values():  # nobody waits for anybody: nobody owes
+                if cq.owed:
+                    cq.owed.clear()
+        elif self._stops and self.credit > 0:
+            out.extend(self._stop_taken())
         if self._ordinary_cost and self._ordinary_cost <= self.credit:
             self.credit -= self._ordinary_cost
             for q in self._arrived:
@@ -239,32 +292,66 @@ class WriteQueue:
             self._arrived.popleft()
         return out
 
+    def _stop_taken(self) -> list[Queued]:
+        """The first stop waiting at the head of its client's batches, whose client owes
+        nothing: taken before the queue when the credit allows it (see the module)."""
+        for q in self._arrived:
+            if not q.stop or q.taken:
+                continue
+            number, key = q.channel.number, q.client
+            cq = self._channels[number]
+            if cq.clients[key][0] is not q or cq.owed.get(key, 0):
+                continue
+            if q.cost > self.credit and self.credit != self.budget:
+                return []  # larger than what is left: alone, in a cycle with its credit full
+            self.credit -= q.cost
+            self._owe(cq, key, q.cost + 1)  # it took no turn of its own
+            self._take_head(number, key, rotate=True)
+            self._taken(q)
+            return [q]
+        return []
+
+    def _owe(self, cq: _ChannelQueue, key: str, cost: int) -> None:
+        if cost > 1:
+            cq.owed[key] = cq.owed.get(key, 0) + cost - 1
+
     def _turns_taken(self) -> list[Queued]:
         """Channels, and inside them clients, take turns while the credit lasts."""
         out: list[Queued] = []
         blocked: set[tuple[int, str]] = set()
         first_blocked: tuple[int, str] | None = None
         while self.credit > 0:
-            progress = False
+            progress = took = set_aside = False
             for number in list(self._turns):
                 cq = self._channels[number]
                 key = next((k for k in cq.turns if (number, k) not in blocked), None)
                 if key is None:
                     continue
+                owed = cq.owed.get(key, 0)
+                if owed:  # the turn pays for units taken before
+                    cq.owed[key] = owed - 1
+                    self._rotate(number, key)
+                    progress = True
+                    continue
                 head = cq.clients[key][0]
                 if head.cost <= self.credit or self.credit == self.budget:
                     self.credit -= head.cost
+                    self._owe(cq, key, head.cost)
                     self._take_head(number, key, rotate=True)
                     self._taken(head)
                     out.append(head)
-                    progress = True
+                    progress = took = True
                     if self.credit <= 0:
                         break
                 else:
                     blocked.add((number, key))  # done for this cycle
+                    progress = set_aside = True  # its channel's next client may fit
                     if first_blocked is None:
                         first_blocked = (number, key)
-            if not progress:
+            if not progress or (not took and not set_aside and blocked):
+                # a round where nobody took anything pays no debt while others wait for
+                # credit: those would be turns of nobody's, and a client toggling stops
+                # would owe nothing after every cycle the budget was spent
                 break
         if first_blocked is not None:
             # the first client that did not fit has the first turn of the next cycle, so a
@@ -288,6 +375,8 @@ class WriteQueue:
         if not lane:
             del cq.clients[key]
             cq.turns.remove(key)
+            if not cq.owed.get(key, 1):
+                del cq.owed[key]
         elif rotate:
             cq.turns.remove(key)
             cq.turns.append(key)
@@ -297,9 +386,18 @@ class WriteQueue:
             self._turns.remove(number)
             self._turns.append(number)
 
+    def _rotate(self, number: int, key: str) -> None:
+        """A client (and its channel) had its turn: to the end of the turns."""
+        cq = self._channels[number]
+        cq.turns.remove(key)
+        cq.turns.append(key)
+        self._turns.remove(number)
+        self._turns.append(number)
+
     def _taken(self, q: Queued) -> None:
         q.taken = True
         self._waiting -= 1
+        self._stops -= q.stop
 
     # -- done with --------------------------------------------------------------------------
     def settle(self, q: Queued) -> int | None:
