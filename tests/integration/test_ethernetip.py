@@ -294,3 +294,55 @@ def test_a_command_the_scan_refuses_fails_the_request(tmp_path: Path) -> None:
         assert "no such snapshot" in srv.log()
     finally:
         srv.finish()
+
+
+def test_ethernetip_modbus_and_opcua_show_the_same_scan(tmp_path: Path) -> None:
+    """Between two steps of the manual clock time stands still: a jogging master and its
+    geared slave read over EtherNet/IP (pycomm3), Modbus and OPC UA (asyncua) give the
+    same positions, the same cycle and the same FLAGS word, bit for bit."""
+    import asyncio
+
+    from asyncua import Client, ua
+
+    names = {
+        "Axis1.ActualPosition": "Axes.Axis1.ActualPosition",
+        "Axis2.ActualPosition": "Axes.Axis2.ActualPosition",
+        "Axis1.ActualVelocity": "Axes.Axis1.ActualVelocity",
+        "Clock.Cycle": "Clock.Cycle",
+        "MAG_1.FLAGS": "Instructions.MAG_1.FLAGS",
+        "MAJ_1.IP": "Instructions.MAJ_1.IP",
+    }
+
+    async def over_opcua(endpoint: str) -> dict[str, object]:
+        async with Client(endpoint, timeout=10) as c:
+            ns = await c.get_namespace_index("urn:motion-server:demo")
+            nodes = [c.get_node(ua.NodeId(node, ns)) for node in names.values()]
+            values = await c.read_values(nodes)
+        return dict(zip(names, values, strict=True))
+
+    server = MotionServer.start(tmp_path, ethernetip=True)
+    try:
+        with pycomm3.LogixDriver(f"127.0.0.1:{server.ethernetip_port}") as c:
+            for axis in (1, 2):
+                assert c.write(("MSO_1.Axis", axis), ("MSO_1.Execute", True))
+                server.step(2)
+                assert c.write(("MSO_1.Execute", False))
+                server.step(1)
+            assert c.write(("MAJ_1.Axis", 1), ("MAJ_1.Speed", 25.0), ("MAJ_1.Execute", True))
+            assert c.write(("MAG_1.SlaveAxis", 2), ("MAG_1.MasterAxis", 1), ("MAG_1.Execute", True))
+            for cycles in (1, 7, 40):
+                server.step(cycles)
+                modbus = server.read_many(list(names))
+                enip = {t.tag: t.value for t in c.read(*names)}
+                opcua = asyncio.run(over_opcua(server.opcua_endpoint))
+                assert modbus["Axis1.ActualPosition"] > 0.0 and modbus["MAJ_1.IP"]
+                for name in names:
+                    expected = modbus[name]
+                    if name == "MAG_1.FLAGS":  # a DINT over CIP, a UDINT word elsewhere
+                        assert enip[name] & 0xFFFFFFFF == expected, name
+                        assert opcua[name] & 0xFFFFFFFF == expected, name
+                    else:
+                        assert enip[name] == expected, name
+                        assert opcua[name] == expected, name
+    finally:
+        server.finish()
