@@ -1,6 +1,7 @@
 """The line example (examples/cosim/): two controller FMUs and a conveyor FMU in lockstep
-under libcosim; the plant's registration sensor triggers the cutter's phase correction.
-Its FMUs pass ``fmpy validate`` (the controllers as FMI 2.0 and 3.0)."""
+under libcosim and under fmpy's SSP master; the plant's registration sensor triggers the
+cutter's phase correction, and both masters give the same trace, bit for bit. Its FMUs
+pass ``fmpy validate`` (the controllers as FMI 2.0 and 3.0)."""
 
 from __future__ import annotations
 
@@ -52,11 +53,17 @@ def phase(trace: dict[str, Any]) -> list[float]:
     return [k - b for k, b in zip(knife, belt, strict=True)]
 
 
-@pytest.mark.slow
-def test_the_sensor_closes_the_loop(line_fmus: dict[str, Path]) -> None:
+@pytest.fixture(scope="module")
+def libcosim_trace(line_fmus: dict[str, Path]) -> dict[str, Any]:
     need("libcosimpy")
-    line, conveyor = load("line"), load("conveyor")
-    trace = line.run(line_fmus, seconds=3.0)
+    trace: dict[str, Any] = load("line").run(line_fmus, seconds=3.0)
+    return trace
+
+
+def closes_the_loop(trace: dict[str, Any]) -> None:
+    """The 3 s run's checks: the belt runs, the sensor sees the products, each needed
+    correction runs, the knife's phase ends on the last product's offset."""
+    conveyor = load("conveyor")
     # 250 mm/s for about 3 s: products at 100, 204, 301, 397, 502.5, 606, 698.5 mm
     belt = trace["infeed.Belt.ActualPosition"]
     assert 690.0 < belt[-1] < 750.0
@@ -81,9 +88,43 @@ def test_the_sensor_closes_the_loop(line_fmus: dict[str, Path]) -> None:
 
 
 @pytest.mark.slow
+def test_the_sensor_closes_the_loop(libcosim_trace: dict[str, Any]) -> None:
+    closes_the_loop(libcosim_trace)
+
+
+@pytest.mark.slow
+def test_fmpy_master_closes_the_loop_as_libcosim(
+    line_fmus: dict[str, Path], libcosim_trace: dict[str, Any], tmp_path: Path
+) -> None:
+    need("fmpy")
+    trace = load("line").run_fmpy(line_fmus, seconds=3.0, dest=tmp_path)
+    # the master ran the SSP archive built from the example's FMUs
+    assert (tmp_path / "line.ssp").is_file()
+    closes_the_loop(trace)
+    # both masters are Jacobi schemes on the same 2 ms grid: every value at every tick,
+    # bit for bit (floats compared with ==)
+    assert trace.keys() == libcosim_trace.keys()
+    for name, values in libcosim_trace.items():
+        assert len(trace[name]) == len(values) == 1500, name
+        differ = [k for k, (a, b) in enumerate(zip(trace[name], values, strict=True)) if a != b]
+        assert differ == [], f"{name} differs from step {differ[:1]}"
+
+
+@pytest.mark.slow
 def test_without_the_sensor_the_phase_never_moves(line_fmus: dict[str, Path]) -> None:
     need("libcosimpy")
     trace = load("line").run(line_fmus, seconds=1.2, connect=False)
     assert trace["conveyor.products"][-1] >= 2
     assert not any(trace["cutter.Phase.IP"])
     assert max(abs(p) for p in phase(trace)) < 1e-3
+
+
+@pytest.mark.slow
+def test_without_the_sensor_fmpy_master_equals_libcosim(line_fmus: dict[str, Path]) -> None:
+    need("libcosimpy")
+    need("fmpy")
+    line = load("line")
+    trace = line.run_fmpy(line_fmus, seconds=1.2, connect=False)
+    assert trace["conveyor.products"][-1] >= 2
+    assert not any(trace["cutter.Phase.IP"])
+    assert trace == line.run(line_fmus, seconds=1.2, connect=False)
