@@ -291,7 +291,11 @@ def main() -> None:
     args = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         fmus = build(args.dir or Path(tmp))
-        trace = (run_fmpy if args.master == "fmpy" else run)(fmus, args.seconds)
+        if args.master == "fmpy":
+            # with --dir, the SSP archive stays there beside the FMUs
+            trace = run_fmpy(fmus, args.seconds, dest=args.dir)
+        else:
+            trace = run(fmus, args.seconds)
     phase = trace["cutter.Knife.CommandPosition"][-1] - trace["cutter.Belt.ActualPosition"][-1]
     print(f"products seen: {trace['conveyor.products'][-1]}, knife phase: {phase:.3f} mm")
     if args.plot:

@@ -92,21 +92,54 @@ def test_the_sensor_closes_the_loop(libcosim_trace: dict[str, Any]) -> None:
     closes_the_loop(libcosim_trace)
 
 
-@pytest.mark.slow
-def test_fmpy_master_closes_the_loop_as_libcosim(
-    line_fmus: dict[str, Path], libcosim_trace: dict[str, Any], tmp_path: Path
+@pytest.mark.parametrize("connect", [True, False])
+def test_the_ssp_archive_wires_the_line(
+    line_fmus: dict[str, Path], connect: bool, tmp_path: Path
 ) -> None:
+    """fmpy reads the archive (schema-validated) and wires exactly the line's connections
+    and the operator's triggers: no input left to fmpy's unconnected-input fallback."""
     need("fmpy")
-    trace = load("line").run_fmpy(line_fmus, seconds=3.0, dest=tmp_path)
-    # the master ran the SSP archive built from the example's FMUs
-    assert (tmp_path / "line.ssp").is_file()
-    closes_the_loop(trace)
+    from fmpy.ssp.ssd import get_connections, read_ssd
+
+    line = load("line")
+    ssd = read_ssd(str(line.ssp(line_fmus, tmp_path / "line.ssp", connect)), validate=True)
+    wired = {
+        ((a.parent.name, a.name), (b.parent.name, b.name)) for a, b in get_connections(ssd.system)
+    }
+    expected = {c for c in line.CONNECTIONS if connect or c[0][0] != "conveyor"}
+    expected |= {(("line", line.trigger_input(i, v)), (i, v)) for _, i, v in line.TRIGGERS}
+    assert wired == expected
+    sources = {c.source for c in ssd.system.elements}
+    assert sources == {f"resources/{name}.fmu" for name in ("infeed", "conveyor", "cutter")}
+
+
+@pytest.fixture(scope="module")
+def fmpy_trace(
+    line_fmus: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, Any]:
+    need("fmpy")
+    trace: dict[str, Any] = load("line").run_fmpy(
+        line_fmus, seconds=3.0, dest=tmp_path_factory.mktemp("ssp")
+    )
+    return trace
+
+
+@pytest.mark.slow
+def test_under_fmpy_master_the_sensor_closes_the_loop(fmpy_trace: dict[str, Any]) -> None:
+    closes_the_loop(fmpy_trace)
+
+
+@pytest.mark.slow
+def test_fmpy_and_libcosim_give_the_same_trace(
+    fmpy_trace: dict[str, Any], libcosim_trace: dict[str, Any]
+) -> None:
     # both masters are Jacobi schemes on the same 2 ms grid: every value at every tick,
     # bit for bit (floats compared with ==)
-    assert trace.keys() == libcosim_trace.keys()
+    assert fmpy_trace.keys() == libcosim_trace.keys()
     for name, values in libcosim_trace.items():
-        assert len(trace[name]) == len(values) == 1500, name
-        differ = [k for k, (a, b) in enumerate(zip(trace[name], values, strict=True)) if a != b]
+        assert len(fmpy_trace[name]) == len(values) == 1500, name
+        pairs = zip(fmpy_trace[name], values, strict=True)
+        differ = [k for k, (a, b) in enumerate(pairs) if a != b]
         assert differ == [], f"{name} differs from step {differ[:1]}"
 
 
