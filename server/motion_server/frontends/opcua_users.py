@@ -30,9 +30,8 @@ import dataclasses
 import itertools
 import logging
 import secrets
-import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any
 
 from asyncua import ua
@@ -41,6 +40,7 @@ from asyncua.server.internal_session import InternalSession
 from asyncua.server.user_managers import UserManager
 
 from ..safety.client import ClientInfo, writing_as
+from ..safety.login_limit import LoginLimiter
 from ..safety.passwords import hash_password, parse_hash, verify_password
 from ..safety.roles import Role
 
@@ -65,46 +65,6 @@ class Account:
     name: str
     role: Role
     password_hash: str
-
-
-@dataclass
-class LoginLimiter:
-    """Failed logins per client address: ``max_failures`` within ``window`` seconds lock
-    the address out for ``lockout`` seconds. ``clock`` is injectable for tests."""
-
-    max_failures: int = 5
-    window: float = 60.0
-    lockout: float = 30.0
-    clock: Callable[[], float] = time.monotonic
-    _failures: dict[str, list[float]] = field(default_factory=dict)
-    _locked_until: dict[str, float] = field(default_factory=dict)
-
-    def locked(self, address: str) -> bool:
-        until = self._locked_until.get(address)
-        if until is None:
-            return False
-        if self.clock() >= until:
-            del self._locked_until[address]
-            self._failures.pop(address, None)
-            return False
-        return True
-
-    def failed(self, address: str) -> None:
-        now = self.clock()
-        recent = [t for t in self._failures.get(address, []) if now - t < self.window]
-        recent.append(now)
-        self._failures[address] = recent
-        if len(recent) >= self.max_failures:
-            self._locked_until[address] = now + self.lockout
-            log.warning(
-                "OPC UA: %d failed logins from %s: refused for %.0f s",
-                len(recent),
-                address,
-                self.lockout,
-            )
-
-    def succeeded(self, address: str) -> None:
-        self._failures.pop(address, None)
 
 
 #: the asyncua role our roles map to: never Admin, so no client may add or delete nodes

@@ -23,10 +23,10 @@ import ipaddress
 import logging
 import secrets
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from ..config import OpcUaUser, SiteMap
+from ..safety.login_limit import LoginLimiter
 from ..safety.passwords import verify_password
 from ..safety.roles import Role
 
@@ -65,46 +65,6 @@ class Session:
     seen: float
 
 
-@dataclass
-class Limiter:
-    """Failed logins per client address: ``max_failures`` within ``window`` s lock the
-    address out for ``lockout`` s (as OPC UA's)."""
-
-    max_failures: int = 5
-    window: float = 60.0
-    lockout: float = 30.0
-    clock: Callable[[], float] = time.monotonic
-    _failures: dict[str, list[float]] = field(default_factory=dict)
-    _until: dict[str, float] = field(default_factory=dict)
-
-    def locked(self, address: str) -> bool:
-        until = self._until.get(address)
-        if until is None:
-            return False
-        if self.clock() >= until:
-            del self._until[address]
-            self._failures.pop(address, None)
-            return False
-        return True
-
-    def failed(self, address: str) -> None:
-        now = self.clock()
-        recent = [t for t in self._failures.get(address, []) if now - t < self.window]
-        recent.append(now)
-        self._failures[address] = recent
-        if len(recent) >= self.max_failures:
-            self._until[address] = now + self.lockout
-            log.warning(
-                "web: %d failed logins from %s: refused for %.0f s",
-                len(recent),
-                address,
-                self.lockout,
-            )
-
-    def succeeded(self, address: str) -> None:
-        self._failures.pop(address, None)
-
-
 class Sessions:
     """The users, the sessions and the site's anonymous rule."""
 
@@ -130,7 +90,9 @@ class Sessions:
                 "exists only when OPC UA is served)"
             )
         ua = site.opcua
-        self.limiter = Limiter(ua.max_login_failures, ua.login_window_s, ua.login_lockout_s)
+        self.limiter = LoginLimiter(
+            ua.max_login_failures, ua.login_window_s, ua.login_lockout_s, protocol="web", log=log
+        )
         self._sessions: dict[str, Session] = {}
 
     @property
