@@ -47,6 +47,7 @@ from ethernetip.protocol.messages import (
 )
 
 from ..config import EthernetIpAccessSection, EthernetIpSection
+from ..safety.access import peer_address
 from ..safety.audit import AuditLog
 from ..safety.client import ClientInfo, writing_as
 from ..safety.roles import Role, required_role
@@ -71,16 +72,6 @@ _connection_numbers = itertools.count(1)
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 
 
-def _address(host: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
-    try:
-        addr = ipaddress.ip_address(host.split("%")[0])
-    except ValueError:
-        return None
-    if isinstance(addr, ipaddress.IPv6Address) and addr.ipv4_mapped is not None:
-        return addr.ipv4_mapped
-    return addr
-
-
 class EnipAccess:
     """Who may connect and write (``[ethernetip.access]``, shaped as ``[modbus.access]``)."""
 
@@ -98,14 +89,14 @@ class EnipAccess:
     def connection_refused(self, host: str) -> str | None:
         if not self.allow:
             return None
-        addr = _address(host)
+        addr = peer_address(host)
         if addr is None or not any(addr in net for net in self.allow):
             return f"{host} is not in the allowed networks"
         return None
 
     def write_refused(self, host: str, tags: list[Tag]) -> str | None:
         """Why ``host`` may not write ``tags`` (None: it may)."""
-        addr = _address(host)
+        addr = peer_address(host)
         for nets, names in self.rules:
             if addr is not None and any(addr in net for net in nets):
                 for tag in tags:

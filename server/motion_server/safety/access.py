@@ -38,7 +38,9 @@ Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 _RANGE = re.compile(r"^\s*(\d+)\s*-\s*(\d+)\s*$")
 
 
-def _address(host: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
+def peer_address(host: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
+    """A peer's address as the access rules match it (an IPv4-mapped IPv6 address as
+    IPv4, a zone index dropped); None when ``host`` is not an address."""
     try:
         addr = ipaddress.ip_address(host.split("%")[0])
     except ValueError:
@@ -123,7 +125,7 @@ class AccessPolicy:
         """Why a client at ``host`` may not connect (None: it may)."""
         if not self.allow:
             return None
-        addr = _address(host)
+        addr = peer_address(host)
         if addr is None or not any(addr in net for net in self.allow):
             return f"{host} is not in the allowed networks"
         return None
@@ -132,7 +134,7 @@ class AccessPolicy:
         """Why ``host`` may not write registers ``address``..+``count`` (None: it may)."""
         if self.read_only:
             return "the server is read-only"
-        addr = _address(host)
+        addr = peer_address(host)
         for rule in self.rules:
             if addr is not None and any(addr in net for net in rule.networks):
                 bad = next(
