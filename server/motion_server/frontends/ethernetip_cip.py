@@ -29,7 +29,7 @@ from __future__ import annotations
 import logging
 import struct
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
@@ -261,20 +261,8 @@ class TagDispatcher(LogixDispatcher):
     def pack(self, tag: LogixTag) -> bytearray:
         """The tag's bytes as of the newest snapshot (with this front-end's pending
         writes), laid out as its structure."""
-        values = self.view.values()
         out = bytearray(tag.structure.size)
-        for off, fmt, slot, kind, bit in self._plans[tag.name]:
-            v = values[slot]
-            if kind == 2:
-                if v:
-                    out[off] |= 1 << bit
-            elif kind == 1:
-                i = int(v) & 0xFFFFFFFF
-                struct.pack_into("<i", out, off, i - (1 << 32) if i & 0x80000000 else i)
-            elif fmt in ("<f", "<d"):
-                struct.pack_into(fmt, out, off, float(v))
-            else:
-                struct.pack_into(fmt, out, off, int(v))
+        _fill(out, self._plans[tag.name], self.view.values(), 0)
         return out
 
     def pack_range(self, tag: LogixTag, start: int, end: int) -> tuple[bytearray, int]:
@@ -284,30 +272,13 @@ class TagDispatcher(LogixDispatcher):
         key = (tag.name, start, end)
         plan = self._ranges.get(key)
         if plan is None:
-            plan = [
-                e
-                for e in self._plans[tag.name]
-                if e[0] < end and e[0] + (1 if e[3] == 2 else struct.calcsize(e[1])) > start
-            ]
+            plan = [e for e in self._plans[tag.name] if e[0] < end and e[0] + _extent(e) > start]
             if len(self._ranges) < 100_000:
                 self._ranges[key] = plan
         base = min([start, *(e[0] for e in plan)])
-        top = max([end, *(e[0] + (1 if e[3] == 2 else struct.calcsize(e[1])) for e in plan)])
-        values = self.view.values()
+        top = max([end, *(e[0] + _extent(e) for e in plan)])
         out = bytearray(top - base)
-        for off, fmt, slot, kind, bit in plan:
-            v = values[slot]
-            off -= base
-            if kind == 2:
-                if v:
-                    out[off] |= 1 << bit
-            elif kind == 1:
-                i = int(v) & 0xFFFFFFFF
-                struct.pack_into("<i", out, off, i - (1 << 32) if i & 0x80000000 else i)
-            elif fmt in ("<f", "<d"):
-                struct.pack_into(fmt, out, off, float(v))
-            else:
-                struct.pack_into(fmt, out, off, int(v))
+        _fill(out, plan, self.view.values(), base)
         return out, base
 
     @staticmethod
@@ -729,3 +700,30 @@ class OwnedConnections(ConnectionManagerObject):
         """The T->O connection id to answer a SendUnitData on O->T ``ot_id`` with."""
         conn = self.find_by_ot_id(ot_id)
         return int(conn.to_connection_id) if conn is not None else 0
+
+
+def _extent(entry: tuple[int, str, int, int, int]) -> int:
+    """Bytes a pack-plan entry ``(offset, format, slot, kind, bit)`` covers: a bit
+    (kind 2) its host byte, any other value its format's size."""
+    return 1 if entry[3] == 2 else struct.calcsize(entry[1])
+
+
+def _fill(
+    out: bytearray, plan: Iterable[tuple[int, str, int, int, int]], values: Any, base: int
+) -> None:
+    """Pack each plan entry's value into ``out``, whose byte 0 is the structure's byte
+    ``base``: bits OR-ed into their host byte (kind 2), DINTs (kind 1) as signed 32-bit
+    words of the value's low 32 bits, REAL/LREAL as floats, the rest as integers."""
+    for off, fmt, slot, kind, bit in plan:
+        v = values[slot]
+        off -= base
+        if kind == 2:
+            if v:
+                out[off] |= 1 << bit
+        elif kind == 1:
+            i = int(v) & 0xFFFFFFFF
+            struct.pack_into("<i", out, off, i - (1 << 32) if i & 0x80000000 else i)
+        elif fmt in ("<f", "<d"):
+            struct.pack_into(fmt, out, off, float(v))
+        else:
+            struct.pack_into(fmt, out, off, int(v))
