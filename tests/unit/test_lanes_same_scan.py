@@ -6,12 +6,17 @@ S-curve, MCD changes, stops, clutched gears and PLCopen gears with their catch-u
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from motion_server.instructions import MotionSystem
 from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
+from motion_server.kernel.axis import Axis
+from motion_server.kernel.lanes import GroupLanes
 from motion_server.kernel.trapezoid import TrapezoidProfile
 
 from .test_lanes import assert_same, laned
@@ -202,3 +207,79 @@ def test_jogs_commanded_together_are_planned_together_and_run_in_the_lane() -> N
     assert run_rounds(fast, ref, [([], 60)]) == len(MASTERS)
     # 80 mm/s at 1000 mm/s² takes 80 ms, 40 cycles of 2 ms: all at speed
     assert np.array_equal(fast.ctl.cmd_vel[: len(MASTERS)], np.full(len(MASTERS), 80.0))
+
+
+def geared_at_rest() -> tuple[MotionSystem, MotionSystem]:
+    """``pair`` with every slave locked to its master (MAG, no clutch, command or actual
+    reference alternately) while the masters stand still: the followers step at level 0,
+    their masters having no motion."""
+    fast, ref = pair()
+    gears: list[Command] = [
+        ("MAG", {"SlaveAxis": s, "MasterAxis": s - 6, "Ratio": 0.5, "Clutch": 1,
+                 "MasterReference": s % 2})
+        for s in SLAVES
+    ]  # fmt: skip
+    run_rounds(fast, ref, [(gears, 3)], prefix="P")
+    return fast, ref
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    rounds=st.lists(
+        st.tuples(st.lists(command(), min_size=1, max_size=12), st.integers(1, 60)),
+        min_size=1,
+        max_size=4,
+    )
+)
+def test_commands_on_masters_at_rest_with_followers_give_the_reference_motion(
+    rounds: list[tuple[list[Command], int]],
+) -> None:
+    """Masters that start from rest join the time-driven lanes without their followers
+    being levelled again (``GroupLanes._rejoin``); whatever follows (stops coming to
+    rest, jogs reaching speed, moves landing, new commands on the same axes), the motion
+    stays the reference's after every cycle."""
+    fast, ref = geared_at_rest()
+    run_rounds(fast, ref, rounds)
+
+
+def test_masters_starting_from_rest_leave_their_followers_levels_alone(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Jogs started from rest on the masters of locked gears: the followers read them at
+    level 0 before (no motion) and after (a time-driven lane), so neither the step that
+    starts them nor the one in which they reach their speed (profile lane to cruise lane)
+    levels the followers again; a stop's ramps coming to rest neither. A master composed
+    in Python (a jerk-limited position move goes to ruckig) does level them again."""
+    fast, ref = geared_at_rest()
+    lanes = fast.ctl.motion.lanes[1]
+    calls: list[int] = []
+    original = GroupLanes._order_command_followers
+
+    def counted(self: GroupLanes, axes: Sequence[Axis]) -> None:
+        if self is lanes:  # (the reference's lanes stay empty, but rebuild as well)
+            calls.append(fast.ctl.tick)
+        original(self, axes)
+
+    monkeypatch.setattr(GroupLanes, "_order_command_followers", counted)
+    # 80 mm/s at 1000 mm/s² takes 80 ms, 40 cycles of 2 ms: at speed within 45
+    run_rounds(fast, ref, [(jog_all(80.0), 45)], prefix="J")
+    assert np.array_equal(fast.ctl.cmd_vel[: len(MASTERS)], np.full(len(MASTERS), 80.0))
+    assert len(lanes.cruise.members) == len(MASTERS)
+    followers = [lane for lanes_ in lanes.followers.values() for lane in lanes_]
+    assert sum(len(lane.members) for lane in followers) == len(SLAVES)
+    assert calls == []
+    stops: list[Command] = [("MAS", {"Axis": n, "StopType": 1}) for n in MASTERS]
+    # MAS without jerk: the jogs are replaced by stop ramps (the masters leave the cruise
+    # lane for Python in that scan: levelled again once), which come to rest in the lane
+    run_rounds(fast, ref, [(stops, 60)], prefix="S")
+    levelled = len(calls)
+    assert levelled >= 1
+    assert not fast.ctl.cmd_vel[: len(MASTERS)].any()
+    # from rest again: a move through ruckig (jerk-limited position target) is composed
+    # in Python, so its followers are levelled again (and leave their lanes)
+    move: list[Command] = [
+        ("MC_MoveRelative", {"Axis": 1, "Distance": 10.0, "Velocity": 50.0,
+                             "Acceleration": 1000.0, "Deceleration": 1000.0, "Jerk": 50_000.0})
+    ]  # fmt: skip
+    run_rounds(fast, ref, [(move, 5)], prefix="M")
+    assert len(calls) > levelled

@@ -20,6 +20,13 @@ class Limits:
     jerk: float = 0.0
 
     def validated(self) -> Limits:
+        if (
+            0.0 < self.velocity < INF
+            and 0.0 < self.acceleration < INF
+            and 0.0 < self.deceleration < INF
+            and self.jerk >= 0.0
+        ):
+            return self  # the usual case, in one expression (NaN fails every comparison)
         for name in ("velocity", "acceleration", "deceleration"):
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0.0:

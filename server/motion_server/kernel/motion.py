@@ -201,9 +201,7 @@ class Motion:
         procs = ax.processes
         if not procs and not ax.preloaded_cams:
             # the common case of an axis without motion, without the calls: nothing to
-            # settle, inherit or retire. (An axis without motion may be a master its lane
-            # followers read as constant: they are levelled again.)
-            self.lanes[ax.group].dirty = True
+            # settle, inherit or retire
             p = make(0.0, 0.0)
             if not ax.override.neutral and overridable(p):
                 apply(p, ax.override)
@@ -217,6 +215,11 @@ class Motion:
             self.s.scalars.busy[ax.index] = p.active
             self.s.dirty.add(ax.index)
             self.offer(ax)
+            if p.lane is None:
+                # an axis without motion may be a master its lane followers read as
+                # constant: composed in Python now, they are levelled again (in a lane,
+                # the lane's admission marked what its rebuild needs)
+                self.lanes[ax.group].dirty = True
             return p
         if not procs:
             self.lanes[ax.group].dirty = True

@@ -302,8 +302,13 @@ class TrapezoidProfile:
             limits.deceleration,
         )
         judge_velocity_plan(*request)
-        self._start(None, None, float(velocity))
+        # what _start(None, None, velocity) does, then the request kept
+        self._plan = None
         self.request = request
+        self.cycles = 0
+        self.finished = False
+        self._target_position = None
+        self._target_velocity = request[2]
 
     @property
     def plan(self) -> Plan | None:

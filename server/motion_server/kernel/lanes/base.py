@@ -25,9 +25,12 @@ Compose = Callable[[Axis], None]
 
 
 class LaneOwner(Protocol):
-    """The lanes of a group: a change of membership marks them for a rebuild."""
+    """The lanes of a group: a change of membership marks them for a rebuild, ``dirty``
+    (the followers levelled again) or ``joined`` (only the time-driven lanes' members
+    changed, without an axis leaving for Python: see :attr:`Lane.RELEVELS`)."""
 
     dirty: bool
+    joined: bool
 
 
 class Lane:
@@ -49,6 +52,14 @@ class Lane:
     #: :meth:`_batch_columns`); dropped at the rebuild (a class default as well, for
     #: lanes restored from state saved before batches existed)
     _batch: Any = None
+    #: an admission to this lane can change the levels of the command followers (a
+    #: follower lane joins them). False for the time-driven lanes: an axis admitted to
+    #: one was without motion, in another time-driven lane or composed in Python, and
+    #: in each case the followers that read it keep their level (0, or out of the
+    #: lanes already), so the group's lanes are rebuilt without levelling them again
+    #: (``GroupLanes.rebuild``). An eviction always levels them again: its axis is
+    #: composed in Python from then on.
+    RELEVELS: ClassVar[bool] = True
 
     def __init__(self, owner: LaneOwner) -> None:
         self._owner = owner
@@ -94,7 +105,10 @@ class Lane:
         p.lane = self
         self._joining.append((p, ax))
         self.changed = True
-        self._owner.dirty = True
+        if self.RELEVELS:
+            self._owner.dirty = True
+        else:
+            self._owner.joined = True
 
     def evict(self, p: Process) -> None:
         """Write the lane's state back into ``p`` and drop it."""
@@ -187,6 +201,11 @@ class Lane:
         rows = [] if columns is not None else [self._load(p, ax) for p, ax in joining]
         sel = np.array(keep, dtype=np.intp)
         for j, f in enumerate(self.FIELDS):
+            if columns is not None and not keep:
+                # nothing kept: the batch's columns alone (a copy: two fields may share
+                # one column, and the lanes write their fields in place)
+                self.arrays[f] = np.array(columns[j], dtype=self.DTYPES.get(f, float))
+                continue
             old = self.arrays[f][sel]
             if columns is not None:
                 self.arrays[f] = np.concatenate((old, columns[j]))

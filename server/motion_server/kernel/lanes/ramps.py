@@ -27,6 +27,8 @@ class CruiseLane(Lane):
     """Jogs at speed: the profile integrates its held velocity (``Profile.step`` and
     ``TrapezoidProfile.step`` once finished)."""
 
+    RELEVELS = False
+
     FIELDS = ("base", "pos", "vel", "dt", "advance")
 
     @staticmethod
@@ -70,6 +72,8 @@ class PlanLane(Lane):
     of :mod:`..trapezoid`, the S-curve of :mod:`..scurve`): the members' cycle counts,
     the segment each is in, and the sample that ends a plan moved out to its own step.
     A subclass gives the polynomial of a segment (:meth:`_sample`)."""
+
+    RELEVELS = False
 
     def __init__(self, owner: Any) -> None:
         super().__init__(owner)
@@ -295,7 +299,8 @@ class ProfileLane(PlanLane):
             at_speed.append((p, ax))
         self.reached = at_speed
         self.changed = True
-        self._owner.dirty = True
+        # from this lane to the cruise lane: the followers keep their levels
+        self._owner.joined = True
 
     #: the jogs :meth:`_end` ended in the last step, for the cruise lane (``GroupLanes``;
     #: a class default for lanes restored from a snapshot saved before it existed)
@@ -319,6 +324,7 @@ class StopLane(Lane):
     arrays whose ramp objects are made only when read; they step after the members."""
 
     FIELDS = ("base", "pos", "vel", "acc", "decel")
+    RELEVELS = False
     #: the group stops' rows (a class default for lanes restored from older state)
     rows: list[StopRows] = []  # noqa: RUF012 (replaced per instance, never mutated here)
 
@@ -459,4 +465,5 @@ class StopLane(Lane):
             r.busy[i] = False
             dirty.add(i)
         self.changed = True
-        self._owner.dirty = True
+        # at rest, without motion: the followers that read these axes keep level 0
+        self._owner.joined = True
