@@ -17,6 +17,7 @@ from motion_server.instructions import MotionSystem
 from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
 from motion_server.kernel.axis import Axis
 from motion_server.kernel.lanes import GroupLanes
+from motion_server.kernel.motion import Motion
 from motion_server.kernel.trapezoid import TrapezoidProfile
 
 from .test_lanes import assert_same, laned
@@ -129,6 +130,23 @@ def assert_status(fast: MotionSystem, ref: MotionSystem, where: str) -> None:
         assert np.array_equal(a, b), where
 
 
+def assert_order_valid(s: MotionSystem, where: str) -> None:
+    """Every axis composes after the masters its processes read in its group (the order
+    is current: it may be kept as it was when a new gear reads masters already before
+    its slave, ``Motion._order_holds``)."""
+    if s.ctl.motion.order_dirty:
+        return  # sorted at the next step
+    for g in s.ctl.groups:
+        place = {ax.index: k for k, ax in enumerate(g.order)}
+        assert sorted(place) == sorted(ax.index for ax in g.axes), where
+        for ax in g.order:
+            for p in ax.processes:
+                for m in p.masters:
+                    master = s.ctl.axis(m)
+                    if master.group == g.number and master is not ax:
+                        assert place[master.index] < place[ax.index], where
+
+
 def run_rounds(
     fast: MotionSystem,
     ref: MotionSystem,
@@ -153,6 +171,7 @@ def run_rounds(
             where = f"round {r} {commands}, cycle {c}"
             assert_same(fast, ref, where)
             assert_status(fast, ref, where)
+            assert_order_valid(ref, where)  # (the reference: nothing made lazily is read)
             most = max(most, laned(fast))
             if c == 0:
                 for s in (fast, ref):
@@ -283,3 +302,39 @@ def test_masters_starting_from_rest_leave_their_followers_levels_alone(
     ]  # fmt: skip
     run_rounds(fast, ref, [(move, 5)], prefix="M")
     assert len(calls) > levelled
+
+
+def test_gears_on_slaves_after_their_masters_keep_the_order_without_a_sort(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """MAG on every slave at rest, each listed after its master in the group: the
+    composition order already has each master first, so it is kept (no sort of the
+    whole group). A gear whose master is listed after its slave is sorted in: the
+    master then composes first."""
+    fast, ref = pair()
+    sorts: list[int] = []
+    original = Motion.sort
+
+    def counted(self: Motion) -> None:
+        if self is fast.ctl.motion:
+            sorts.append(fast.ctl.tick)
+        original(self)
+
+    run_rounds(fast, ref, [([], 1)], prefix="I")  # sorted once at the first step
+    monkeypatch.setattr(Motion, "sort", counted)
+    gears: list[Command] = [
+        ("MAG", {"SlaveAxis": s, "MasterAxis": s - 6, "Ratio": 0.5, "Clutch": 0,
+                 "AccelRate": 100.0})
+        for s in SLAVES
+    ]  # fmt: skip
+    # masters 2 to 6 jogging, master 1 at rest
+    run_rounds(fast, ref, [(jog_all(50.0)[1:], 3), (gears, 30)], prefix="G")
+    assert sorts == []
+    g = fast.ctl.groups[0]
+    assert [ax.number for ax in g.order] == [*MASTERS, *SLAVES]
+    # axis 1, at rest, geared to axis 12, listed after it: sorted in
+    late: list[Command] = [("MAG", {"SlaveAxis": 1, "MasterAxis": 12, "Ratio": 1.0})]
+    run_rounds(fast, ref, [(late, 5)], prefix="L")
+    assert len(sorts) == 1
+    order = [ax.number for ax in g.order]
+    assert order.index(12) < order.index(1)

@@ -355,14 +355,25 @@ class GearProcess(Process):
         super().__init__(owner)
         if not terms:
             raise ValueError("a gear needs at least one master")
-        self.terms = tuple(t.validated() for t in terms)
-        self.masters = tuple(dict.fromkeys(t.master for t in self.terms))
-        #: two or more masters (MC_CombineAxes): MC_GearOut is refused
-        self.combined = len(self.terms) > 1
+        if len(terms) == 1:
+            # one master (MAG, MC_GearIn): what the general case below builds, without
+            # its generators (a gear started on each of many slaves in one scan)
+            term = terms[0].validated()
+            self.terms: tuple[GearTerm, ...] = (term,)
+            self.masters = (term.master,)
+            self.combined = False
+            c = _Coupling(ctx, slave, term)
+            self._c = [c]
+            self.single: _Coupling | None = c
+        else:
+            self.terms = tuple(t.validated() for t in terms)
+            self.masters = tuple(dict.fromkeys(t.master for t in self.terms))
+            #: two or more masters (MC_CombineAxes): MC_GearOut is refused
+            self.combined = True
+            self._c = [_Coupling(ctx, slave, t) for t in self.terms]
+            #: the coupling of a one-master gear (None for MC_CombineAxes)
+            self.single = None
         self.direction = -1 if direction < 0 else 1
-        self._c = [_Coupling(ctx, slave, t) for t in self.terms]
-        #: the coupling of a one-master gear (None for MC_CombineAxes)
-        self.single = self._c[0] if len(self._c) == 1 else None
         self._ramp = ramp
         #: the gear's own displacement when it locked
         self.at_lock = 0.0
@@ -371,7 +382,11 @@ class GearProcess(Process):
             self._lock()
         else:
             ramp.start(velocity, acceleration)
-            ramp.judge(sum(c.velocity() for c in self._c))
+            # (the sum of the couplings' velocities, from the int 0 as sum() adds them)
+            target: float = 0
+            for c in self._c:
+                target += c.velocity()
+            ramp.judge(target)
             self.velocity = velocity
             self.acceleration = acceleration
         remember_direction(slave, self.direction)  # once nothing can refuse the gear

@@ -44,6 +44,10 @@ LANE_MIN_AXES = 8
 class Motion:
     """The processes of every axis of a controller."""
 
+    #: per group: its order (the list object) and each axis index's place in it (a class
+    #: default for state saved before it existed)
+    _positions: dict[int, tuple[list[Axis], dict[int, int]]] | None = None
+
     def __init__(
         self,
         arrays: AxisArrays,
@@ -67,6 +71,7 @@ class Motion:
         }
         #: masters and slaves changed: the composition order is recomputed at the next step
         self.order_dirty = True
+        self._positions: dict[int, tuple[list[Axis], dict[int, int]]] | None = {}
         #: unexpected failures since the host last took them
         self.internal_errors: list[InternalError] = []
 
@@ -125,6 +130,32 @@ class Motion:
             g.order = order
             self.lanes[g.number].dirty = True
         self.order_dirty = False
+
+    def _order_holds(self, ax: Axis, p: Process) -> bool:
+        """The group's composition order stays valid with ``p`` (new on ``ax``, which had
+        no process) reading its masters: every master in the group already composes
+        before ``ax``. Adding those links breaks no other (a gear started on a slave
+        listed after its master: no new sort of the whole group)."""
+        group = self.lanes[ax.group].group
+        order = group.order
+        positions = self._positions
+        if positions is None:
+            positions = self._positions = {}
+        cached = positions.get(ax.group)
+        if cached is None or cached[0] is not order:
+            cached = (order, {a.index: k for k, a in enumerate(order)})
+            positions[ax.group] = cached
+        at = cached[1]
+        here = at.get(ax.index)
+        if here is None:
+            return False
+        for m in p.masters:
+            master = self._by_number.get(m)
+            if master is not None and master.group == ax.group:
+                before = at.get(master.index)
+                if before is None or before >= here:
+                    return False
+        return True
 
     def _visit(
         self, ax: Axis, group: int, order: list[Axis], placed: set[int], path: tuple[int, ...]
@@ -209,7 +240,7 @@ class Motion:
                 ax.buffered.cancelled = True
                 ax.buffered = None
             procs.append(p)
-            if p.masters:
+            if p.masters and not self.order_dirty and not self._order_holds(ax, p):
                 self.order_dirty = True
             # Axis.motion_changed: busy if the new process is active
             self.s.scalars.busy[ax.index] = p.active

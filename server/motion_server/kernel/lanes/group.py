@@ -135,13 +135,37 @@ class GroupLanes:
                     follower.admit(p, ax)
                     return
 
+    def _gear_lane(self, source: MasterReference) -> GearLane:
+        for follower in self.followers[source]:
+            if isinstance(follower, GearLane):
+                return follower
+        raise AssertionError("every source has a lane of locked gears")
+
+    def _offer_locked(self, reached: Sequence[tuple[Process, Axis]], gears: GearLane) -> None:
+        """:meth:`_offer_follower` of the real-ratio gears the catch-up lane of ``gears``'s
+        source locked (one master, locked, not a fraction: ``GearLane.accepts``), in row
+        order, without asking each which lane it belongs to."""
+        admit = gears.admit
+        if gears.source != MasterReference.COMMAND:
+            for p, ax in reached:
+                admit(p, ax)
+            return
+        settled = self._master_settled
+        for p, ax in reached:
+            if settled(p.single.index):  # type: ignore[attr-defined]
+                admit(p, ax)
+
     def _master_settled(self, index: int) -> bool:
         """The master at ``index`` is composed before any follower steps: in another group,
         without motion, or in a lane (its level is decided at the rebuild)."""
         master = self.group.by_index.get(index)
-        if master is None or (not master.processes and master.buffered is None):
+        if master is None:
             return True
-        return len(master.processes) == 1 and master.processes[0].lane is not None
+        # (the property's call saved: no stop row here unless its ramp is to be made)
+        procs = master._processes if master.stop_rows is None else master.processes
+        if not procs and master.buffered is None:
+            return True
+        return len(procs) == 1 and procs[0].lane is not None
 
     def rebuild(self, s: AxisArrays, axes: Sequence[Axis]) -> None:
         """Apply the changes of membership; order the command followers by level (when
@@ -322,12 +346,10 @@ class GroupLanes:
             if type(lane) is CatchUpLane and lane.reached:
                 # gears locked in the lane: offered as Motion.offer would, in row order;
                 # the lane of locked gears takes their columns if it took them all
-                for p, ax in lane.reached:
-                    self._offer_follower(p, ax)
+                gears = self._gear_lane(lane.source)
+                self._offer_locked(lane.reached, gears)
                 columns = lane.locked_columns
                 if columns is not None:
-                    for follower in self.followers[lane.source]:
-                        if isinstance(follower, GearLane):
-                            follower.take_batch(lane.reached, columns)
+                    gears.take_batch(lane.reached, columns)
                 lane.reached = ()
                 lane.locked_columns = None
