@@ -16,9 +16,11 @@ from hypothesis import strategies as st
 from motion_server.instructions import MotionSystem
 from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
 from motion_server.kernel.axis import Axis
+from motion_server.kernel.enums import MasterReference
 from motion_server.kernel.lanes import GroupLanes
 from motion_server.kernel.motion import Motion
 from motion_server.kernel.trapezoid import TrapezoidProfile
+from motion_server.scan import statecodec
 
 from .test_lanes import assert_same, laned
 
@@ -338,3 +340,71 @@ def test_gears_on_slaves_after_their_masters_keep_the_order_without_a_sort(
     assert len(sorts) == 1
     order = [ax.number for ax in g.order]
     assert order.index(12) < order.index(1)
+
+
+def test_clutched_gears_lock_into_the_gear_lane_at_their_level_without_levelling(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """MAG with the clutch on five slaves of jogging masters and on a sixth slave that
+    follows the first slave (level 1): each gear catches up in the catch-up lane and is
+    handed, locked, to the lane of locked gears at the level it had
+    (``GroupLanes._hand_over``): the followers are levelled once, when the gears start,
+    never at a lock; the motion is the reference's after every cycle."""
+    fast, ref = pair()
+    lanes = fast.ctl.motion.lanes[1]
+    calls: list[int] = []
+    original = GroupLanes._order_command_followers
+
+    def counted(self: GroupLanes, axes: Sequence[Axis]) -> None:
+        if self is lanes:
+            calls.append(fast.ctl.tick)
+        original(self, axes)
+
+    run_rounds(fast, ref, [([], 1)], prefix="I")  # sorted and levelled at the first step
+    monkeypatch.setattr(GroupLanes, "_order_command_followers", counted)
+    # 50 mm/s at 1000 mm/s²: at speed after 50 ms, 25 cycles
+    run_rounds(fast, ref, [(jog_all(50.0), 30)], prefix="J")
+    assert calls == []
+    gears: list[Command] = [
+        ("MAG", {"SlaveAxis": s, "MasterAxis": s - 6, "Ratio": 0.5, "MasterReference": 1,
+                 "Clutch": 0, "AccelRate": 100.0})
+        for s in SLAVES[:-1]
+    ] + [
+        ("MAG", {"SlaveAxis": SLAVES[-1], "MasterAxis": SLAVES[0], "Ratio": 2.0,
+                 "MasterReference": 1, "Clutch": 0, "AccelRate": 100.0})
+    ]  # fmt: skip
+    # the first slaves reach 25 mm/s at 100 mm/s² in 0.25 s (125 cycles); the last one
+    # 25 mm/s behind its accelerating master, later
+    run_rounds(fast, ref, [(gears, 300)], prefix="G")
+    assert len(calls) == 1  # when the gears started, in the catch-up lane
+    locked = [lane for lane in lanes.followers[MasterReference.COMMAND] if lane.members]
+    assert [type(lane).__name__ for lane in locked] == ["GearLane"]
+    assert locked[0].member_levels == [0] * 5 + [1]
+
+
+def test_a_snapshot_taken_while_gears_are_handed_over_runs_on_as_the_reference() -> None:
+    """A snapshot between the step in which gears lock in the catch-up lane and the
+    rebuild that takes them into the lane of locked gears: the levels recorded by the
+    processes' identity do not survive a copy, so the copy levels its followers again,
+    and runs on as the reference does."""
+    fast, ref = pair()
+    run_rounds(fast, ref, [(jog_all(50.0), 30)], prefix="J")
+    gears: list[Command] = [
+        ("MAG", {"SlaveAxis": s, "MasterAxis": s - 6, "Ratio": 0.5, "MasterReference": 1,
+                 "Clutch": 0, "AccelRate": 100.0})
+        for s in SLAVES
+    ]  # fmt: skip
+    run_rounds(fast, ref, [(gears, 1)], prefix="G")
+    copies = 0
+    for c in range(200):
+        fast.cycle()
+        ref.cycle()
+        assert_same(fast, ref, f"cycle {c}")
+        if fast.ctl.motion.lanes[1].handed:
+            copy = statecodec.loads(statecodec.dumps(fast))
+            assert copy.ctl.motion.lanes[1].dirty
+            assert not copy.ctl.motion.lanes[1].handed
+            fast = copy
+            copies += 1
+    assert copies >= 1
+    assert laned(fast) == len(MASTERS) + len(SLAVES)

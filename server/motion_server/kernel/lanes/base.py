@@ -11,6 +11,7 @@ composes the axis in Python, through the process's own code, in the same step.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Sequence
+from itertools import pairwise
 from typing import Any, ClassVar, Protocol, cast
 
 import numpy as np
@@ -27,10 +28,12 @@ Compose = Callable[[Axis], None]
 class LaneOwner(Protocol):
     """The lanes of a group: a change of membership marks them for a rebuild, ``dirty``
     (the followers levelled again) or ``joined`` (only the time-driven lanes' members
-    changed, without an axis leaving for Python: see :attr:`Lane.RELEVELS`)."""
+    changed, without an axis leaving for Python: see :attr:`Lane.RELEVELS`) or ``handed``
+    (followers passed from one lane to another at the same level, ``Lane.hand_in``)."""
 
     dirty: bool
     joined: bool
+    handed: bool
 
 
 class Lane:
@@ -60,6 +63,8 @@ class Lane:
     #: (``GroupLanes.rebuild``). An eviction always levels them again: its axis is
     #: composed in Python from then on.
     RELEVELS: ClassVar[bool] = True
+    #: the rows (before the last :meth:`rebuild`) of the members it kept, in order
+    _kept: list[int] = []  # noqa: RUF012 (replaced per rebuild, never mutated)
 
     def __init__(self, owner: LaneOwner) -> None:
         self._owner = owner
@@ -109,6 +114,14 @@ class Lane:
             self._owner.dirty = True
         else:
             self._owner.joined = True
+
+    def hand_in(self, p: Process, ax: Axis) -> None:
+        """:meth:`admit` ``p`` from another lane that stepped it at the level it keeps
+        here (the caller records the level: ``GroupLanes._offer_locked``)."""
+        self._batch = None
+        p.lane = self
+        self._joining.append((p, ax))
+        self.changed = True
 
     def evict(self, p: Process) -> None:
         """Write the lane's state back into ``p`` and drop it."""
@@ -199,6 +212,7 @@ class Lane:
         columns = self._batch_columns(joining) if len(joining) == admitted else None
         self._batch = None
         rows = [] if columns is not None else [self._load(p, ax) for p, ax in joining]
+        self._kept = keep
         sel = np.array(keep, dtype=np.intp)
         for j, f in enumerate(self.FIELDS):
             if columns is not None and not keep:
@@ -254,6 +268,10 @@ class LevelledLane(Lane):
     masters' axes.
     """
 
+    #: the level of each member, in member order, as last ordered (a class default for
+    #: lanes restored from older state: not known, so levelled again)
+    member_levels: list[int] = []  # noqa: RUF012 (replaced per order, never mutated)
+
     def __init__(self, owner: LaneOwner, source: MasterReference) -> None:
         super().__init__(owner)
         self.source = source
@@ -262,6 +280,7 @@ class LevelledLane(Lane):
         self.slaves: list[Index] = []
         self.masters: list[Index] = []
         self.whole: list[bool] = []
+        self.member_levels: list[int] = []
 
     @staticmethod
     def master_index(p: Process) -> int:
@@ -278,13 +297,19 @@ class LevelledLane(Lane):
                 self.masters = []
                 self.whole = []
                 self.midx = np.zeros(0, dtype=np.intp)
+            self.member_levels = []
             return
-        perm = sorted(range(len(self.members)), key=levels.__getitem__)
-        sel = np.array(perm, dtype=np.intp)
-        for f in self.FIELDS:
-            self.arrays[f] = self.arrays[f][sel]
-        self._set_members([self.members[k] for k in perm], [self.axes[k] for k in perm])
-        ordered = [levels[k] for k in perm]
+        if all(a <= b for a, b in pairwise(levels)):
+            # in level order already (a lane of one level): what the sort would leave
+            ordered = list(levels)
+        else:
+            perm = sorted(range(len(self.members)), key=levels.__getitem__)
+            sel = np.array(perm, dtype=np.intp)
+            for f in self.FIELDS:
+                self.arrays[f] = self.arrays[f][sel]
+            self._set_members([self.members[k] for k in perm], [self.axes[k] for k in perm])
+            ordered = [levels[k] for k in perm]
+        self.member_levels = ordered
         depth = ordered[-1] + 1 if ordered else 0
         self.levels = []
         start = 0

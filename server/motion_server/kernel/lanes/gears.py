@@ -306,6 +306,7 @@ class CatchUpLane(LevelledLane):
         s.cmd_vel[si] = v1
         s.cmd_acc[si] = acc
         if locking:
+            self.reached_level = lv
             self._lock(s, locking)
         for ax in movers:
             compose(ax)
@@ -313,6 +314,8 @@ class CatchUpLane(LevelledLane):
     #: the gears :meth:`_lock` locked in the last step, to offer to the locked lanes
     #: (``GroupLanes``; a class default for lanes restored from older snapshots)
     reached: Sequence[tuple[Process, Axis]] = ()
+    #: the level :attr:`reached` stepped at
+    reached_level = 0
 
     def _locking(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
         """The rows that catch up this step, split into those the lane locks itself
@@ -382,7 +385,8 @@ class CatchUpLane(LevelledLane):
             base, pos, lock_pos, num, den, a["ratio"][r], v_prev, pos, vel, acc
         ]  # fmt: skip
         self.changed = True
-        self._owner.dirty = True
+        # handed to the lane of locked gears at the same level (GroupLanes._offer_locked)
+        self._owner.handed = True
 
     #: the ``GearLane`` columns of :attr:`reached` (:meth:`GearLane.take_batch`)
     locked_columns: list[Any] | None = None

@@ -48,6 +48,11 @@ class GroupLanes:
     #: only the time-driven lanes' membership changed since the last rebuild (see
     #: :attr:`.base.Lane.RELEVELS`); a class default for lanes restored from older state
     joined = False
+    #: followers handed from one lane to another since the last rebuild (see
+    #: :meth:`_offer_locked`), and their levels by ``id`` of the process (class defaults
+    #: for lanes restored from older state)
+    handed = False
+    _handed: dict[int, int] = {}  # noqa: RUF012 (replaced per instance, see __init__)
 
     def __init__(self, group: MotionGroup) -> None:
         self.group = group
@@ -80,6 +85,8 @@ class GroupLanes:
         self.python_order: list[Axis] = list(group.order)
         self.dirty = False
         self.joined = False
+        self.handed = False
+        self._handed = {}
         self._ordered = {}
         #: processes that left the lanes, freed a chunk per step (:meth:`_defer_release`)
         self._release: list[list[Process]] = []
@@ -141,19 +148,26 @@ class GroupLanes:
                 return follower
         raise AssertionError("every source has a lane of locked gears")
 
-    def _offer_locked(self, reached: Sequence[tuple[Process, Axis]], gears: GearLane) -> None:
+    def _offer_locked(
+        self, reached: Sequence[tuple[Process, Axis]], gears: GearLane, level: int
+    ) -> None:
         """:meth:`_offer_follower` of the real-ratio gears the catch-up lane of ``gears``'s
-        source locked (one master, locked, not a fraction: ``GearLane.accepts``), in row
-        order, without asking each which lane it belongs to."""
-        admit = gears.admit
-        if gears.source != MasterReference.COMMAND:
-            for p, ax in reached:
-                admit(p, ax)
-            return
+        source locked at ``level`` (one master, locked, not a fraction:
+        ``GearLane.accepts``), in row order, without asking each which lane it belongs
+        to. Each keeps its level in the lane of locked gears (the same master, read the
+        same way), which the next rebuild takes without levelling the followers again
+        (:meth:`_hand_over`); a gear whose master is no longer settled stays out, and
+        the followers are levelled again."""
+        hand_in = gears.hand_in
+        handed = self._handed
+        command = gears.source == MasterReference.COMMAND
         settled = self._master_settled
         for p, ax in reached:
-            if settled(p.single.index):  # type: ignore[attr-defined]
-                admit(p, ax)
+            if not command or settled(p.single.index):  # type: ignore[attr-defined]
+                hand_in(p, ax)
+                handed[id(p)] = level
+            else:
+                self.dirty = True
 
     def _master_settled(self, index: int) -> bool:
         """The master at ``index`` is composed before any follower steps: in another group,
@@ -172,7 +186,10 @@ class GroupLanes:
         only the time-driven lanes gained members or ended some themselves, ``joined``
         without ``dirty``: :meth:`_rejoin`, the followers as they are)."""
         if not self.dirty:
-            self._rejoin(s)
+            if self.handed:
+                self._hand_over(s)
+            else:
+                self._rejoin(s)
             if not self.dirty:
                 return
         dropped = [lane.members for lane in self.all if lane.changed and lane.members]
@@ -183,13 +200,7 @@ class GroupLanes:
         for lane in self.followers[MasterReference.ACTUAL]:
             lane.order([0] * len(lane.members))
         self._order_command_followers(axes)
-        schedule = [(lane, 0) for lane in self.followers[MasterReference.ACTUAL] if lane.members]
-        cmd = self.followers[MasterReference.COMMAND]
-        for level in range(self.depth):
-            for lane in cmd:
-                if level < len(lane.levels) and lane.levels[level].stop > lane.levels[level].start:
-                    schedule.append((lane, level))
-        self.schedule = schedule
+        self.schedule = self._schedule()
         self.python_order = self._python_order()
         for ax in self.python_order:
             # membership changed: a follower's master may have joined a lane
@@ -197,6 +208,55 @@ class GroupLanes:
                 p.offer_pending = True
         self.dirty = False  # evictions while levelling set it: they are rebuilt above
         self.joined = False
+        self.handed = False
+        self._handed = {}
+
+    def _hand_over(self, s: AxisArrays) -> None:
+        """The rebuild after followers passed from one lane to another at the same level
+        (gears the catch-up lane locked, now in the lane of locked gears: the same
+        master, read the same way), besides what :meth:`_rejoin` handles: nobody's level
+        changed, so each command follower lane is ordered by the levels its members had
+        and the levels recorded for those handed in, without levelling every follower
+        again. When a level is not known (a lane restored from older state, a follower
+        that joined otherwise), ``dirty`` is set: the full rebuild follows."""
+        cmd = self.followers[MasterReference.COMMAND]
+        before: dict[LevelledLane, list[int]] = {}
+        for lane in cmd:
+            if lane.changed:
+                if len(lane.member_levels) != len(lane.members):
+                    self.dirty = True
+                    return
+                before[lane] = lane.member_levels
+        dropped = [x.members for x in self.all if x.changed and x.members]
+        for x in self.all:
+            x.rebuild()
+        self._defer_release(dropped)
+        self.cruise.place(s)
+        for lane in self.followers[MasterReference.ACTUAL]:
+            lane.order([0] * len(lane.members))
+        handed = self._handed
+        ordered = self._ordered
+        if ordered is None:
+            ordered = self._ordered = {}
+        for lane, old in before.items():
+            levels = [old[k] for k in lane._kept]
+            for p in lane.members[len(levels) :]:
+                level = handed.get(id(p))
+                if level is None:
+                    self.dirty = True
+                    return
+                levels.append(level)
+            lane.order(levels)
+            ordered[lane] = (lane.members, lane.member_levels)
+        self.depth = max((len(lane.levels) for lane in cmd), default=0)
+        self.schedule = self._schedule()
+        self.python_order = self._python_order()
+        for ax in self.python_order:
+            for p in ax.processes:
+                p.offer_pending = True
+        self.joined = False
+        self.handed = False
+        self._handed = {}
 
     def _rejoin(self, s: AxisArrays) -> None:
         """The rebuild after changes that leave the command followers' levels as they
@@ -220,6 +280,16 @@ class GroupLanes:
                 p.offer_pending = True
         self.joined = False
 
+    def _schedule(self) -> list[tuple[LevelledLane, int]]:
+        """(lane, level) of every non-empty follower level, in stepping order."""
+        schedule = [(lane, 0) for lane in self.followers[MasterReference.ACTUAL] if lane.members]
+        cmd = self.followers[MasterReference.COMMAND]
+        for level in range(self.depth):
+            for lane in cmd:
+                if level < len(lane.levels) and lane.levels[level].stop > lane.levels[level].start:
+                    schedule.append((lane, level))
+        return schedule
+
     def _defer_release(self, dropped: list[list[Process]]) -> None:
         """Keep the processes that left the lanes alive a little longer: the members a
         group stop evicts (256 jogs and gears, their profiles and limits) would
@@ -238,6 +308,11 @@ class GroupLanes:
     def __getstate__(self) -> dict[str, object]:
         state = dict(self.__dict__)
         state["_release"] = []  # references kept only to free them later
+        if state.get("handed"):
+            # levels kept by identity, which a copy does not keep: levelled again
+            state["handed"] = False
+            state["_handed"] = {}
+            state["dirty"] = True
         return state
 
     def _python_order(self) -> list[Axis]:
@@ -347,7 +422,7 @@ class GroupLanes:
                 # gears locked in the lane: offered as Motion.offer would, in row order;
                 # the lane of locked gears takes their columns if it took them all
                 gears = self._gear_lane(lane.source)
-                self._offer_locked(lane.reached, gears)
+                self._offer_locked(lane.reached, gears, lane.reached_level)
                 columns = lane.locked_columns
                 if columns is not None:
                     gears.take_batch(lane.reached, columns)
