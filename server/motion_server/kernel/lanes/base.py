@@ -115,6 +115,14 @@ class Lane:
         else:
             self._owner.joined = True
 
+    def hand_in_all(self, joining: Sequence[tuple[Process, Axis]]) -> None:
+        """:meth:`hand_in` of each of ``joining``, in order."""
+        self._batch = None
+        for p, _ in joining:
+            p.lane = self
+        self._joining.extend(joining)
+        self.changed = True
+
     def hand_in(self, p: Process, ax: Axis) -> None:
         """:meth:`admit` ``p`` from another lane that stepped it at the level it keeps
         here (the caller records the level: ``GroupLanes._offer_locked``)."""

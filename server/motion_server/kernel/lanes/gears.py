@@ -325,7 +325,8 @@ class CatchUpLane(LevelledLane):
         drive_on = s.drive_on
         for k in rows.tolist():
             p, ax = self.members[k], self.axes[k]
-            procs = ax.processes
+            # (the property's call saved: no stop row here unless its ramp is to be made)
+            procs = ax._processes if ax.stop_rows is None else ax.processes
             c = p.single
             if (
                 not c.exact
@@ -354,24 +355,26 @@ class CatchUpLane(LevelledLane):
         reached: list[tuple[Process, Axis]] = []
         # the locked lane's FIELDS of each, as GearLane._load would read them
         base, lock_pos, num, den = [], [], [], []
+        members, axes = self.members, self.axes
         for j, k in enumerate(rows):
-            p, ax = self.members[k], self.axes[k]
-            assert isinstance(p, GearProcess) and p.single is not None
-            ramp = p.ramp
-            assert ramp is not None
+            p, ax = members[k], axes[k]
+            # (a GearProcess on one real-ratio coupling with a RateRamp: accepts, _locking)
+            ramp = p._ramp  # type: ignore[attr-defined]
             slot.pop(id(p), None)
             x = pos[j]
             ramp.position = p.position = x
             ramp.velocity = p.velocity = vel[j]
             ramp.acceleration = p.acceleration = acc[j]
-            c = p.single
+            c = p.single  # type: ignore[attr-defined]
             c.v_prev = v_prev[j]
-            # GearProcess._lock (one real-ratio coupling)
-            p.at_lock = x
-            c.lock()
-            p.locked = True
+            # GearProcess._lock, with _Coupling.lock of a real ratio
+            p.at_lock = x  # type: ignore[attr-defined]
+            m = c.pos.item(c.index)
+            c.lock_pos = m
+            c.slave_counts = 0
+            p.locked = True  # type: ignore[attr-defined]
             base.append(ax.base)
-            lock_pos.append(c.lock_pos)
+            lock_pos.append(m)
             num.append(c.num)
             den.append(c.den)
             # composition marks the status (GearingLockStatus) and the axis is offered

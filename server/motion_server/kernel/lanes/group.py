@@ -158,16 +158,14 @@ class GroupLanes:
         same way), which the next rebuild takes without levelling the followers again
         (:meth:`_hand_over`); a gear whose master is no longer settled stays out, and
         the followers are levelled again."""
-        hand_in = gears.hand_in
-        handed = self._handed
-        command = gears.source == MasterReference.COMMAND
-        settled = self._master_settled
-        for p, ax in reached:
-            if not command or settled(p.single.index):  # type: ignore[attr-defined]
-                hand_in(p, ax)
-                handed[id(p)] = level
-            else:
+        taken: Sequence[tuple[Process, Axis]] = reached
+        if gears.source == MasterReference.COMMAND:
+            settled = self._master_settled
+            taken = [(p, ax) for p, ax in reached if settled(p.single.index)]  # type: ignore[attr-defined]
+            if len(taken) != len(reached):
                 self.dirty = True
+        gears.hand_in_all(taken)
+        self._handed.update(dict.fromkeys([id(p) for p, _ in taken], level))
 
     def _master_settled(self, index: int) -> bool:
         """The master at ``index`` is composed before any follower steps: in another group,
