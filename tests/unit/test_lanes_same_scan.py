@@ -7,6 +7,7 @@ S-curve, MCD changes, stops, clutched gears and PLCopen gears with their catch-u
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,7 +19,9 @@ from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
 from motion_server.kernel.axis import Axis
 from motion_server.kernel.enums import MasterReference
 from motion_server.kernel.lanes import GroupLanes
+from motion_server.kernel.lanes.ramps import CruiseLane
 from motion_server.kernel.motion import Motion
+from motion_server.kernel.processes import Process
 from motion_server.kernel.trapezoid import TrapezoidProfile
 from motion_server.scan import statecodec
 
@@ -408,3 +411,22 @@ def test_a_snapshot_taken_while_gears_are_handed_over_runs_on_as_the_reference()
             copies += 1
     assert copies >= 1
     assert laned(fast) == len(MASTERS) + len(SLAVES)
+
+
+def test_jogs_at_speed_join_the_cruise_lane_as_columns(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Jogs the profile lane ends at their speed join the cruise lane with the columns
+    the profile lane computed, not loaded one by one from their objects; the motion is
+    the reference's after every cycle."""
+    fast, ref = pair()
+    loaded: list[int] = []
+    original = CruiseLane._load
+
+    def counted(self: CruiseLane, p: Process, ax: Axis) -> tuple[Any, ...]:
+        loaded.append(ax.number)
+        return original(self, p, ax)
+
+    monkeypatch.setattr(CruiseLane, "_load", counted)
+    # 80 mm/s at 1000 mm/s² takes 80 ms, 40 cycles of 2 ms: all at speed, then cruising
+    run_rounds(fast, ref, [(jog_all(80.0), 60)], prefix="J")
+    assert len(fast.ctl.motion.lanes[1].cruise.members) == len(MASTERS)
+    assert loaded == []

@@ -409,7 +409,11 @@ class GroupLanes:
                 cruise = self.cruise
                 for p, ax in profiles.reached:
                     cruise.admit(p, ax)
+                columns = profiles.reached_columns
+                if columns is not None:
+                    cruise.take_batch(profiles.reached, columns)
                 profiles.reached = ()
+                profiles.reached_columns = None
         if self.stops.members or self.stops.rows:
             self.stops.step(s, dt, compose)
         if self.scurves.members:

@@ -52,6 +52,25 @@ class CruiseLane(Lane):
             p.profile.position = pos
             p.position = pos
 
+    def take_batch(self, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
+        """``joining`` (jogs the profile lane ended at speed, ``ProfileLane._end``) were
+        admitted last, in this order; ``columns`` holds their ``FIELDS``, what
+        :meth:`_load` would read: if they are all that joined since the last rebuild,
+        the next rebuild takes the columns instead of loading them one by one."""
+        mine = self._joining
+        if len(mine) == len(joining) and all(
+            q is p for (q, _), (p, _) in zip(mine, joining, strict=True)
+        ):
+            self._batch = (joining[0][0], len(joining), columns)
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        batch = self._batch
+        if batch is None or not joining or joining[0][0] is not batch[0]:
+            return None
+        if len(joining) != batch[1]:
+            return None
+        return [np.asarray(col, dtype=float) for col in batch[2]]
+
     def place(self, s: AxisArrays) -> None:
         """After a rebuild: the members' velocity and acceleration, which stay constant
         while they cruise (nothing else writes them while the axis is in the lane)."""
@@ -241,18 +260,21 @@ class ProfileLane(PlanLane):
         buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
         the others (moves, which land, and the rest) by their process's own step."""
         ended, odd = [], []
-        landing = self.arrays["landing"]
-        drive_on = s.drive_on
-        for k in rows.tolist():
-            p, ax = self.members[k], self.axes[k]
-            procs = ax.processes
+        # (read as lists once: a numpy scalar per row costs more than the test)
+        landing = self.arrays["landing"][rows].tolist()
+        drive_on = s.drive_on[self.idx[rows]].tolist()
+        members, axes = self.members, self.axes
+        for j, k in enumerate(rows.tolist()):
+            p, ax = members[k], axes[k]
+            # (the property's call saved: no stop row here unless its ramp is to be made)
+            procs = ax._processes if ax.stop_rows is None else ax.processes
             if (
                 type(p) is JogProcess
-                and not landing[k]
+                and not landing[j]
                 and len(procs) == 1
                 and procs[0] is p
                 and ax.buffered is None
-                and drive_on[ax.index]
+                and drive_on[j]
             ):
                 ended.append(k)
             else:
@@ -281,23 +303,28 @@ class ProfileLane(PlanLane):
         s.cmd_acc[idx] = 0.0
         slot = self._slot
         at_speed: list[tuple[Process, Axis]] = []
+        bases: list[float] = []
+        members, axes = self.members, self.axes
         for j, k in enumerate(rows):
-            p, ax = self.members[k], self.axes[k]
-            assert isinstance(p, JogProcess)
+            p, ax = members[k], axes[k]
+            # (a JogProcess on a TrapezoidProfile: _ending, accepts)
             slot.pop(id(p), None)
-            prof = p.profile
-            assert isinstance(prof, TrapezoidProfile)
+            prof = p.profile  # type: ignore[attr-defined]
+            bases.append(ax.base)
             x_k, v_k = positions[j], velocities[j]
             prof.cycles = int(cycles[j])
             prof.finished = True
             prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
             p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
-            p.at_speed = True
+            p.at_speed = True  # type: ignore[attr-defined]
             # leaves this lane and is offered at once (Motion.offer): to the cruise lane
             p.lane = None
             p.offer_pending = False
             at_speed.append((p, ax))
         self.reached = at_speed
+        # what CruiseLane._load reads of each (the profile's dt: the lane's column)
+        dt = a["dt"][r]
+        self.reached_columns = [bases, x, end_vel, dt, end_vel * dt]
         self.changed = True
         # from this lane to the cruise lane: the followers keep their levels
         self._owner.joined = True
@@ -305,6 +332,8 @@ class ProfileLane(PlanLane):
     #: the jogs :meth:`_end` ended in the last step, for the cruise lane (``GroupLanes``;
     #: a class default for lanes restored from a snapshot saved before it existed)
     reached: Sequence[tuple[Process, Axis]] = ()
+    #: the ``CruiseLane`` columns of :attr:`reached` (:meth:`CruiseLane.take_batch`)
+    reached_columns: list[Any] | None = None
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
