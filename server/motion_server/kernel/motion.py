@@ -229,7 +229,8 @@ class Motion:
         them, the PLCopen aborting mode and Logix merge); the new process is built by
         ``make(v, a)`` from the velocity and acceleration of what it replaces. If ``make``
         raises, nothing has changed: the processes it would replace keep running."""
-        procs = ax.processes
+        # (the property's call saved: no stop row here unless its ramp is to be made)
+        procs = ax._processes if ax.stop_rows is None else ax.processes
         if not procs and not ax.preloaded_cams:
             # the common case of an axis without motion, without the calls: nothing to
             # settle, inherit or retire
@@ -243,9 +244,16 @@ class Motion:
             if p.masters and not self.order_dirty and not self._order_holds(ax, p):
                 self.order_dirty = True
             # Axis.motion_changed: busy if the new process is active
-            self.s.scalars.busy[ax.index] = p.active
-            self.s.dirty.add(ax.index)
-            self.offer(ax)
+            active = p.state is _ACTIVE
+            i = ax.index
+            self.s.scalars.busy[i] = active
+            self.s.dirty.add(i)
+            # Motion.offer of the axis's only process, without the call
+            if active and ax.buffered is None and p.offer_pending and p.lane is None:
+                lanes = self._offer_to.get(ax.group)
+                if lanes is not None and self.s.drive_on.item(i):
+                    p.offer_pending = False
+                    lanes.offer(ax, p)
             if p.lane is None:
                 # an axis without motion may be a master its lane followers read as
                 # constant: composed in Python now, they are levelled again (in a lane,

@@ -23,6 +23,7 @@ from ..gearing import GearProcess
 from ..group import MotionGroup
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
+from ..trapezoid import TrapezoidProfile
 from .base import Compose, Lane, LevelledLane
 from .cams import CamLane
 from .gears import CatchUpLane, FractionLane, GearLane, gear_source
@@ -99,10 +100,13 @@ class GroupLanes:
         to the lane of its state, if there is one."""
         kind = type(p)
         if kind is JogProcess:
-            if CruiseLane.accepts(p):
+            prof = p.profile  # type: ignore[attr-defined]
+            if prof.finished:  # CruiseLane.accepts
                 self.cruise.admit(p, ax)
-            elif ProfileLane.accepts(p):
-                self.profiles.admit(p, ax)
+            elif isinstance(prof, TrapezoidProfile):
+                # ProfileLane.accepts: planned (built, or requested: a jog just commanded)
+                if prof.request is not None or prof._plan is not None:
+                    self.profiles.admit(p, ax)
             elif SCurveLane.accepts(p):
                 self.scurves.admit(p, ax)
         elif kind is MoveProcess:
