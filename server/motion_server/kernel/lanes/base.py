@@ -116,7 +116,9 @@ class Lane:
             self._owner.joined = True
 
     def hand_in_all(self, joining: Sequence[tuple[Process, Axis]]) -> None:
-        """:meth:`hand_in` of each of ``joining``, in order."""
+        """:meth:`hand_in` of each of ``joining``, in order: admitted without marking the
+        owner, which the caller does (jogs at speed from the profile lane: ``joined``;
+        gears locked by the catch-up lane: ``handed``)."""
         self._batch = None
         for p, _ in joining:
             p.lane = self

@@ -411,8 +411,7 @@ class GroupLanes:
             if profiles.reached:
                 # jogs at speed: offered as Motion.offer would, in row order
                 cruise = self.cruise
-                for p, ax in profiles.reached:
-                    cruise.admit(p, ax)
+                cruise.hand_in_all(profiles.reached)  # (a time lane: joined, set by _end)
                 columns = profiles.reached_columns
                 if columns is not None:
                     cruise.take_batch(profiles.reached, columns)
