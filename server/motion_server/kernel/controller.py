@@ -49,7 +49,8 @@ from .errors import ErrorCode, MotionError
 from .faults import APPLIES, CAUSE_BIT, DISABLE_DRIVE, OVERTRAVEL, FaultCause, FaultInjection
 from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode, after_stops_due
 from .homing import HomeHandle, HomeProcess, HomeRequest, Homing, PassiveHoming, judge
-from .limits import group_stop_deceleration
+from .jog_batch import start_jogs
+from .limits import Limits, group_stop_deceleration
 from .mdac_links import MasterDrivenControl
 from .motion import InternalError, Motion
 from .override import Override
@@ -595,6 +596,19 @@ class Controller:
         """Start a process built by ``make(v, a)`` (see :meth:`Motion.start
         <.motion.Motion.start>`)."""
         return self.motion.start(ax, make, replace, reason)
+
+    def start_jogs(
+        self,
+        axes: Sequence[Axis],
+        targets: Sequence[float],
+        limits: Limits,
+        owners: Sequence[object] | None = None,
+    ) -> list[Process]:
+        """Jogs on many axes in one call (MAJ or MC_MoveVelocity executed on N axes in
+        one scan): ``start`` of ``JogProcess(period, targets[k], limits, v, a,
+        owners[k])`` replacing the jog of ``axes[k]``, for every k in order, the same
+        state, for less work per axis (:func:`.jog_batch.start_jogs`)."""
+        return start_jogs(self.motion, axes, targets, limits, owners)
 
     def set_override(self, ax: Axis, factors: Override) -> None:
         """Scale the axis's moves and jogs (see :meth:`Motion.set_override

@@ -90,6 +90,14 @@ class Motion:
             if p.lane is not None:
                 p.lane.evict(p)
 
+    def lanes_for(self, ax: Axis) -> GroupLanes | None:
+        """The lanes ``ax``'s new process may join now: its group's, if they take
+        processes and its drive is on (what :meth:`offer` asks besides the process)."""
+        lanes = self._offer_to.get(ax.group)
+        if lanes is None or not self.s.drive_on.item(ax.index):
+            return None
+        return lanes
+
     def offers(self, group: int) -> bool:
         """Processes of ``group`` may join its fast lanes."""
         return group in self._offer_to
@@ -237,28 +245,7 @@ class Motion:
             p = make(0.0, 0.0)
             if not ax.override.neutral and overridable(p):
                 apply(p, ax.override)
-            if replace is None and ax.buffered is not None:
-                ax.buffered.cancelled = True
-                ax.buffered = None
-            procs.append(p)
-            if p.masters and not self.order_dirty and not self._order_holds(ax, p):
-                self.order_dirty = True
-            # Axis.motion_changed: busy if the new process is active
-            active = p.state is _ACTIVE
-            i = ax.index
-            self.s.scalars.busy[i] = active
-            self.s.dirty.add(i)
-            # Motion.offer of the axis's only process, without the call
-            if active and ax.buffered is None and p.offer_pending and p.lane is None:
-                lanes = self._offer_to.get(ax.group)
-                if lanes is not None and self.s.drive_on.item(i):
-                    p.offer_pending = False
-                    lanes.offer(ax, p)
-            if p.lane is None:
-                # an axis without motion may be a master its lane followers read as
-                # constant: composed in Python now, they are levelled again (in a lane,
-                # the lane's admission marked what its rebuild needs)
-                self.lanes[ax.group].dirty = True
+            self.start_from_rest(ax, procs, p, replace)
             return p
         if not procs:
             self.lanes[ax.group].dirty = True
@@ -279,6 +266,39 @@ class Motion:
         ax.motion_changed()
         self.offer(ax)
         return p
+
+    def start_from_rest(
+        self,
+        ax: Axis,
+        procs: list[Process],
+        p: Process,
+        replace: Collection[ProcessKind] | None,
+    ) -> None:
+        """The rest of :meth:`start` on an axis without motion (``procs``, its empty
+        process list, no preloaded cam), once ``p`` is built (and scaled by the axis's
+        override): ``p`` becomes its process and is offered to the lanes."""
+        if replace is None and ax.buffered is not None:
+            ax.buffered.cancelled = True
+            ax.buffered = None
+        procs.append(p)
+        if p.masters and not self.order_dirty and not self._order_holds(ax, p):
+            self.order_dirty = True
+        # Axis.motion_changed: busy if the new process is active
+        active = p.state is _ACTIVE
+        i = ax.index
+        self.s.scalars.busy[i] = active
+        self.s.dirty.add(i)
+        # Motion.offer of the axis's only process, without the call
+        if active and ax.buffered is None and p.offer_pending and p.lane is None:
+            lanes = self._offer_to.get(ax.group)
+            if lanes is not None and self.s.drive_on.item(i):
+                p.offer_pending = False
+                lanes.offer(ax, p)
+        if p.lane is None:
+            # an axis without motion may be a master its lane followers read as
+            # constant: composed in Python now, they are levelled again (in a lane,
+            # the lane's admission marked what its rebuild needs)
+            self.lanes[ax.group].dirty = True
 
     def buffer(self, ax: Axis, make: ProcessFactory, owner: object = None) -> Pending:
         """Queue ``make`` to start when the axis's active motion is done (PLCopen buffered)."""
