@@ -167,6 +167,50 @@ def _too_long(duration: float) -> MotionError:
     )
 
 
+#: (brake, jerk of the brake, phase 0, its jerk, the hold, phase 2): the segments of a
+#: plan as :func:`jerk_segments` gives them (phase 2's jerk is minus phase 0's)
+JerkSegments = tuple[float, float, float, float, float, float]
+
+#: what :func:`build_request` needs besides dt: (p0, v0, a0, target, *JerkSegments)
+JerkRequest = tuple[float, float, float, float, float, float, float, float, float, float]
+
+#: inputs below this (in magnitude) cannot overflow a plan of at most MAX_DURATION
+#: seconds: every term of the integration is below it times (1 + t + t^2 + t^3), t <= 7.6e3
+_SAFE = 1e200
+
+
+def jerk_segments(
+    v0: float, a0: float, target: float, a_max: float, a_min: float, jerk: float
+) -> JerkSegments | None:
+    """The segments of :func:`plan_jerk_velocity` (its brake and phases, not yet
+    integrated); None when the closed form does not cover the case.
+    MotionError(PROFILE_FAILED) when the brake cannot be held."""
+    if a0 > a_max:
+        tb, jb = (a0 - a_max) / jerk, -jerk
+    elif a0 < a_min:
+        tb, jb = (a_min - a0) / jerk, jerk
+    else:
+        tb, jb = 0.0, 0.0
+    ab = a0 + tb * jb
+    vb = v0 + tb * (a0 + tb * jb / 2)
+    if tb > 0.0:
+        ab = a_max if jb < 0.0 else a_min  # exactly on the limit the brake aimed at
+    if not (math.isfinite(tb) and math.isfinite(vb)):
+        if not math.isfinite(tb):
+            raise _too_long(tb)
+        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
+    phases = _phases(ab, vb, target, a_max, a_min, jerk)
+    if phases is None:
+        return None
+    t0, t1, t2, j = phases
+    return tb, jb, t0, j, t1, t2
+
+
+def _segment_list(segs: JerkSegments) -> list[tuple[float, float]]:
+    tb, jb, t0, j, t1, t2 = segs
+    return [(tb, jb), (t0, j), (t1, 0.0), (t2, -j)]
+
+
 def plan_jerk_velocity(
     dt: float,
     p0: float,
@@ -181,28 +225,35 @@ def plan_jerk_velocity(
     the acceleration within [``a_min``, ``a_max``] (``a_min`` < 0 < ``a_max``), the jerk
     within ``jerk`` (> 0, finite). None when the closed form does not cover the case
     (ruckig plans it then); MotionError(PROFILE_FAILED) when no plan can hold it."""
-    segments: list[tuple[float, float]] = []
-    if a0 > a_max:
-        segments.append(((a0 - a_max) / jerk, -jerk))
-    elif a0 < a_min:
-        segments.append(((a_min - a0) / jerk, jerk))
-    else:
-        segments.append((0.0, 0.0))
-    tb, jb = segments[0]
-    ab = a0 + tb * jb
-    vb = v0 + tb * (a0 + tb * jb / 2)
-    if tb > 0.0:
-        ab = a_max if jb < 0.0 else a_min  # exactly on the limit the brake aimed at
-    if not (math.isfinite(tb) and math.isfinite(vb)):
-        if not math.isfinite(tb):
-            raise _too_long(tb)
-        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
-    phases = _phases(ab, vb, target, a_max, a_min, jerk)
-    if phases is None:
+    segs = jerk_segments(v0, a0, target, a_max, a_min, jerk)
+    if segs is None:
         return None
-    t0, t1, t2, j = phases
-    segments += [(t0, j), (t1, 0.0), (t2, -j)]
-    return _build(dt, p0, v0, a0, segments, target)
+    return _build(dt, p0, v0, a0, _segment_list(segs), target)
+
+
+def judge_request(request: JerkRequest) -> bool:
+    """Whether the plan of ``request`` (segments from :func:`jerk_segments`) can be built
+    later without an error (True: it will be finite and within MAX_DURATION). Raises the
+    error :func:`_build` would raise for a plan too long; False when only building it
+    tells (inputs too large to bound: build it now)."""
+    p0, v0, a0, target, tb, jb, t0, j, t1, t2 = request
+    # the plan's duration as _build sums it
+    t = 0.0 + tb
+    t = t + t0
+    t = t + t1
+    t = t + t2
+    if not math.isfinite(t) or t > MAX_DURATION:
+        raise _too_long(t)
+    b = max(abs(p0), abs(v0), abs(a0), abs(target), abs(j), abs(jb))
+    return b < _SAFE  # (False for a NaN as well)
+
+
+def build_request(dt: float, request: JerkRequest) -> JerkPlan:
+    """The plan of a judged ``request`` (:func:`judge_request`), as
+    :func:`plan_jerk_velocity` builds it."""
+    p0, v0, a0, target, *segs = request
+    tb, jb, t0, j, t1, t2 = segs
+    return _build(dt, p0, v0, a0, [(tb, jb), (t0, j), (t1, 0.0), (t2, -j)], target)
 
 
 def _build(
@@ -263,7 +314,19 @@ class SCurveProfile:
 
     ``position`` is the displacement from the profile's origin; ``cycles`` counts the
     samples since the current closed-form plan.
+
+    A velocity target is judged when it is commanded: its segments are found
+    (:func:`jerk_segments`: whether the closed form covers it, else ruckig plans it at
+    once) and a plan that could not be held is refused (:func:`judge_request`). The plan
+    itself is built when it is first needed: ``plan`` builds it then from the ``request``
+    kept, unless the S-curve lane has built every plan admitted in a scan in one pass
+    before the step (:mod:`.scurve_plan`); both give the very same numbers.
     """
+
+    #: the closed-form plan, once built (``plan`` builds it from ``request``)
+    _plan: JerkPlan | None = None
+    #: a velocity target judged but not built yet
+    request: JerkRequest | None = None
 
     def __init__(
         self, dt: float, velocity: float = 0.0, acceleration: float = 0.0, position: float = 0.0
@@ -274,11 +337,38 @@ class SCurveProfile:
         self.acceleration = float(acceleration)
         self.finished = False
         self.cycles = 0
-        self.plan: JerkPlan | None = None
+        self._plan = None
+        self.request = None
         #: the ruckig profile that plans a position target (or a fallback), else None
         self.ruckig: Profile | None = None
         self._target_position: float | None = None
         self._target_velocity = 0.0
+
+    @property
+    def plan(self) -> JerkPlan | None:
+        """The current closed-form plan (built now if only requested); None when there
+        is none (ruckig plans, or nothing was planned)."""
+        request = self.request
+        if request is not None:
+            self._plan = build_request(self._dt, request)
+            self.request = None
+        return self._plan
+
+    @plan.setter
+    def plan(self, plan: JerkPlan | None) -> None:
+        self._plan = plan
+        self.request = None
+
+    @property
+    def planned(self) -> bool:
+        """A closed-form plan is running (built, or requested and not built yet)."""
+        return self.request is not None or self._plan is not None
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        # saved before plans were built on demand: the plan was an attribute
+        if "plan" in state:
+            state["_plan"] = state.pop("plan")
+        self.__dict__.update(state)
 
     # -- targets --------------------------------------------------------------------------
     def to_position(self, displacement: float, limits: Limits) -> None:
@@ -295,27 +385,26 @@ class SCurveProfile:
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
         limits = limits.validated()
         target = float(velocity)
-        plan = None
+        segs = None
         if not limits.trapezoidal:
-            direction = target if target != 0.0 else self.velocity
-            a_max, a_min = limit_pair(direction, limits.acceleration, limits.deceleration)
-            plan = plan_jerk_velocity(
-                self._dt,
-                self.position,
-                self.velocity,
-                self.acceleration,
-                target,
-                a_max,
-                a_min,
-                limits.jerk,
-            )
-        if plan is None:
+            v0 = self.velocity
+            direction = target if target != 0.0 else v0
+            if direction >= 0.0:  # limit_pair
+                a_max, a_min = limits.acceleration, -limits.deceleration
+            else:
+                a_max, a_min = limits.deceleration, -limits.acceleration
+            segs = jerk_segments(v0, self.acceleration, target, a_max, a_min, limits.jerk)
+        if segs is None:
             prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
             prof.to_velocity(target, limits)
             FALLBACKS.count += 1
             self._use_ruckig(prof, None, target)
             return
+        request = (self.position, self.velocity, self.acceleration, target, *segs)
+        plan = None if judge_request(request) else build_request(self._dt, request)
         self.plan = plan
+        if plan is None:
+            self.request = request
         self.ruckig = None
         self.cycles = 0
         self.finished = False
@@ -344,8 +433,9 @@ class SCurveProfile:
                 self.finished = True
                 self.ruckig = None
             return
-        plan = self.plan
-        if self.finished or plan is None:
+        # (finished first: a finished plan is not needed, so not built)
+        plan = None if self.finished else self.plan
+        if plan is None:
             # holding the target velocity: integrate it (no plan needed)
             self.acceleration = 0.0
             self.position += self.velocity * self._dt

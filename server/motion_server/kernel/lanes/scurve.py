@@ -16,6 +16,7 @@ import numpy as np
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..scurve import SEGMENTS, SCurveProfile
+from ..scurve_plan import jerk_plans
 from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
@@ -37,7 +38,7 @@ class SCurveLane(PlanLane):
         prof = p.profile  # type: ignore[attr-defined]
         return (
             isinstance(prof, SCurveProfile)
-            and prof.plan is not None
+            and prof.planned
             and prof.ruckig is None
             and not prof.finished
         )
@@ -64,6 +65,49 @@ class SCurveLane(PlanLane):
             p.velocity,
             p.acceleration,
         )
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The joining members' ``FIELDS`` as arrays: the plans not built yet (ramps
+        commanded since the last step) built in one pass (:func:`..scurve_plan.jerk_plans`),
+        the others loaded one by one."""
+        requested: list[int] = []
+        requests: list[float] = []
+        add = requests.extend
+        rows: list[tuple[Any, ...]] = []
+        for k, (p, ax) in enumerate(joining):
+            prof = p.profile  # type: ignore[attr-defined]
+            request = prof.request
+            if request is None:
+                rows.append(self._load(p, ax))
+                continue
+            requested.append(k)
+            add((ax.base, float(prof.cycles), prof._dt, p.position, p.velocity, p.acceleration))
+            add(request)
+        if not requested:
+            return None  # every plan built already: row by row, as before
+        m = len(requested)
+        cols = np.array(requests, dtype=float).reshape(m, 16)
+        dt = cols[:, 2]
+        plans = jerk_plans(dt, cols[:, 6:])
+        planned = (
+            cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
+            plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
+            cols[:, 4], cols[:, 5],
+        )  # fmt: skip
+        if not rows:
+            return list(planned)
+        # both kinds: place each column's rows where their members are
+        n = len(joining)
+        at = np.array(requested, dtype=np.intp)
+        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
+        columns = []
+        for j, f in enumerate(self.FIELDS):
+            width = self.WIDTHS.get(f)
+            col = np.empty((n,) if width is None else (n, width))
+            col[at] = planned[j]
+            col[others] = np.array([r[j] for r in rows], dtype=float)
+            columns.append(col)
+        return columns
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
