@@ -109,15 +109,19 @@ class JerkPlan:
 
 
 def _accepted(
-    ts: tuple[float, float, float], a0: float, v0: float, vf: float, jf: float, lo: float, hi: float
+    t0: float,
+    t1: float,
+    t2: float,
+    a0: float,
+    v0: float,
+    vf: float,
+    jf: float,
+    lo: float,
+    hi: float,
 ) -> bool:
-    """ruckig's ``check_for_velocity`` (UDDU) of the phases ``ts`` with jerk ``jf``."""
-    t0, t1, t2 = ts
-    if not (t0 >= 0.0 and t1 >= 0.0 and t2 >= 0.0):
-        return False
-    # ruckig's 1e-12 is a few ulps of an acceleration of 1e4: a peak computed to land on
-    # the limit may round beyond it by more; allow those few ulps too
-    a_eps = _A_EPS + 8.0 * math.ulp(max(hi, -lo))
+    """ruckig's ``check_for_velocity`` (UDDU) of the phases (``t0``, ``t1``, ``t2``), each
+    >= 0, with jerk ``jf``; the acceleration within [``lo``, ``hi``] (the limits with
+    their tolerance, :func:`_phases`)."""
     j0 = jf if t0 > 0.0 else 0.0
     j2 = -jf if t2 > 0.0 else 0.0
     a1 = a0 + t0 * j0
@@ -126,10 +130,7 @@ def _accepted(
     a3 = a1 + t2 * j2
     v3 = v2 + t2 * (a1 + t2 * j2 / 2)
     return (
-        abs(v3 - vf) < _V_PRECISION
-        and abs(a3) < _A_PRECISION
-        and lo - a_eps <= a1 <= hi + a_eps
-        and lo - a_eps <= a3 <= hi + a_eps
+        abs(v3 - vf) < _V_PRECISION and abs(a3) < _A_PRECISION and lo <= a1 <= hi and lo <= a3 <= hi
     )
 
 
@@ -144,19 +145,36 @@ def _phases(
         order = ((a_max, jerk), (a_min, -jerk))
     else:
         order = ((a_min, -jerk), (a_max, jerk))
+    # ruckig's 1e-12 is a few ulps of an acceleration of 1e4: a peak computed to land on
+    # the limit may round beyond it by more; allow those few ulps too
+    a_eps = _A_EPS + 8.0 * math.ulp(max(a_max, -a_min))
+    lo = a_min - a_eps
+    hi = a_max + a_eps
     for peak, j in order:
-        # no acceleration hold: the peak is where the two jerk phases meet
+        # no acceleration hold: the peak is where the two jerk phases meet (phases of
+        # negative (or NaN) duration are never accepted: not checked further)
         h1 = a0 * a0 / 2 + j * vd
         if h1 >= 0.0:
             h = math.sqrt(h1)
-            for ts in ((-(a0 + h) / j, 0.0, -h / j), ((-a0 + h) / j, 0.0, h / j)):
-                if _accepted(ts, a0, v0, vf, j, a_min, a_max):
-                    return (*ts, j)
+            t0 = -(a0 + h) / j
+            t2 = -h / j
+            if t0 >= 0.0 and t2 >= 0.0 and _accepted(t0, 0.0, t2, a0, v0, vf, j, lo, hi):
+                return t0, 0.0, t2, j
+            t0 = (-a0 + h) / j
+            t2 = h / j
+            if t0 >= 0.0 and t2 >= 0.0 and _accepted(t0, 0.0, t2, a0, v0, vf, j, lo, hi):
+                return t0, 0.0, t2, j
         # the acceleration limit held between the two jerk phases
         t1 = a0 * a0 / (2 * peak * j) - peak / j + vd / peak
-        ts = ((peak - a0) / j, t1, peak / j)
-        if t1 >= _T_EPS and _accepted(ts, a0, v0, vf, j, a_min, a_max):
-            return (*ts, j)
+        t0 = (peak - a0) / j
+        t2 = peak / j
+        if (
+            t1 >= _T_EPS
+            and t0 >= 0.0
+            and t2 >= 0.0
+            and _accepted(t0, t1, t2, a0, v0, vf, j, lo, hi)
+        ):
+            return t0, t1, t2, j
     return None
 
 
