@@ -26,6 +26,7 @@ from motion_server.kernel import (
     MotionError,
     ProcessKind,
 )
+from motion_server.kernel.lanes.ramps import CruiseLane
 from motion_server.kernel.lanes.scurve import SCurveLane
 from motion_server.kernel.scurve import (
     MAX_DURATION,
@@ -285,3 +286,9 @@ def test_jogs_commanded_together_are_built_together_and_run_in_the_lane() -> Non
         ref.step()
         assert_same(fast, ref, f"cycle {c}")
     assert np.array_equal(fast.cmd_vel[:N_AXES], np.full(N_AXES, 100.0))
+    for p in jogs:
+        # ended by the S-curve lane, which handed them to the cruise lane; the plans
+        # were never needed one by one
+        assert isinstance(p, JogProcess) and p.at_speed and p.profile.finished
+        assert isinstance(p.lane, CruiseLane)
+        assert p.profile.request is not None

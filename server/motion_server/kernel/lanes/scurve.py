@@ -1,7 +1,11 @@
 """Jerk-limited ramps to a velocity on their way: jogs and speed changes (MAJ,
 MC_MoveVelocity, MCD, overrides), paused moves and jerk-limited stops (MAS with DecelJerk,
 MC_Stop / MC_Halt with Jerk), all planned in closed form (:class:`~..scurve.SCurveProfile`,
-``JerkPlan.sample``); the sample that ends the plan is the process's own (moved out).
+``JerkPlan.sample``). The plans of the ramps commanded since the last step are built
+together when they join (:mod:`..scurve_plan`). A jog that reaches its velocity, alone
+on its axis, is ended by the lane and handed to the cruise lane (as the profile lane
+does for trapezoidal jogs); the sample that ends any other plan is the process's own
+(moved out).
 
 Like the other time-driven lanes it reads no other axis, so it steps first. Position
 targets (ruckig's) and fallbacks stay in Python.
@@ -16,7 +20,8 @@ import numpy as np
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..scurve import SEGMENTS, SCurveProfile
-from ..scurve_plan import jerk_plans
+from ..scurve_plan import TARGET, jerk_plans
+from ..state import AxisArrays
 from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
@@ -27,8 +32,21 @@ class SCurveLane(PlanLane):
     """Jerk-limited velocity ramps within their plan, stepped as arrays with the
     operations of ``SCurveProfile.step``, in the same order."""
 
-    FIELDS = ("base", "cycles", "dt", "done", *PLAN_FIELDS, "pos", "vel", "acc")
+    FIELDS = (
+        "base", "cycles", "dt", "done", *PLAN_FIELDS, "pos", "vel", "acc", "end", "end_pos",
+        "end_vel",
+    )  # fmt: skip
     WIDTHS: ClassVar[dict[str, int]] = dict.fromkeys(PLAN_FIELDS, SEGMENTS)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        super().__setstate__(state)
+        arrays = self.arrays
+        if "end" not in arrays:
+            # saved before the lane ended jogs itself: the ends from the members' plans
+            plans = [p.profile.plan for p in self.members]  # type: ignore[attr-defined]
+            arrays["end"] = np.array([q.end for q in plans], dtype=float)
+            arrays["end_pos"] = np.array([q.end_position for q in plans], dtype=float)
+            arrays["end_vel"] = np.array([q.end_velocity for q in plans], dtype=float)
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -64,6 +82,9 @@ class SCurveLane(PlanLane):
             p.position,
             p.velocity,
             p.acceleration,
+            plan.end,
+            plan.end_position,
+            plan.end_velocity,
         )
 
     def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
@@ -92,7 +113,7 @@ class SCurveLane(PlanLane):
         planned = (
             cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
             plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
-            cols[:, 4], cols[:, 5],
+            cols[:, 4], cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
         )  # fmt: skip
         if not rows:
             return list(planned)
@@ -108,6 +129,68 @@ class SCurveLane(PlanLane):
             col[others] = np.array([r[j] for r in rows], dtype=float)
             columns.append(col)
         return columns
+
+    def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
+        """A jog that reaches its velocity, its axis's only process with nothing
+        buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
+        the others (paused moves, stops and the rest) by their process's own step."""
+        ended, odd = [], []
+        drive_on = s.drive_on
+        for k in rows.tolist():
+            p, ax = self.members[k], self.axes[k]
+            procs = ax.processes
+            if (
+                type(p) is JogProcess
+                and len(procs) == 1
+                and procs[0] is p
+                and ax.buffered is None
+                and drive_on[ax.index]
+            ):
+                ended.append(k)
+            else:
+                odd.append(k)
+        return ended, odd
+
+    def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
+        """The jogs at ``rows`` reach their velocity at the sample ``t``: what composing
+        their axes does (``SCurveProfile.finish_plan``, ``JogProcess._after_step``,
+        ``Motion.compose`` of a single process, then ``Motion.offer``: at speed, it joins
+        the cruise lane), with the finishing sample computed as arrays, the same
+        operations in the same order. The plan of a jog whose plan is still a request
+        is not built: a finished profile does not need it."""
+        a = self.arrays
+        r = np.array(rows, dtype=np.intp)
+        gap = t[r] - a["end"][r]
+        end_vel = a["end_vel"][r]
+        # finish_plan: end_position + max(t - end, 0.0) * end_velocity
+        x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
+        cmd = a["base"][r] + x
+        positions, velocities = x.tolist(), end_vel.tolist()
+        cycles = (a["cycles"][r]).tolist()  # already counted this sample
+        idx = self.idx[r]
+        s.cmd_pos[idx] = cmd
+        s.cmd_vel[idx] = end_vel
+        s.cmd_acc[idx] = 0.0
+        slot = self._slot
+        cruise = self._owner.cruise  # type: ignore[attr-defined]
+        for j, k in enumerate(rows):
+            p, ax = self.members[k], self.axes[k]
+            assert isinstance(p, JogProcess)
+            slot.pop(id(p), None)
+            prof = p.profile
+            assert isinstance(prof, SCurveProfile)
+            x_k, v_k = positions[j], velocities[j]
+            prof.cycles = int(cycles[j])
+            prof.finished = True
+            prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
+            p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
+            p.at_speed = True
+            # leaves this lane and is offered at once (Motion.offer): to the cruise lane
+            p.lane = None
+            p.offer_pending = False
+            cruise.admit(p, ax)
+        self.changed = True
+        self._owner.dirty = True
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
