@@ -37,6 +37,7 @@ from motion_server.kernel.scurve import (
     plan_jerk_velocity,
 )
 from motion_server.kernel.scurve_plan import jerk_plans
+from motion_server.scan import statecodec
 
 FIELDS = ("start", "pos", "vel", "acc", "half", "jerk", "jhalf", "jsixth")
 
@@ -292,3 +293,33 @@ def test_jogs_commanded_together_are_built_together_and_run_in_the_lane() -> Non
         assert isinstance(p, JogProcess) and p.at_speed and p.profile.finished
         assert isinstance(p.lane, CruiseLane)
         assert p.profile.request is not None
+
+
+@pytest.mark.parametrize("saved_before_ends", [False, True])
+def test_a_snapshot_in_the_middle_of_the_ramps_runs_on_bit_for_bit(
+    saved_before_ends: bool,
+) -> None:
+    """A copy of the controller through the snapshot codec, taken with the jogs' plans
+    still requests and in the lane, runs on as the original does; so does one whose lane
+    was saved before the lane kept the plans' ends (taken from the members' plans)."""
+    fast, ref = pair()
+    for ctl in (fast, ref):
+        for ax in ctl.axes:
+            v = 20.0 * ax.number - 90.0
+            limits = Limits(abs(v), 1000.0, 2000.0, 20_000.0)
+            ctl.start(ax, lambda v0, a0, v=v, limits=limits: JogProcess(DT, v, limits, v0, a0))
+    for _ in range(5):
+        fast.step()
+        ref.step()
+    lane = fast.motion.lanes[1].scurves
+    assert len(lane.members) == N_AXES
+    saved = {f: lane.arrays.pop(f) for f in ("end", "end_pos", "end_vel")}
+    if not saved_before_ends:
+        lane.arrays.update(saved)
+    copy = statecodec.loads(statecodec.dumps(fast))
+    lane.arrays.update(saved)
+    for c in range(80):
+        for ctl in (fast, ref, copy):
+            ctl.step()
+        assert_same(fast, ref, f"cycle {c}")
+        assert_same(copy, ref, f"copy, cycle {c}")

@@ -22,6 +22,7 @@ from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..scurve import SEGMENTS, SCurveProfile
 from ..scurve_plan import TARGET, jerk_plans
 from ..state import AxisArrays
+from .base import Compose
 from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
@@ -38,15 +39,24 @@ class SCurveLane(PlanLane):
     )  # fmt: skip
     WIDTHS: ClassVar[dict[str, int]] = dict.fromkeys(PLAN_FIELDS, SEGMENTS)
 
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        super().__setstate__(state)
-        arrays = self.arrays
-        if "end" not in arrays:
-            # saved before the lane ended jogs itself: the ends from the members' plans
-            plans = [p.profile.plan for p in self.members]  # type: ignore[attr-defined]
-            arrays["end"] = np.array([q.end for q in plans], dtype=float)
-            arrays["end_pos"] = np.array([q.end_position for q in plans], dtype=float)
-            arrays["end_vel"] = np.array([q.end_velocity for q in plans], dtype=float)
+    def _restore_ends(self) -> None:
+        """A lane saved before it kept the plans' ends: take them from its members'
+        plans (at its first rebuild or step: while a snapshot is being loaded the
+        members may not be restored yet)."""
+        if "end" in self.arrays:
+            return
+        plans = [p.profile.plan for p in self.members]  # type: ignore[attr-defined]
+        self.arrays["end"] = np.array([q.end for q in plans], dtype=float)
+        self.arrays["end_pos"] = np.array([q.end_position for q in plans], dtype=float)
+        self.arrays["end_vel"] = np.array([q.end_velocity for q in plans], dtype=float)
+
+    def rebuild(self) -> None:
+        self._restore_ends()
+        super().rebuild()
+
+    def step(self, s: AxisArrays, compose: Compose) -> None:
+        self._restore_ends()
+        super().step(s, compose)
 
     @staticmethod
     def accepts(p: Process) -> bool:
