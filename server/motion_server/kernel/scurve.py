@@ -203,19 +203,23 @@ def jerk_segments(
     """The segments of :func:`plan_jerk_velocity` (its brake and phases, not yet
     integrated); None when the closed form does not cover the case.
     MotionError(PROFILE_FAILED) when the brake cannot be held."""
-    if a0 > a_max:
-        tb, jb = (a0 - a_max) / jerk, -jerk
-    elif a0 < a_min:
-        tb, jb = (a_min - a0) / jerk, jerk
-    else:
-        tb, jb = 0.0, 0.0
-    ab = a0 + tb * jb
-    vb = v0 + tb * (a0 + tb * jb / 2)
-    if tb > 0.0:
-        ab = a_max if jb < 0.0 else a_min  # exactly on the limit the brake aimed at
-    if not (math.isfinite(tb) and math.isfinite(vb)):
+    if a0 > a_max or a0 < a_min:
+        if a0 > a_max:
+            tb, jb = (a0 - a_max) / jerk, -jerk
+        else:
+            tb, jb = (a_min - a0) / jerk, jerk
+        ab = a0 + tb * jb
+        vb = v0 + tb * (a0 + tb * jb / 2)
+        if tb > 0.0:
+            ab = a_max if jb < 0.0 else a_min  # exactly on the limit the brake aimed at
         if not math.isfinite(tb):
             raise _too_long(tb)
+    else:
+        # no brake: the same expressions for tb = jb = 0.0 (a0 + 0.0 * 0.0, ...)
+        tb = jb = 0.0
+        ab = a0 + 0.0
+        vb = v0 + 0.0 * (a0 + 0.0)
+    if not math.isfinite(vb):
         raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
     phases = _phases(ab, vb, target, a_max, a_min, jerk)
     if phases is None:
@@ -255,15 +259,14 @@ def judge_request(request: JerkRequest) -> bool:
     error :func:`_build` would raise for a plan too long; False when only building it
     tells (inputs too large to bound: build it now)."""
     p0, v0, a0, target, tb, jb, t0, j, t1, t2 = request
-    # the plan's duration as _build sums it
-    t = 0.0 + tb
-    t = t + t0
-    t = t + t1
-    t = t + t2
+    t = 0.0 + tb + t0 + t1 + t2  # the plan's duration as _build sums it
     if not math.isfinite(t) or t > MAX_DURATION:
         raise _too_long(t)
-    b = max(abs(p0), abs(v0), abs(a0), abs(target), abs(j), abs(jb))
-    return b < _SAFE  # (False for a NaN as well)
+    s = _SAFE  # (each False for a NaN as well)
+    return (
+        -s < p0 < s and -s < v0 < s and -s < a0 < s and -s < target < s and -s < j < s
+        and -s < jb < s
+    )  # fmt: skip
 
 
 def build_request(dt: float, request: JerkRequest) -> JerkPlan:

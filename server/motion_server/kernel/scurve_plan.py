@@ -55,40 +55,38 @@ def jerk_plans(dt: np.ndarray, requests: np.ndarray) -> JerkPlans:
     shape (n, 10), one judged :data:`.scurve.JerkRequest` a row. Every plan here is
     finite and within the longest duration (judged when it was commanded)."""
     n = len(dt)
-    r = requests
-    j = r[:, J]
+    r = requests.T
+    j = r[J]
     # the segments (duration, jerk): the brake, jerk toward the peak, the hold, jerk back
-    durations = (r[:, TB], r[:, T0], r[:, T1], r[:, T2])
-    jerks = (r[:, JB], j, np.zeros(n), -j)
-    start = np.empty((n, SEGMENTS))
-    pos = np.empty((n, SEGMENTS))
-    vel = np.empty((n, SEGMENTS))
-    acc = np.empty((n, SEGMENTS))
-    half = np.empty((n, SEGMENTS))
-    jerk = np.empty((n, SEGMENTS))
-    jhalf = np.empty((n, SEGMENTS))
-    jsixth = np.empty((n, SEGMENTS))
+    durations = (r[TB], r[T0], r[T1], r[T2])
+    jerk = np.empty((SEGMENTS, n))
+    jerk[0] = r[JB]
+    jerk[1] = j
+    jerk[2] = 0.0
+    np.negative(j, out=jerk[3])
+    # one row per segment while integrating (each row contiguous), transposed at the end
+    start = np.empty((SEGMENTS, n))
+    pos = np.empty((SEGMENTS, n))
+    vel = np.empty((SEGMENTS, n))
+    acc = np.empty((SEGMENTS, n))
     t = np.zeros(n)
-    p = r[:, P0]
-    v = r[:, V0]
-    a = r[:, A0]
+    p = r[P0]
+    v = r[V0]
+    a = r[A0]
     for s in range(SEGMENTS):
         d = durations[s]
-        js = jerks[s]
-        h = a / 2
-        j6 = js / 6
-        start[:, s] = t
-        pos[:, s] = p
-        vel[:, s] = v
-        acc[:, s] = a
-        half[:, s] = h
-        jerk[:, s] = js
-        jhalf[:, s] = js / 2
-        jsixth[:, s] = j6
-        # p + d * (v + d * (a / 2 + d * j / 6)), with d * j / 6 = (d * j) / 6
-        p = p + d * (v + d * (h + d * js / 6))
-        v = v + d * (a + d * js / 2)
-        a = a + d * js
+        start[s] = t
+        pos[s] = p
+        vel[s] = v
+        acc[s] = a
+        # p + d * (v + d * (a / 2 + d * j / 6)), v + d * (a + d * j / 2), a + d * j:
+        # d * j / 6 is (d * j) / 6, so d * j is computed once
+        dj = d * jerk[s]
+        p = p + d * (v + d * (a / 2 + dj / 6))
+        v = v + d * (a + dj / 2)
+        a = a + dj
         t = t + d
     done = t - END_TOLERANCE * dt
-    return JerkPlans(start, pos, vel, acc, half, jerk, jhalf, jsixth, done, t, p)
+    return JerkPlans(
+        start.T, pos.T, vel.T, acc.T, acc.T / 2, jerk.T, jerk.T / 2, jerk.T / 6, done, t, p
+    )
