@@ -25,6 +25,7 @@ from motion_server.kernel import (
     Limits,
     MotionError,
     ProcessKind,
+    scurve,
 )
 from motion_server.kernel.lanes.ramps import CruiseLane
 from motion_server.kernel.lanes.scurve import SCurveLane
@@ -323,3 +324,22 @@ def test_a_snapshot_in_the_middle_of_the_ramps_runs_on_bit_for_bit(
             ctl.step()
         assert_same(fast, ref, f"cycle {c}")
         assert_same(copy, ref, f"copy, cycle {c}")
+
+
+@settings(max_examples=300, deadline=None)
+@given(cases, cases, st.lists(st.booleans(), min_size=4, max_size=4))
+def test_the_phases_kept_for_the_same_inputs_are_the_phases_computed_for_them(
+    first: Case, second: Case, flips: list[bool]
+) -> None:
+    """The last phases are kept for inputs of the very same bits: after any other
+    target, and after the same numbers with zeros of the other sign, the answer is the
+    one computed afresh."""
+    for case in (first, second):
+        _, _, v0, a0, target, acc, dec, jerk = case
+        args = (a0, v0, target, acc, -dec, jerk)
+        # the same numbers, zeros of the other sign where drawn (-0.0 == 0.0)
+        signs = [*flips, False, False]  # (the limits are never zero)
+        other = tuple(-x if x == 0.0 and f else x for x, f in zip(args, signs, strict=True))
+        for inputs in (args, other, args):
+            got = scurve._phases(*inputs)
+            assert bits(got or ()) == bits(scurve._solve_phases(*inputs) or ()), inputs

@@ -40,6 +40,7 @@ counted in :data:`FALLBACKS`; position targets are ruckig's (:class:`~.profiles.
 from __future__ import annotations
 
 import math
+import struct
 import sys
 from dataclasses import dataclass
 
@@ -134,9 +135,35 @@ def _accepted(
     )
 
 
+Phases = tuple[float, float, float, float]
+
+#: the inputs of :func:`_phases` as bytes: equal bytes are the same floats, bit for bit
+#: (signed zeros and NaNs included), so they give the same phases
+_KEY = struct.Struct("6d").pack
+#: the last phases computed and the bytes of their inputs
+_last: tuple[bytes, Phases | None] = (b"", None)
+
+
 def _phases(
     a0: float, v0: float, vf: float, a_max: float, a_min: float, jerk: float
-) -> tuple[float, float, float, float] | None:
+) -> Phases | None:
+    """(t0, t1, t2, jerk of phase 0) from (v0, a0), a0 within the limits, to vf at rest
+    acceleration (:func:`_solve_phases`). The targets commanded in one scan are often the
+    same (many axes ramped alike from rest): the last answer is kept and given again
+    for the very same inputs."""
+    global _last  # (one pair, replaced at once)
+    key = _KEY(a0, v0, vf, a_max, a_min, jerk)
+    last = _last
+    if key == last[0]:
+        return last[1]
+    phases = _solve_phases(a0, v0, vf, a_max, a_min, jerk)
+    _last = (key, phases)
+    return phases
+
+
+def _solve_phases(
+    a0: float, v0: float, vf: float, a_max: float, a_min: float, jerk: float
+) -> Phases | None:
     """(t0, t1, t2, jerk of phase 0) from (v0, a0), a0 within the limits, to vf at rest
     acceleration: the first profile ruckig's ``VelocityThirdOrderStep1`` accepts, tried in
     its order; None when none is accepted."""
