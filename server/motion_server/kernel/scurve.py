@@ -449,10 +449,12 @@ class SCurveProfile:
             self._use_ruckig(prof, None, target)
             return
         request = (self.position, self.velocity, self.acceleration, target, *segs)
-        plan = None if judge_request(request) else build_request(self._dt, request)
-        self.plan = plan
-        if plan is None:
+        if judge_request(request):
+            self._plan = None
             self.request = request
+        else:
+            self._plan = build_request(self._dt, request)  # (may raise: nothing changed)
+            self.request = None
         self.ruckig = None
         self.cycles = 0
         self.finished = False
