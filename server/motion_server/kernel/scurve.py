@@ -35,6 +35,12 @@ integrating it, as ruckig's profile does once finished. A plan longer than
 own acceptance tests (the acceleration limits with a few ulps more room than ruckig's
 absolute 1e-12, which is less than an ulp of 1e5) is planned by ruckig instead and
 counted in :data:`FALLBACKS`; position targets are ruckig's (:class:`~.profiles.Profile`).
+
+The command does only what decides its outcome: the segments (:func:`jerk_segments`,
+which tells whether the closed form covers the target) and the refusal of a plan too
+long (:func:`judge_request`); the plan itself is built when first needed
+(``SCurveProfile.plan``), or for every ramp of a scan at once by the S-curve lane
+(:mod:`.scurve_plan`), with the same operations.
 """
 
 from __future__ import annotations
