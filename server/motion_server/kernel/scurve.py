@@ -35,11 +35,18 @@ integrating it, as ruckig's profile does once finished. A plan longer than
 own acceptance tests (the acceleration limits with a few ulps more room than ruckig's
 absolute 1e-12, which is less than an ulp of 1e5) is planned by ruckig instead and
 counted in :data:`FALLBACKS`; position targets are ruckig's (:class:`~.profiles.Profile`).
+
+The command does only what decides its outcome: the segments (:func:`jerk_segments`,
+which tells whether the closed form covers the target) and the refusal of a plan too
+long (:func:`judge_request`); the plan itself is built when first needed
+(``SCurveProfile.plan``), or for every ramp of a scan at once by the S-curve lane
+(:mod:`.scurve_plan`), with the same operations.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 import sys
 from dataclasses import dataclass
 
@@ -109,15 +116,19 @@ class JerkPlan:
 
 
 def _accepted(
-    ts: tuple[float, float, float], a0: float, v0: float, vf: float, jf: float, lo: float, hi: float
+    t0: float,
+    t1: float,
+    t2: float,
+    a0: float,
+    v0: float,
+    vf: float,
+    jf: float,
+    lo: float,
+    hi: float,
 ) -> bool:
-    """ruckig's ``check_for_velocity`` (UDDU) of the phases ``ts`` with jerk ``jf``."""
-    t0, t1, t2 = ts
-    if not (t0 >= 0.0 and t1 >= 0.0 and t2 >= 0.0):
-        return False
-    # ruckig's 1e-12 is a few ulps of an acceleration of 1e4: a peak computed to land on
-    # the limit may round beyond it by more; allow those few ulps too
-    a_eps = _A_EPS + 8.0 * math.ulp(max(hi, -lo))
+    """ruckig's ``check_for_velocity`` (UDDU) of the phases (``t0``, ``t1``, ``t2``), each
+    >= 0, with jerk ``jf``; the acceleration within [``lo``, ``hi``] (the limits with
+    their tolerance, :func:`_phases`)."""
     j0 = jf if t0 > 0.0 else 0.0
     j2 = -jf if t2 > 0.0 else 0.0
     a1 = a0 + t0 * j0
@@ -126,16 +137,39 @@ def _accepted(
     a3 = a1 + t2 * j2
     v3 = v2 + t2 * (a1 + t2 * j2 / 2)
     return (
-        abs(v3 - vf) < _V_PRECISION
-        and abs(a3) < _A_PRECISION
-        and lo - a_eps <= a1 <= hi + a_eps
-        and lo - a_eps <= a3 <= hi + a_eps
+        abs(v3 - vf) < _V_PRECISION and abs(a3) < _A_PRECISION and lo <= a1 <= hi and lo <= a3 <= hi
     )
+
+
+Phases = tuple[float, float, float, float]
+
+#: the inputs of :func:`_phases` as bytes: equal bytes are the same floats, bit for bit
+#: (signed zeros and NaNs included), so they give the same phases
+_KEY = struct.Struct("6d").pack
+#: the last phases computed and the bytes of their inputs
+_last: tuple[bytes, Phases | None] = (b"", None)
 
 
 def _phases(
     a0: float, v0: float, vf: float, a_max: float, a_min: float, jerk: float
-) -> tuple[float, float, float, float] | None:
+) -> Phases | None:
+    """(t0, t1, t2, jerk of phase 0) from (v0, a0), a0 within the limits, to vf at rest
+    acceleration (:func:`_solve_phases`). The targets commanded in one scan are often the
+    same (many axes ramped alike from rest): the last answer is kept and given again
+    for the very same inputs."""
+    global _last  # (one pair, replaced at once)
+    key = _KEY(a0, v0, vf, a_max, a_min, jerk)
+    last = _last
+    if key == last[0]:
+        return last[1]
+    phases = _solve_phases(a0, v0, vf, a_max, a_min, jerk)
+    _last = (key, phases)
+    return phases
+
+
+def _solve_phases(
+    a0: float, v0: float, vf: float, a_max: float, a_min: float, jerk: float
+) -> Phases | None:
     """(t0, t1, t2, jerk of phase 0) from (v0, a0), a0 within the limits, to vf at rest
     acceleration: the first profile ruckig's ``VelocityThirdOrderStep1`` accepts, tried in
     its order; None when none is accepted."""
@@ -144,19 +178,36 @@ def _phases(
         order = ((a_max, jerk), (a_min, -jerk))
     else:
         order = ((a_min, -jerk), (a_max, jerk))
+    # ruckig's 1e-12 is a few ulps of an acceleration of 1e4: a peak computed to land on
+    # the limit may round beyond it by more; allow those few ulps too
+    a_eps = _A_EPS + 8.0 * math.ulp(max(a_max, -a_min))
+    lo = a_min - a_eps
+    hi = a_max + a_eps
     for peak, j in order:
-        # no acceleration hold: the peak is where the two jerk phases meet
+        # no acceleration hold: the peak is where the two jerk phases meet (phases of
+        # negative (or NaN) duration are never accepted: not checked further)
         h1 = a0 * a0 / 2 + j * vd
         if h1 >= 0.0:
             h = math.sqrt(h1)
-            for ts in ((-(a0 + h) / j, 0.0, -h / j), ((-a0 + h) / j, 0.0, h / j)):
-                if _accepted(ts, a0, v0, vf, j, a_min, a_max):
-                    return (*ts, j)
+            t0 = -(a0 + h) / j
+            t2 = -h / j
+            if t0 >= 0.0 and t2 >= 0.0 and _accepted(t0, 0.0, t2, a0, v0, vf, j, lo, hi):
+                return t0, 0.0, t2, j
+            t0 = (-a0 + h) / j
+            t2 = h / j
+            if t0 >= 0.0 and t2 >= 0.0 and _accepted(t0, 0.0, t2, a0, v0, vf, j, lo, hi):
+                return t0, 0.0, t2, j
         # the acceleration limit held between the two jerk phases
         t1 = a0 * a0 / (2 * peak * j) - peak / j + vd / peak
-        ts = ((peak - a0) / j, t1, peak / j)
-        if t1 >= _T_EPS and _accepted(ts, a0, v0, vf, j, a_min, a_max):
-            return (*ts, j)
+        t0 = (peak - a0) / j
+        t2 = peak / j
+        if (
+            t1 >= _T_EPS
+            and t0 >= 0.0
+            and t2 >= 0.0
+            and _accepted(t0, t1, t2, a0, v0, vf, j, lo, hi)
+        ):
+            return t0, t1, t2, j
     return None
 
 
@@ -165,6 +216,54 @@ def _too_long(duration: float) -> MotionError:
         ErrorCode.PROFILE_FAILED,
         f"the profile would last {duration:g} s (more than {MAX_DURATION:g} s) for these limits",
     )
+
+
+#: (brake, jerk of the brake, phase 0, its jerk, the hold, phase 2): the segments of a
+#: plan as :func:`jerk_segments` gives them (phase 2's jerk is minus phase 0's)
+JerkSegments = tuple[float, float, float, float, float, float]
+
+#: what :func:`build_request` needs besides dt: (p0, v0, a0, target, *JerkSegments)
+JerkRequest = tuple[float, float, float, float, float, float, float, float, float, float]
+
+#: inputs below this (in magnitude) cannot overflow a plan of at most MAX_DURATION
+#: seconds: every term of the integration is below it times (1 + t + t^2 + t^3), t <= 7.6e3
+_SAFE = 1e200
+
+
+def jerk_segments(
+    v0: float, a0: float, target: float, a_max: float, a_min: float, jerk: float
+) -> JerkSegments | None:
+    """The segments of :func:`plan_jerk_velocity` (its brake and phases, not yet
+    integrated); None when the closed form does not cover the case.
+    MotionError(PROFILE_FAILED) when the brake cannot be held."""
+    if a0 > a_max or a0 < a_min:
+        if a0 > a_max:
+            tb, jb = (a0 - a_max) / jerk, -jerk
+        else:
+            tb, jb = (a_min - a0) / jerk, jerk
+        ab = a0 + tb * jb
+        vb = v0 + tb * (a0 + tb * jb / 2)
+        if tb > 0.0:
+            ab = a_max if jb < 0.0 else a_min  # exactly on the limit the brake aimed at
+        if not math.isfinite(tb):
+            raise _too_long(tb)
+    else:
+        # no brake: the same expressions for tb = jb = 0.0 (a0 + 0.0 * 0.0, ...)
+        tb = jb = 0.0
+        ab = a0 + 0.0
+        vb = v0 + 0.0 * (a0 + 0.0)
+    if not math.isfinite(vb):
+        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
+    phases = _phases(ab, vb, target, a_max, a_min, jerk)
+    if phases is None:
+        return None
+    t0, t1, t2, j = phases
+    return tb, jb, t0, j, t1, t2
+
+
+def _segment_list(segs: JerkSegments) -> list[tuple[float, float]]:
+    tb, jb, t0, j, t1, t2 = segs
+    return [(tb, jb), (t0, j), (t1, 0.0), (t2, -j)]
 
 
 def plan_jerk_velocity(
@@ -181,28 +280,34 @@ def plan_jerk_velocity(
     the acceleration within [``a_min``, ``a_max``] (``a_min`` < 0 < ``a_max``), the jerk
     within ``jerk`` (> 0, finite). None when the closed form does not cover the case
     (ruckig plans it then); MotionError(PROFILE_FAILED) when no plan can hold it."""
-    segments: list[tuple[float, float]] = []
-    if a0 > a_max:
-        segments.append(((a0 - a_max) / jerk, -jerk))
-    elif a0 < a_min:
-        segments.append(((a_min - a0) / jerk, jerk))
-    else:
-        segments.append((0.0, 0.0))
-    tb, jb = segments[0]
-    ab = a0 + tb * jb
-    vb = v0 + tb * (a0 + tb * jb / 2)
-    if tb > 0.0:
-        ab = a_max if jb < 0.0 else a_min  # exactly on the limit the brake aimed at
-    if not (math.isfinite(tb) and math.isfinite(vb)):
-        if not math.isfinite(tb):
-            raise _too_long(tb)
-        raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
-    phases = _phases(ab, vb, target, a_max, a_min, jerk)
-    if phases is None:
+    segs = jerk_segments(v0, a0, target, a_max, a_min, jerk)
+    if segs is None:
         return None
-    t0, t1, t2, j = phases
-    segments += [(t0, j), (t1, 0.0), (t2, -j)]
-    return _build(dt, p0, v0, a0, segments, target)
+    return _build(dt, p0, v0, a0, _segment_list(segs), target)
+
+
+def judge_request(request: JerkRequest) -> bool:
+    """Whether the plan of ``request`` (segments from :func:`jerk_segments`) can be built
+    later without an error (True: it will be finite and within MAX_DURATION). Raises the
+    error :func:`_build` would raise for a plan too long; False when only building it
+    tells (inputs too large to bound: build it now)."""
+    p0, v0, a0, target, tb, jb, t0, j, t1, t2 = request
+    t = 0.0 + tb + t0 + t1 + t2  # the plan's duration as _build sums it
+    if not math.isfinite(t) or t > MAX_DURATION:
+        raise _too_long(t)
+    s = _SAFE  # (each False for a NaN as well)
+    return (
+        -s < p0 < s and -s < v0 < s and -s < a0 < s and -s < target < s and -s < j < s
+        and -s < jb < s
+    )  # fmt: skip
+
+
+def build_request(dt: float, request: JerkRequest) -> JerkPlan:
+    """The plan of a judged ``request`` (:func:`judge_request`), as
+    :func:`plan_jerk_velocity` builds it."""
+    p0, v0, a0, target, *segs = request
+    tb, jb, t0, j, t1, t2 = segs
+    return _build(dt, p0, v0, a0, [(tb, jb), (t0, j), (t1, 0.0), (t2, -j)], target)
 
 
 def _build(
@@ -263,7 +368,19 @@ class SCurveProfile:
 
     ``position`` is the displacement from the profile's origin; ``cycles`` counts the
     samples since the current closed-form plan.
+
+    A velocity target is judged when it is commanded: its segments are found
+    (:func:`jerk_segments`: whether the closed form covers it, else ruckig plans it at
+    once) and a plan that could not be held is refused (:func:`judge_request`). The plan
+    itself is built when it is first needed: ``plan`` builds it then from the ``request``
+    kept, unless the S-curve lane has built every plan admitted in a scan in one pass
+    before the step (:mod:`.scurve_plan`); both give the very same numbers.
     """
+
+    #: the closed-form plan, once built (``plan`` builds it from ``request``)
+    _plan: JerkPlan | None = None
+    #: a velocity target judged but not built yet
+    request: JerkRequest | None = None
 
     def __init__(
         self, dt: float, velocity: float = 0.0, acceleration: float = 0.0, position: float = 0.0
@@ -274,11 +391,38 @@ class SCurveProfile:
         self.acceleration = float(acceleration)
         self.finished = False
         self.cycles = 0
-        self.plan: JerkPlan | None = None
+        self._plan = None
+        self.request = None
         #: the ruckig profile that plans a position target (or a fallback), else None
         self.ruckig: Profile | None = None
         self._target_position: float | None = None
         self._target_velocity = 0.0
+
+    @property
+    def plan(self) -> JerkPlan | None:
+        """The current closed-form plan (built now if only requested); None when there
+        is none (ruckig plans, or nothing was planned)."""
+        request = self.request
+        if request is not None:
+            self._plan = build_request(self._dt, request)
+            self.request = None
+        return self._plan
+
+    @plan.setter
+    def plan(self, plan: JerkPlan | None) -> None:
+        self._plan = plan
+        self.request = None
+
+    @property
+    def planned(self) -> bool:
+        """A closed-form plan is running (built, or requested and not built yet)."""
+        return self.request is not None or self._plan is not None
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        # saved before plans were built on demand: the plan was an attribute
+        if "plan" in state:
+            state["_plan"] = state.pop("plan")
+        self.__dict__.update(state)
 
     # -- targets --------------------------------------------------------------------------
     def to_position(self, displacement: float, limits: Limits) -> None:
@@ -295,27 +439,28 @@ class SCurveProfile:
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
         limits = limits.validated()
         target = float(velocity)
-        plan = None
+        segs = None
         if not limits.trapezoidal:
-            direction = target if target != 0.0 else self.velocity
-            a_max, a_min = limit_pair(direction, limits.acceleration, limits.deceleration)
-            plan = plan_jerk_velocity(
-                self._dt,
-                self.position,
-                self.velocity,
-                self.acceleration,
-                target,
-                a_max,
-                a_min,
-                limits.jerk,
-            )
-        if plan is None:
+            v0 = self.velocity
+            direction = target if target != 0.0 else v0
+            if direction >= 0.0:  # limit_pair
+                a_max, a_min = limits.acceleration, -limits.deceleration
+            else:
+                a_max, a_min = limits.deceleration, -limits.acceleration
+            segs = jerk_segments(v0, self.acceleration, target, a_max, a_min, limits.jerk)
+        if segs is None:
             prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
             prof.to_velocity(target, limits)
             FALLBACKS.count += 1
             self._use_ruckig(prof, None, target)
             return
-        self.plan = plan
+        request = (self.position, self.velocity, self.acceleration, target, *segs)
+        if judge_request(request):
+            self._plan = None
+            self.request = request
+        else:
+            self._plan = build_request(self._dt, request)  # (may raise: nothing changed)
+            self.request = None
         self.ruckig = None
         self.cycles = 0
         self.finished = False
@@ -344,8 +489,9 @@ class SCurveProfile:
                 self.finished = True
                 self.ruckig = None
             return
-        plan = self.plan
-        if self.finished or plan is None:
+        # (finished first: a finished plan is not needed, so not built)
+        plan = None if self.finished else self.plan
+        if plan is None:
             # holding the target velocity: integrate it (no plan needed)
             self.acceleration = 0.0
             self.position += self.velocity * self._dt

@@ -1,7 +1,11 @@
 """Jerk-limited ramps to a velocity on their way: jogs and speed changes (MAJ,
 MC_MoveVelocity, MCD, overrides), paused moves and jerk-limited stops (MAS with DecelJerk,
 MC_Stop / MC_Halt with Jerk), all planned in closed form (:class:`~..scurve.SCurveProfile`,
-``JerkPlan.sample``); the sample that ends the plan is the process's own (moved out).
+``JerkPlan.sample``). The plans of the ramps commanded since the last step are built
+together when they join (:mod:`..scurve_plan`). A jog that reaches its velocity, alone
+on its axis, is ended by the lane and handed to the cruise lane (as the profile lane
+does for trapezoidal jogs); the sample that ends any other plan is the process's own
+(moved out).
 
 Like the other time-driven lanes it reads no other axis, so it steps first. Position
 targets (ruckig's) and fallbacks stay in Python.
@@ -9,6 +13,7 @@ targets (ruckig's) and fallbacks stay in Python.
 
 from __future__ import annotations
 
+import struct
 from typing import Any, ClassVar
 
 import numpy as np
@@ -16,6 +21,9 @@ import numpy as np
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..scurve import SEGMENTS, SCurveProfile
+from ..scurve_plan import TARGET, jerk_plans
+from ..state import AxisArrays
+from .base import Compose
 from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
@@ -26,8 +34,30 @@ class SCurveLane(PlanLane):
     """Jerk-limited velocity ramps within their plan, stepped as arrays with the
     operations of ``SCurveProfile.step``, in the same order."""
 
-    FIELDS = ("base", "cycles", "dt", "done", *PLAN_FIELDS, "pos", "vel", "acc")
+    FIELDS = (
+        "base", "cycles", "dt", "done", *PLAN_FIELDS, "pos", "vel", "acc", "end", "end_pos",
+        "end_vel",
+    )  # fmt: skip
     WIDTHS: ClassVar[dict[str, int]] = dict.fromkeys(PLAN_FIELDS, SEGMENTS)
+
+    def _restore_ends(self) -> None:
+        """A lane saved before it kept the plans' ends: take them from its members'
+        plans (at its first rebuild or step: while a snapshot is being loaded the
+        members may not be restored yet)."""
+        if "end" in self.arrays:
+            return
+        plans = [p.profile.plan for p in self.members]  # type: ignore[attr-defined]
+        self.arrays["end"] = np.array([q.end for q in plans], dtype=float)
+        self.arrays["end_pos"] = np.array([q.end_position for q in plans], dtype=float)
+        self.arrays["end_vel"] = np.array([q.end_velocity for q in plans], dtype=float)
+
+    def rebuild(self) -> None:
+        self._restore_ends()
+        super().rebuild()
+
+    def step(self, s: AxisArrays, compose: Compose) -> None:
+        self._restore_ends()
+        super().step(s, compose)
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -37,7 +67,7 @@ class SCurveLane(PlanLane):
         prof = p.profile  # type: ignore[attr-defined]
         return (
             isinstance(prof, SCurveProfile)
-            and prof.plan is not None
+            and prof.planned
             and prof.ruckig is None
             and not prof.finished
         )
@@ -63,7 +93,117 @@ class SCurveLane(PlanLane):
             p.position,
             p.velocity,
             p.acceleration,
+            plan.end,
+            plan.end_position,
+            plan.end_velocity,
         )
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The joining members' ``FIELDS`` as arrays: the plans not built yet (ramps
+        commanded since the last step) built in one pass (:func:`..scurve_plan.jerk_plans`),
+        the others loaded one by one."""
+        requested: list[int] = []
+        requests: list[float] = []
+        add = requests.extend
+        rows: list[tuple[Any, ...]] = []
+        for k, (p, ax) in enumerate(joining):
+            prof = p.profile  # type: ignore[attr-defined]
+            request = prof.request
+            if request is None:
+                rows.append(self._load(p, ax))
+                continue
+            requested.append(k)
+            add((ax.base, prof.cycles, prof._dt, p.position, p.velocity, p.acceleration))
+            add(request)
+        if not requested:
+            return None  # every plan built already: row by row, as before
+        m = len(requested)
+        # (the floats packed as doubles, bit for bit: five times faster than numpy's
+        # conversion of a list; read-only columns, which the rebuild concatenates)
+        cols = np.frombuffer(struct.pack(f"{16 * m}d", *requests)).reshape(m, 16)
+        dt = cols[:, 2]
+        plans = jerk_plans(dt, cols[:, 6:])
+        planned = (
+            cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
+            plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
+            cols[:, 4], cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
+        )  # fmt: skip
+        if not rows:
+            return list(planned)
+        # both kinds: place each column's rows where their members are
+        n = len(joining)
+        at = np.array(requested, dtype=np.intp)
+        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
+        columns = []
+        for j, f in enumerate(self.FIELDS):
+            width = self.WIDTHS.get(f)
+            col = np.empty((n,) if width is None else (n, width))
+            col[at] = planned[j]
+            col[others] = np.array([r[j] for r in rows], dtype=float)
+            columns.append(col)
+        return columns
+
+    def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
+        """A jog that reaches its velocity, its axis's only process with nothing
+        buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
+        the others (paused moves, stops and the rest) by their process's own step."""
+        ended, odd = [], []
+        drive_on = s.drive_on
+        for k in rows.tolist():
+            p, ax = self.members[k], self.axes[k]
+            procs = ax.processes
+            if (
+                type(p) is JogProcess
+                and len(procs) == 1
+                and procs[0] is p
+                and ax.buffered is None
+                and drive_on[ax.index]
+            ):
+                ended.append(k)
+            else:
+                odd.append(k)
+        return ended, odd
+
+    def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
+        """The jogs at ``rows`` reach their velocity at the sample ``t``: what composing
+        their axes does (``SCurveProfile.finish_plan``, ``JogProcess._after_step``,
+        ``Motion.compose`` of a single process, then ``Motion.offer``: at speed, it joins
+        the cruise lane), with the finishing sample computed as arrays, the same
+        operations in the same order. The plan of a jog whose plan is still a request
+        is not built: a finished profile does not need it."""
+        a = self.arrays
+        r = np.array(rows, dtype=np.intp)
+        gap = t[r] - a["end"][r]
+        end_vel = a["end_vel"][r]
+        # finish_plan: end_position + max(t - end, 0.0) * end_velocity
+        x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
+        cmd = a["base"][r] + x
+        positions, velocities = x.tolist(), end_vel.tolist()
+        cycles = (a["cycles"][r]).tolist()  # already counted this sample
+        idx = self.idx[r]
+        s.cmd_pos[idx] = cmd
+        s.cmd_vel[idx] = end_vel
+        s.cmd_acc[idx] = 0.0
+        slot = self._slot
+        cruise = self._owner.cruise  # type: ignore[attr-defined]
+        for j, k in enumerate(rows):
+            p, ax = self.members[k], self.axes[k]
+            assert isinstance(p, JogProcess)
+            slot.pop(id(p), None)
+            prof = p.profile
+            assert isinstance(prof, SCurveProfile)
+            x_k, v_k = positions[j], velocities[j]
+            prof.cycles = int(cycles[j])
+            prof.finished = True
+            prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
+            p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
+            p.at_speed = True
+            # leaves this lane and is offered at once (Motion.offer): to the cruise lane
+            p.lane = None
+            p.offer_pending = False
+            cruise.admit(p, ax)
+        self.changed = True
+        self._owner.dirty = True
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
