@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 
 from ..kernel import Axis, Controller, ErrorCode, MotionError, TransitionError
 from ..kernel.group import MotionGroup
+from .judging import judge_of
 from .schema import Kind, Operand, StatusField, TagType, coerce
 from .status import LOGIX_STATUS, PLCOPEN_STATUS, LogixBit
 
@@ -39,6 +40,17 @@ class Outputs(dict[str, Any]):
             if changed is not None:
                 changed.add(self.owner)
         dict.__setitem__(self, key, value)
+
+    def write(self, values: dict[str, Any]) -> None:
+        """Set several outputs at once (as many ``self[key] = value``, in one call)."""
+        changed = self.changed
+        if changed is not None:
+            get = self.get
+            for key, value in values.items():
+                if get(key, _UNSET) != value:
+                    changed.add(self.owner)
+                    break
+        dict.update(self, values)
 
     def __reduce__(self) -> tuple[Any, ...]:
         # a dict subclass unpickles its items before its slots: the items go in with the
@@ -167,23 +179,9 @@ class Instruction:
         self.op = dict(self.inputs)
 
     def validate(self) -> None:
-        """Judge the latched operands: out of range -> ERR 13 naming the operand."""
-        for i, op in enumerate(self.OPERANDS):
-            if not self.operand_used(op):
-                continue
-            value = self.op[op.name]
-            if op.kind == Kind.AXIS:
-                try:
-                    self.ctl.axis(int(value))
-                except (MotionError, TypeError, ValueError, OverflowError):
-                    raise OperandError(ErrorCode.AXIS_NOT_CONFIGURED, i, op) from None
-            elif op.kind == Kind.GROUP:
-                try:
-                    self.ctl.group(int(value))
-                except (MotionError, TypeError, ValueError, OverflowError):
-                    raise OperandError(ErrorCode.GROUP_NOT_CONFIGURED, i, op) from None
-            elif not op.check(value):
-                raise OperandError(ErrorCode.PARAMETER_OUT_OF_RANGE, i, op)
+        """Judge the latched operands: out of range -> ERR 13 naming the operand (the
+        verdict on the values comes from the type's table: see :mod:`.judging`)."""
+        judge_of(type(self)).judge(self)
 
     def operand_used(self, op: Operand) -> bool:
         """False for an operand the latched selectors make irrelevant (not judged): see
@@ -300,8 +298,17 @@ RUNG_EVENTS: dict[tuple[bool, bool], RungEvent] = {
 }
 
 
-#: (name, bit mask) of every LogixBit: the FLAGS word without an enum walk per status write
-_LOGIX_MASKS = tuple((b.name, 1 << int(b)) for b in LogixBit)
+#: the mask of each LogixBit in the FLAGS word (as plain ints: no enum walk per write)
+_EN = 1 << LogixBit.EN.value
+_DN = 1 << LogixBit.DN.value
+_ER = 1 << LogixBit.ER.value
+_PC = 1 << LogixBit.PC.value
+_IP = 1 << LogixBit.IP.value
+_AC = 1 << LogixBit.AC.value
+#: the outputs a rising rung sets before the operands are judged: EN, DN/ER/PC cleared,
+#: no error code
+_RISING_STATUS: dict[str, Any] = {"EN": True, "DN": False, "ER": False, "PC": False, "ERR": 0,
+                                  "EXERR": 0}  # fmt: skip
 
 
 class LogixInstruction(Instruction):
@@ -321,19 +328,31 @@ class LogixInstruction(Instruction):
         return bool(self.outputs[name])
 
     def set_bits(self, **bits: bool) -> None:
-        out = self.outputs
         for name, value in bits.items():
-            out[name] = bool(value)
-        flags = 0
-        for name, mask in _LOGIX_MASKS:
-            if out[name]:
-                flags |= mask
-        out["FLAGS"] = flags
+            bits[name] = bool(value)
+        self._write_status(bits)
+
+    def _write_status(self, values: dict[str, Any]) -> None:
+        """Write ``values`` (bits as bools, codes) and the FLAGS word that follows."""
+        out = self.outputs
+        out.write(values)
+        get = out.get
+        flags = (
+            (_EN if get("EN") else 0)
+            | (_DN if get("DN") else 0)
+            | (_ER if get("ER") else 0)
+            | (_PC if get("PC") else 0)
+            | (_IP if get("IP") else 0)
+            | (_AC if get("AC") else 0)
+        )
+        if get("FLAGS") != flags:
+            out["FLAGS"] = flags
 
     def fail(self, code: int, exerr: int = 0) -> None:
-        self.outputs["ERR"] = int(code)
-        self.outputs["EXERR"] = int(exerr)
-        self.set_bits(ER=True, DN=False, IP=False, PC=False, AC=False)
+        self._write_status(
+            {"ERR": int(code), "EXERR": int(exerr), "ER": True, "DN": False, "IP": False,
+             "PC": False, "AC": False}
+        )  # fmt: skip
 
     def fail_internal(self) -> None:
         self.fail(ErrorCode.INTERNAL_ERROR)
@@ -345,9 +364,7 @@ class LogixInstruction(Instruction):
         event = RUNG_EVENTS[(self._last_trigger, rung)]
         self._last_trigger = rung
         if event == RungEvent.RISING:
-            self.set_bits(EN=True, DN=False, ER=False, PC=False)
-            self.outputs["ERR"] = 0
-            self.outputs["EXERR"] = 0
+            self._write_status(_RISING_STATUS)
             self.latch()
             try:
                 self.validate()
