@@ -91,7 +91,9 @@ class Inputs(dict[str, Any]):
 
     def __setitem__(self, key: str, value: Any) -> None:
         dict.__setitem__(self, key, value)
-        self._wake()
+        woken = self.woken  # (self._wake() inlined: every client write comes through here)
+        if woken is not None:
+            woken.add(self.owner)
 
     def update(self, *args: Any, **kwargs: Any) -> None:
         dict.update(self, *args, **kwargs)

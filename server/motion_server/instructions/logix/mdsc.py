@@ -109,6 +109,11 @@ class SpeedControlledMotion(ProcessInstruction):
             and int(op["DecelUnits"]) in _TIME_UNITS
         ):
             return self._plan_trapezoidal(ax)
+        return self.plan_general(ax)
+
+    def plan_general(self, ax: Axis) -> tuple[DriveMode, float, Limits]:
+        """:meth:`plan` for any units and profile (the reference of the trapezoidal
+        path in the tests)."""
         mode = dynamics.logix_drive_mode(self)
         speed = dynamics.speed(self, ax)
         if self.merge_at_current_speed and mode == DriveMode.TIME_DRIVEN:
