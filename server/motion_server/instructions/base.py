@@ -507,14 +507,13 @@ class PLCopenBlock(Instruction):
         s = self.state
         out = self.outputs
         busy = s == BlockState.BUSY
-        out["Busy"] = busy
-        out["Done"] = s == BlockState.DONE
-        out["Error"] = s == BlockState.ERROR
+        values = {"Busy": busy, "Done": s == BlockState.DONE, "Error": s == BlockState.ERROR}
         # a block may lack these (MC_Reset has no Active or CommandAborted)
         if "Active" in out:
-            out["Active"] = busy and self.active
+            values["Active"] = busy and self.active
         if "CommandAborted" in out:
-            out["CommandAborted"] = s == BlockState.ABORTED
+            values["CommandAborted"] = s == BlockState.ABORTED
+        out.write(values)
         self.publish_extra()
 
     def publish_extra(self) -> None:

@@ -64,6 +64,9 @@ _TIME_DRIVEN = DriveMode.TIME_DRIVEN
 #: trapezoidal limits by (speed, acceleration, deceleration): a Limits is immutable, so
 #: the instances that plan the same dynamics share one (bounded as the operand verdicts)
 _LIMITS: dict[tuple[float, float, float], Limits] = {}
+#: the TrackingMaster output as a process starts (see :meth:`launch`)
+_TRACKING: dict[str, bool] = {"TrackingMaster": True}
+_NOT_TRACKING: dict[str, bool] = {"TrackingMaster": False}
 #: relative resolution of the Speed x master maximum comparison (REAL operands)
 SPEED_TOLERANCE = 1e-6
 
@@ -213,7 +216,7 @@ class SpeedControlledMotion(ProcessInstruction):
         except BaseException:
             self.outputs["TrackingMaster"] = False  # a refused start tracks nothing
             raise
-        self.started(p, {"TrackingMaster": self._tracking(p)})
+        self.started(p, _TRACKING if self._tracking(p) else _NOT_TRACKING)
 
     def poll(self) -> None:
         super().poll()
