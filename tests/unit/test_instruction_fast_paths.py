@@ -5,8 +5,9 @@ operands (valid and not: every units selector, merge, S-curve, speeds beyond the
 maximum, axes that do not exist or cannot move, fraction and real ratios). The same
 writes go to a second system whose instances judge operand by operand
 (``judge_reference``), plan every MAJ/MAM through the general path
-(``SpeedControlledMotion.plan_general``) and write their status one field at a time with
-the FLAGS word recomputed after each call, as before the fast paths. After every cycle
+(``SpeedControlledMotion.plan_general``) and write their status one field at a time (the
+rising status at once, before judging) with the FLAGS word recomputed after each call,
+as before the fast paths. After every cycle
 both must show the same outputs on every instance and command the same position and
 velocity, bit for bit, on every axis; an instance is marked changed whenever an output
 changed (the fast path may skip marking a value set and reset within one scan, never a
@@ -22,13 +23,26 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from motion_server.instructions import Instruction, MotionSystem
-from motion_server.instructions.base import LogixInstruction
+from motion_server.instructions.base import (
+    RUNG_EVENTS,
+    LogixInstruction,
+    OperandError,
+    RungEvent,
+)
 from motion_server.instructions.judging import judge_reference
 from motion_server.instructions.logix.mdsc import SpeedControlledMotion
 from motion_server.instructions.logix_common import ProcessInstruction
 from motion_server.instructions.registry import instruction_type
 from motion_server.instructions.status import LogixBit
-from motion_server.kernel import AxisConfig, AxisType, Controller, Limits, ProcessState
+from motion_server.kernel import (
+    AxisConfig,
+    AxisType,
+    Controller,
+    ErrorCode,
+    Limits,
+    MotionError,
+    ProcessState,
+)
 from motion_server.kernel.gearing import GearTerm
 from motion_server.kernel.processes import Process
 
@@ -76,6 +90,35 @@ INSTANCES = {f"{t}{k}": t for t in POOLS for k in (1, 2, 3)}
 
 class _Reference:
     """Mixed into each instance type of the reference system: the plain code."""
+
+    def scan(self) -> None:
+        inst: Any = self
+        rung = bool(inst.inputs[inst.TRIGGER])
+        if not rung and not inst._last_trigger and not inst.outputs["EN"]:
+            return
+        event = RUNG_EVENTS[(inst._last_trigger, rung)]
+        inst._last_trigger = rung
+        if event == RungEvent.RISING:
+            inst.set_bits(EN=True, DN=False, ER=False, PC=False)
+            inst.outputs["ERR"] = 0
+            inst.outputs["EXERR"] = 0
+            inst.latch()
+            try:
+                inst.validate()
+                inst.execute()
+            except OperandError as exc:
+                idx = exc.index + (1 if exc.index >= inst.MOTION_CONTROL_INDEX else 0)
+                inst.fail(exc.code, idx if exc.code == ErrorCode.PARAMETER_OUT_OF_RANGE else 0)
+            except MotionError as exc:
+                inst.fail(exc.code)
+        elif event == RungEvent.LOW and (inst.bit("DN") or inst.bit("ER")):
+            inst.set_bits(EN=False)
+
+    def fail(self, code: int, exerr: int = 0) -> None:
+        out = self.outputs  # type: ignore[attr-defined]
+        out["ERR"] = int(code)
+        out["EXERR"] = int(exerr)
+        self.set_bits(ER=True, DN=False, IP=False, PC=False, AC=False)
 
     def validate(self) -> None:
         judge_reference(self)  # type: ignore[arg-type]

@@ -309,6 +309,8 @@ _IP = 1 << LogixBit.IP.value
 _AC = 1 << LogixBit.AC.value
 #: the outputs a rising rung sets before the operands are judged: EN, DN/ER/PC cleared,
 #: no error code
+_RISING = RungEvent.RISING
+_NO_STATUS: dict[str, Any] = {}
 _RISING_STATUS: dict[str, Any] = {"EN": True, "DN": False, "ER": False, "PC": False, "ERR": 0,
                                   "EXERR": 0}  # fmt: skip
 
@@ -325,6 +327,9 @@ class LogixInstruction(Instruction):
     #: position of the Motion Control operand in the instruction's ST signature; EXERR
     #: counts it, so operands after it are numbered one higher
     MOTION_CONTROL_INDEX: ClassVar[int] = 1
+    #: the rising status is owed (set by :meth:`scan` for the execution it starts; a
+    #: class default, so that instances from older snapshots have it too)
+    _rising: bool = False
 
     def bit(self, name: str) -> bool:
         return bool(self.outputs[name])
@@ -335,8 +340,12 @@ class LogixInstruction(Instruction):
         self._write_status(bits)
 
     def _write_status(self, values: dict[str, Any]) -> None:
-        """Write ``values`` (bits as bools, codes) and the FLAGS word that follows."""
+        """Write ``values`` (bits as bools, codes) and the FLAGS word that follows; on a
+        rising rung, after the rising status (see :meth:`scan`)."""
         out = self.outputs
+        if self._rising:
+            self._rising = False
+            out.write(_RISING_STATUS)
         out.write(values)
         get = out.get
         flags = (
@@ -365,8 +374,10 @@ class LogixInstruction(Instruction):
             return  # rung false and EN already cleared: the table has nothing to do
         event = RUNG_EVENTS[(self._last_trigger, rung)]
         self._last_trigger = rung
-        if event == RungEvent.RISING:
-            self._write_status(_RISING_STATUS)
+        if event is _RISING:
+            # the rising status (EN set, DN/ER/PC and the codes cleared) is owed: it goes
+            # in with the execution's first status write, or alone at the end
+            self._rising = True
             self.latch()
             try:
                 self.validate()
@@ -376,6 +387,9 @@ class LogixInstruction(Instruction):
                 self.fail(exc.code, idx if exc.code == ErrorCode.PARAMETER_OUT_OF_RANGE else 0)
             except MotionError as exc:
                 self.fail(exc.code)
+            finally:
+                if self._rising:
+                    self._write_status(_NO_STATUS)
         elif event == RungEvent.LOW and (self.bit("DN") or self.bit("ER")):
             self.set_bits(EN=False)
 
