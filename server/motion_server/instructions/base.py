@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 
 from ..kernel import Axis, Controller, ErrorCode, MotionError, TransitionError
 from ..kernel.group import MotionGroup
+from .judging import judge_of
 from .schema import Kind, Operand, StatusField, TagType, coerce
 from .status import LOGIX_STATUS, PLCOPEN_STATUS, LogixBit
 
@@ -39,6 +40,17 @@ class Outputs(dict[str, Any]):
             if changed is not None:
                 changed.add(self.owner)
         dict.__setitem__(self, key, value)
+
+    def write(self, values: dict[str, Any]) -> None:
+        """Set several outputs at once (as many ``self[key] = value``, in one call)."""
+        changed = self.changed
+        if changed is not None:
+            get = self.get
+            for key, value in values.items():
+                if get(key, _UNSET) != value:
+                    changed.add(self.owner)
+                    break
+        dict.update(self, values)
 
     def __reduce__(self) -> tuple[Any, ...]:
         # a dict subclass unpickles its items before its slots: the items go in with the
@@ -79,7 +91,9 @@ class Inputs(dict[str, Any]):
 
     def __setitem__(self, key: str, value: Any) -> None:
         dict.__setitem__(self, key, value)
-        self._wake()
+        woken = self.woken  # (self._wake() inlined: every client write comes through here)
+        if woken is not None:
+            woken.add(self.owner)
 
     def update(self, *args: Any, **kwargs: Any) -> None:
         dict.update(self, *args, **kwargs)
@@ -167,23 +181,9 @@ class Instruction:
         self.op = dict(self.inputs)
 
     def validate(self) -> None:
-        """Judge the latched operands: out of range -> ERR 13 naming the operand."""
-        for i, op in enumerate(self.OPERANDS):
-            if not self.operand_used(op):
-                continue
-            value = self.op[op.name]
-            if op.kind == Kind.AXIS:
-                try:
-                    self.ctl.axis(int(value))
-                except (MotionError, TypeError, ValueError, OverflowError):
-                    raise OperandError(ErrorCode.AXIS_NOT_CONFIGURED, i, op) from None
-            elif op.kind == Kind.GROUP:
-                try:
-                    self.ctl.group(int(value))
-                except (MotionError, TypeError, ValueError, OverflowError):
-                    raise OperandError(ErrorCode.GROUP_NOT_CONFIGURED, i, op) from None
-            elif not op.check(value):
-                raise OperandError(ErrorCode.PARAMETER_OUT_OF_RANGE, i, op)
+        """Judge the latched operands: out of range -> ERR 13 naming the operand (the
+        verdict on the values comes from the type's table: see :mod:`.judging`)."""
+        judge_of(type(self)).judge(self)
 
     def operand_used(self, op: Operand) -> bool:
         """False for an operand the latched selectors make irrelevant (not judged): see
@@ -300,8 +300,19 @@ RUNG_EVENTS: dict[tuple[bool, bool], RungEvent] = {
 }
 
 
-#: (name, bit mask) of every LogixBit: the FLAGS word without an enum walk per status write
-_LOGIX_MASKS = tuple((b.name, 1 << int(b)) for b in LogixBit)
+#: the mask of each LogixBit in the FLAGS word (as plain ints: no enum walk per write)
+_EN = 1 << LogixBit.EN.value
+_DN = 1 << LogixBit.DN.value
+_ER = 1 << LogixBit.ER.value
+_PC = 1 << LogixBit.PC.value
+_IP = 1 << LogixBit.IP.value
+_AC = 1 << LogixBit.AC.value
+#: the outputs a rising rung sets before the operands are judged: EN, DN/ER/PC cleared,
+#: no error code
+_RISING = RungEvent.RISING
+_NO_STATUS: dict[str, Any] = {}
+_RISING_STATUS: dict[str, Any] = {"EN": True, "DN": False, "ER": False, "PC": False, "ERR": 0,
+                                  "EXERR": 0}  # fmt: skip
 
 
 class LogixInstruction(Instruction):
@@ -316,24 +327,43 @@ class LogixInstruction(Instruction):
     #: position of the Motion Control operand in the instruction's ST signature; EXERR
     #: counts it, so operands after it are numbered one higher
     MOTION_CONTROL_INDEX: ClassVar[int] = 1
+    #: the rising status is owed (set by :meth:`scan` for the execution it starts; a
+    #: class default, so that instances from older snapshots have it too)
+    _rising: bool = False
 
     def bit(self, name: str) -> bool:
         return bool(self.outputs[name])
 
     def set_bits(self, **bits: bool) -> None:
-        out = self.outputs
         for name, value in bits.items():
-            out[name] = bool(value)
-        flags = 0
-        for name, mask in _LOGIX_MASKS:
-            if out[name]:
-                flags |= mask
-        out["FLAGS"] = flags
+            bits[name] = bool(value)
+        self._write_status(bits)
+
+    def _write_status(self, values: dict[str, Any]) -> None:
+        """Write ``values`` (bits as bools, codes) and the FLAGS word that follows; on a
+        rising rung, after the rising status (see :meth:`scan`)."""
+        out = self.outputs
+        if self._rising:
+            self._rising = False
+            out.write(_RISING_STATUS)
+        out.write(values)
+        get = out.get
+        flags = (
+            (_EN if get("EN") else 0)
+            | (_DN if get("DN") else 0)
+            | (_ER if get("ER") else 0)
+            | (_PC if get("PC") else 0)
+            | (_IP if get("IP") else 0)
+            | (_AC if get("AC") else 0)
+        )
+        if get("FLAGS") != flags:
+            out["FLAGS"] = flags
 
     def fail(self, code: int, exerr: int = 0) -> None:
-        self.outputs["ERR"] = int(code)
-        self.outputs["EXERR"] = int(exerr)
-        self.set_bits(ER=True, DN=False, IP=False, PC=False, AC=False)
+        self._write_status(
+            {"ERR": int(code), "EXERR": int(exerr), "ER": True, "DN": False, "IP": False,
+             "PC": False, "AC": False}
+        )  # fmt: skip
 
     def fail_internal(self) -> None:
         self.fail(ErrorCode.INTERNAL_ERROR)
@@ -344,10 +374,10 @@ class LogixInstruction(Instruction):
             return  # rung false and EN already cleared: the table has nothing to do
         event = RUNG_EVENTS[(self._last_trigger, rung)]
         self._last_trigger = rung
-        if event == RungEvent.RISING:
-            self.set_bits(EN=True, DN=False, ER=False, PC=False)
-            self.outputs["ERR"] = 0
-            self.outputs["EXERR"] = 0
+        if event is _RISING:
+            # the rising status (EN set, DN/ER/PC and the codes cleared) is owed: it goes
+            # in with the execution's first status write, or alone at the end
+            self._rising = True
             self.latch()
             try:
                 self.validate()
@@ -357,6 +387,9 @@ class LogixInstruction(Instruction):
                 self.fail(exc.code, idx if exc.code == ErrorCode.PARAMETER_OUT_OF_RANGE else 0)
             except MotionError as exc:
                 self.fail(exc.code)
+            finally:
+                if self._rising:
+                    self._write_status(_NO_STATUS)
         elif event == RungEvent.LOW and (self.bit("DN") or self.bit("ER")):
             self.set_bits(EN=False)
 
@@ -488,14 +521,13 @@ class PLCopenBlock(Instruction):
         s = self.state
         out = self.outputs
         busy = s == BlockState.BUSY
-        out["Busy"] = busy
-        out["Done"] = s == BlockState.DONE
-        out["Error"] = s == BlockState.ERROR
+        values = {"Busy": busy, "Done": s == BlockState.DONE, "Error": s == BlockState.ERROR}
         # a block may lack these (MC_Reset has no Active or CommandAborted)
         if "Active" in out:
-            out["Active"] = busy and self.active
+            values["Active"] = busy and self.active
         if "CommandAborted" in out:
-            out["CommandAborted"] = s == BlockState.ABORTED
+            values["CommandAborted"] = s == BlockState.ABORTED
+        out.write(values)
         self.publish_extra()
 
     def publish_extra(self) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from ..kernel import Axis, ProcessState
 from ..kernel.processes import Process
@@ -40,11 +40,19 @@ class ProcessInstruction(LogixInstruction):
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
         self.process: Process | None = None
 
-    def started(self, process: Process) -> None:
+    def started(self, process: Process, extra: dict[str, Any] | None = None) -> None:
+        """Follow ``process``: DN, IP while it runs (PC if it is already done), and the
+        outputs ``extra`` in the same write."""
         self.process = process
-        self.set_bits(DN=True, IP=process.active, PC=False)
-        if not process.active and process.state == ProcessState.DONE and self.SETS_PC:
-            self.set_bits(PC=True)
+        active = bool(process.active)
+        status = {
+            "DN": True,
+            "IP": active,
+            "PC": bool(not active and process.state == _DONE and self.SETS_PC),
+        }
+        if extra:
+            status.update(extra)
+        self._write_status(status)
 
     def poll(self) -> None:
         p = self.process

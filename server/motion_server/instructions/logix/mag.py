@@ -28,7 +28,7 @@ Decisions the seed leaves open (DESIGN.md):
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import ClassVar
+from typing import ClassVar, TypeVar
 
 from ...kernel import ProcessKind
 from ...kernel.gearing import (
@@ -90,6 +90,25 @@ def resolve_direction(selection: GearDirection, current: int) -> int:
     if selection == GearDirection.REVERSE:
         return -current
     return current
+
+
+E = TypeVar("E", bound=IntEnum)
+
+#: the members of the enumerations MAG reads at execution, by value (a judged operand
+#: holds one of them: no enum constructor call per execution)
+_SOURCES: dict[int, IntEnum] = {int(m): m for m in MasterSource}
+_DIRECTIONS: dict[int, IntEnum] = {int(m): m for m in GearDirection}
+_FRACTION = int(RatioFormat.FRACTION)
+_CLUTCH_ENABLED = int(Clutch.ENABLED)
+#: the processes a new gear supersedes
+_REPLACE = (ProcessKind.GEAR,)
+
+
+def _member(enum: type[E], members: dict[int, IntEnum], value: object) -> E:
+    """``enum(int(value))``, looked up."""
+    n = int(value)  # type: ignore[call-overload]
+    member = members.get(n)
+    return enum(n) if member is None else member  # type: ignore[return-value]
 
 
 @register
@@ -161,15 +180,17 @@ class MAG(ProcessInstruction):
     )
 
     def execute(self) -> None:
-        slave = self.axis("SlaveAxis")
-        master = self.axis("MasterAxis")
-        self.ctl.require_motion(slave)
-        source = MasterSource(int(self.op["MasterReference"]))
-        check_master(self.ctl, slave, master, source)
+        op = self.op
+        ctl = self.ctl
+        slave = ctl.axis(int(op["SlaveAxis"]))
+        master = ctl.axis(int(op["MasterAxis"]))
+        ctl.require_motion(slave)
+        source = _member(MasterSource, _SOURCES, op["MasterReference"])
+        check_master(ctl, slave, master, source)
         direction = resolve_direction(
-            GearDirection(int(self.op["Direction"])), gearing_direction(slave)
+            _member(GearDirection, _DIRECTIONS, op["Direction"]), gearing_direction(slave)
         )
-        if int(self.op["RatioFormat"]) == RatioFormat.FRACTION:
+        if int(op["RatioFormat"]) == _FRACTION:
             counts = {}
             for name in ("SlaveCounts", "MasterCounts"):
                 counts[name] = int(self.op[name])
@@ -190,14 +211,13 @@ class MAG(ProcessInstruction):
             sign = -direction if ratio < 0 else direction
             term = GearTerm(master.number, source, sign * steps, RATIO_SCALE)
         ramp = None
-        if int(self.op["Clutch"]) == Clutch.ENABLED:
+        if int(op["Clutch"]) == _CLUTCH_ENABLED:
             rate = dynamics.rate(
                 self, slave, "AccelRate", "AccelUnits", slave.config.max_acceleration
             )
             ramp = RateRamp(rate)
-        ctl = self.ctl
 
         def make(v: float, a: float) -> Process:
             return GearProcess(ctl, slave, (term,), ramp, v, a, owner=self, direction=direction)
 
-        self.started(ctl.start(slave, make, replace=(ProcessKind.GEAR,)))
+        self.started(ctl.start(slave, make, replace=_REPLACE))

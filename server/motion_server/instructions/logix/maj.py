@@ -15,7 +15,7 @@ from ...kernel import Axis, JogProcess, Limits, ProcessKind
 from ...kernel.master_driven import MasterDrivenJog
 from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
-from ..dynamics import DriveMode
+from ..dynamics import DriveMode, MergeSpeed
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
 from ..schema import Operand, TagType
@@ -25,6 +25,12 @@ from .mdsc import SpeedControlledMotion
 class JogDirection(IntEnum):
     FORWARD = 0
     REVERSE = 1
+
+
+_REVERSE = int(JogDirection.REVERSE)
+_AT_CURRENT = int(MergeSpeed.CURRENT)
+#: the processes a jog without Merge supersedes
+_REPLACE = (ProcessKind.JOG,)
 
 
 @register
@@ -47,9 +53,10 @@ class MAJ(SpeedControlledMotion):
             top = ax.config.max_velocity if mode == DriveMode.TIME_DRIVEN else 1.0
             limits = Limits(top, limits.acceleration, limits.deceleration, limits.jerk)
         limits = limits.validated()
-        sign = -1.0 if int(self.op["Direction"]) == JogDirection.REVERSE else 1.0
+        sign = -1.0 if int(self.op["Direction"]) == _REVERSE else 1.0
         dt = self.ctl.dt(ax)
-        merge_current = self.merge_at_current_speed
+        merging = self.merging
+        merge_current = merging and int(self.op["MergeSpeed"]) == _AT_CURRENT
 
         def make(v: float, a: float) -> Process:
             return JogProcess(dt, sign * speed, limits, v, a, owner=self)
@@ -61,5 +68,5 @@ class MAJ(SpeedControlledMotion):
                 self.ctl, master, link.reference, sign * target, limits, ratio, owner=self
             )
 
-        replace = None if self.merging else (ProcessKind.JOG,)
+        replace = None if merging else _REPLACE
         self.launch(ax, ProcessKind.JOG, mode, speed, make, make_master, replace)

@@ -31,7 +31,16 @@ from ...kernel.mdac_links import MasterFactory
 from ...kernel.processes import Process
 from .. import dynamics
 from ..base import Gate, OperandError, gate
-from ..dynamics import DriveMode, MergeMode, MergeSpeed, ProfileType
+from ..dynamics import (
+    MASTER_UNITS,
+    AccelUnits,
+    DriveMode,
+    MergeMode,
+    MergeSpeed,
+    ProfileType,
+    SpeedUnits,
+)
+from ..judging import TABLE_SIZE
 from ..logix_common import ProcessInstruction
 from ..operands import TRACKING_MASTER
 from ..schema import StatusField
@@ -43,6 +52,21 @@ OPERAND_OF: dict[Dynamic, str] = {
     Dynamic.DECELERATION: "DecelRate",
     Dynamic.DISTANCE: "Position",
 }
+#: the units selectors of a time-driven rate (per second, % of maximum)
+_TIME_UNITS = frozenset(int(u) for u in (*SpeedUnits, *AccelUnits) if int(u) != MASTER_UNITS)
+#: the selector and mode values the trapezoidal plan compares with, as plain ints
+_PERCENT = int(SpeedUnits.PERCENT_OF_MAXIMUM)
+_ACCEL_PERCENT = int(AccelUnits.PERCENT_OF_MAXIMUM)
+_MERGE = int(MergeMode.ENABLED)
+_AT_CURRENT = int(MergeSpeed.CURRENT)
+_S_CURVE = int(ProfileType.S_CURVE)
+_TIME_DRIVEN = DriveMode.TIME_DRIVEN
+#: trapezoidal limits by (speed, acceleration, deceleration): a Limits is immutable, so
+#: the instances that plan the same dynamics share one (bounded as the operand verdicts)
+_LIMITS: dict[tuple[float, float, float], Limits] = {}
+#: the TrackingMaster output as a process starts (see :meth:`launch`)
+_TRACKING: dict[str, bool] = {"TrackingMaster": True}
+_NOT_TRACKING: dict[str, bool] = {"TrackingMaster": False}
 #: relative resolution of the Speed x master maximum comparison (REAL operands)
 SPEED_TOLERANCE = 1e-6
 
@@ -80,12 +104,59 @@ class SpeedControlledMotion(ProcessInstruction):
 
     def plan(self, ax: Axis) -> tuple[DriveMode, float, Limits]:
         """Drive mode, programmed speed (units/s or units per master unit) and limits."""
+        op = self.op
+        if (
+            int(op["Profile"]) != _S_CURVE
+            and int(op["SpeedUnits"]) in _TIME_UNITS
+            and int(op["AccelUnits"]) in _TIME_UNITS
+            and int(op["DecelUnits"]) in _TIME_UNITS
+        ):
+            return self._plan_trapezoidal(ax)
+        return self.plan_general(ax)
+
+    def plan_general(self, ax: Axis) -> tuple[DriveMode, float, Limits]:
+        """:meth:`plan` for any units and profile (the reference of the trapezoidal
+        path in the tests)."""
         mode = dynamics.logix_drive_mode(self)
         speed = dynamics.speed(self, ax)
         if self.merge_at_current_speed and mode == DriveMode.TIME_DRIVEN:
             speed = abs(ax.command_velocity)
         limits = dynamics.logix_limits(self, ax, max(speed, 0.0))
         return mode, speed, limits
+
+    def _plan_trapezoidal(self, ax: Axis) -> tuple[DriveMode, float, Limits]:
+        """:meth:`plan` for the common case, in one pass over the operands: a trapezoidal
+        profile, every rate per second or in % of maximum (time-driven). The same
+        arithmetic and the same errors in the same order as the general path."""
+        op = self.op
+        cfg = ax.config
+        top = cfg.max_velocity
+        speed = float(op["Speed"])
+        if int(op["SpeedUnits"]) == _PERCENT:
+            speed = speed / 100.0 * top
+        speed = min(speed, top)  # limited to the axis Maximum Speed
+        if int(op["Merge"]) == _MERGE and int(op["MergeSpeed"]) == _AT_CURRENT:
+            speed = abs(ax.command_velocity)
+        acc = float(op["AccelRate"])
+        if int(op["AccelUnits"]) == _ACCEL_PERCENT:
+            acc = acc / 100.0 * cfg.max_acceleration
+        if acc <= 0.0:
+            raise self.out_of_range("AccelRate", "AccelRate must be > 0")
+        dec = float(op["DecelRate"])
+        if int(op["DecelUnits"]) == _ACCEL_PERCENT:
+            dec = dec / 100.0 * cfg.max_deceleration
+        if dec <= 0.0:
+            raise self.out_of_range("DecelRate", "DecelRate must be > 0")
+        if speed > 0.0:  # (never -0.0 or NaN: equal keys are the same numbers)
+            key = (speed, acc, dec)
+            limits = _LIMITS.get(key)
+            if limits is None:
+                if len(_LIMITS) >= TABLE_SIZE:
+                    _LIMITS.clear()
+                limits = _LIMITS[key] = Limits(speed, acc, dec, 0.0)
+        else:
+            limits = Limits(max(speed, 0.0), acc, dec, 0.0)
+        return _TIME_DRIVEN, speed, limits
 
     def judge_master_driven(
         self,
@@ -134,23 +205,26 @@ class SpeedControlledMotion(ProcessInstruction):
         replace: Collection[ProcessKind] | None,
     ) -> None:
         """Start the process (through the MDSC assignments) and follow it."""
-        self.outputs["TrackingMaster"] = False
         mdsc = self.ctl.mdsc
-        if mode == DriveMode.MASTER_DRIVEN:
-            # at the current speed the change of master cannot slow the slave down
-            check = math.inf if self.merge_at_current_speed else speed
-            p = mdsc.start_master_driven(ax, kind, check, make_master, replace)
-        else:
-            p = mdsc.start(ax, kind, make_time, replace)
-        self.started(p)
-        self._track()
+        try:
+            if mode == DriveMode.MASTER_DRIVEN:
+                # at the current speed the change of master cannot slow the slave down
+                check = math.inf if self.merge_at_current_speed else speed
+                p = mdsc.start_master_driven(ax, kind, check, make_master, replace)
+            else:
+                p = mdsc.start(ax, kind, make_time, replace)
+        except BaseException:
+            self.outputs["TrackingMaster"] = False  # a refused start tracks nothing
+            raise
+        self.started(p, _TRACKING if self._tracking(p) else _NOT_TRACKING)
 
     def poll(self) -> None:
         super().poll()
         self._track()
 
     def _track(self) -> None:
-        p = self.process
-        self.outputs["TrackingMaster"] = (
-            isinstance(p, MasterDrivenProcess) and p.active and p.tracking
-        )
+        self.outputs["TrackingMaster"] = self._tracking(self.process)
+
+    @staticmethod
+    def _tracking(p: Process | None) -> bool:
+        return isinstance(p, MasterDrivenProcess) and p.active and p.tracking
