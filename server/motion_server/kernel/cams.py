@@ -93,6 +93,9 @@ class CamPhase(IntEnum):
     LOCKED = 1
 
 
+_IMMEDIATE = LockDirection.IMMEDIATE
+
+
 #: largest |scaling| accepted (PLCopen vendors refuse beyond +-2^31, Beckhoff 44037/38)
 MAX_SCALING = 2.0**31
 
@@ -127,30 +130,36 @@ class CamProcess(Process):
         owner: Any = None,
     ) -> None:
         super().__init__(owner)
-        if not profile.start <= cam_lock <= profile.end:
+        # (many cams start in one scan: the enumerations are converted only when given as
+        # plain integers, the profile's range read once)
+        p_start: float = profile._start  # type: ignore[attr-defined]
+        p_end: float = profile._end  # type: ignore[attr-defined]
+        if not p_start <= cam_lock <= p_end:
             raise MotionError(
                 ErrorCode.PARAMETER_OUT_OF_RANGE,
                 f"cam lock position {cam_lock:g} is outside the profile's master range "
-                f"[{profile.start:g}, {profile.end:g}]",
+                f"[{p_start:g}, {p_end:g}]",
             )
         if kind is None:
             kind = ProcessKind.POSITION_CAM if master is not None else ProcessKind.TIME_CAM
         #: a time cam may run on a master's travel (MATC master driven through MDAC)
         self.kind = kind
         self.profile = profile
-        self.mode = CamMode(mode)
+        self.mode = mode if type(mode) is CamMode else CamMode(mode)
         self.scale = float(scale)
         self.master_scaling = float(master_scaling)
-        self.cam_lock = float(cam_lock)
-        self.f0 = profile.value(self.cam_lock)
+        self.cam_lock = cam_lock = float(cam_lock)
+        self.f0 = profile.value(cam_lock)
         self.origin = float(origin)
         self.index = master
         self.masters = (master_number,) if master is not None else ()
         self.source = source
-        self.lock_direction = LockDirection(lock)
+        self.lock_direction = lock if type(lock) is LockDirection else LockDirection(lock)
         self.master_lock = float(master_lock)
         self.rollover = float(rollover)
-        self.master_direction = MasterDirection(direction)
+        self.master_direction = (
+            direction if type(direction) is MasterDirection else MasterDirection(direction)
+        )
         self.phase = CamPhase.WAITING
         #: the master position (or time) of the lock, the furthest point reached (slip
         #: clutch) and the master position of the previous cycle
@@ -183,12 +192,12 @@ class CamProcess(Process):
                 0.0, 0.0, target, self.scale * f1 * span, self.scale * f2 * span * span
             )
         m = 0.0
-        if self.index is not None:
+        if master is not None:
             pos, vel, _ = ctx.master_arrays(source)
-            m = pos.item(self.index)
-            self.v_prev = vel.item(self.index)
+            m = pos.item(master)
+            self.v_prev = vel.item(master)
         self.m_prev = m
-        if self.lock_direction == LockDirection.IMMEDIATE:
+        if self.lock_direction is _IMMEDIATE:
             self._lock(m)
 
     @property
@@ -212,9 +221,9 @@ class CamProcess(Process):
         self.phase = CamPhase.LOCKED
         self.m0 = m0
         self.m_eff = m0
-        self.x = self.cam_lock
+        self.x = cam_lock = self.cam_lock
         prof = self.profile
-        self.k = math.floor((self.cam_lock - prof.start) / prof.length)
+        self.k = math.floor((cam_lock - prof._start) / prof._length)  # type: ignore[attr-defined]
         self.offer_pending = True
         self.status_changed = True
 

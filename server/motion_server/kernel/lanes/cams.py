@@ -12,6 +12,7 @@ or Persistent cam leaving the range is an event: it is moved out and stepped in 
 
 from __future__ import annotations
 
+from operator import attrgetter
 from typing import Any, ClassVar
 
 import numpy as np
@@ -25,6 +26,29 @@ from ..state import AxisArrays
 from .base import Compose, LaneOwner, LevelledLane
 
 _CONTINUOUS = float(CamMode.CONTINUOUS)
+
+#: the lane's fields read from a cam (:meth:`CamLane._load`) and the attributes that hold
+#: them, in one getter (:meth:`CamLane._batch_columns`)
+_STATE_FIELDS = {
+    "origin": "origin",
+    "scale": "scale",
+    "ms": "master_scaling",
+    "cam_lock": "cam_lock",
+    "f0": "f0",
+    "m0": "m0",
+    "mode": "mode",
+    "k": "k",
+    "v_prev": "v_prev",
+    "m_last": "m_prev",
+    "x": "x",
+    "pos": "position",
+    "vel": "velocity",
+    "acc": "acceleration",
+}
+_STATE_NAMES = tuple(_STATE_FIELDS)
+_STATE = attrgetter(*_STATE_FIELDS.values())
+#: the fields that are the profile's (the same for every cam on it)
+_PROFILE_NAMES = ("start", "end", "length", "rise")
 
 
 class CamLane(LevelledLane):
@@ -75,8 +99,8 @@ class CamLane(LevelledLane):
 
     @staticmethod
     def master_index(p: Process) -> int:
-        assert isinstance(p, CamProcess) and p.index is not None
-        return p.index
+        # (called per member at every order: a member is a cam with a master, accepts)
+        return p.index  # type: ignore[attr-defined]
 
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         assert isinstance(p, CamProcess)
@@ -104,6 +128,30 @@ class CamLane(LevelledLane):
             p.acceleration,
         )
 
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The ``FIELDS`` of the cams joining, column by column: the values
+        :meth:`_load` reads, with one attribute getter per cam and one array for all
+        (not a tuple per cam and an array per field), the profile's constants
+        broadcast when every cam runs on one profile (the usual case: many slaves on
+        one table)."""
+        if not joining:
+            return None  # (nothing to add: the members kept are all there is)
+        procs = [p for p, _ in joining]
+        n = len(procs)
+        block = np.array([_STATE(p) for p in procs], dtype=float).reshape((n, len(_STATE_NAMES)))
+        col = {name: block[:, j] for j, name in enumerate(_STATE_NAMES)}
+        profiles = [p.profile for p in procs]  # type: ignore[attr-defined]
+        first = profiles[0]
+        if all(q is first for q in profiles):
+            for name in _PROFILE_NAMES:
+                col[name] = np.full(n, getattr(first, name), dtype=float)
+        else:
+            for name in _PROFILE_NAMES:
+                col[name] = np.array([getattr(q, name) for q in profiles], dtype=float)
+        col["base"] = np.array([ax.base for _, ax in joining], dtype=float)
+        col["passes"] = np.array([p.passes for p in procs], dtype=np.int64)  # type: ignore[attr-defined]
+        return [col[f] for f in self.FIELDS]
+
     def _store(self, p: Process, k: int) -> None:
         assert isinstance(p, CamProcess)
         a = self.arrays
@@ -119,6 +167,13 @@ class CamLane(LevelledLane):
     def order(self, levels: list[int]) -> None:
         super().order(levels)
         self.by_profile = []
+        members = self.members
+        if members:
+            first = members[0].profile  # type: ignore[attr-defined]
+            if all(p.profile is first for p in members):  # type: ignore[attr-defined]
+                # one profile for the whole lane: one evaluation per level, no grouping
+                self.by_profile = [[(first, slice(None))] for _ in self.levels]
+                return
         for sl in self.levels:
             groups: dict[int, tuple[CamProfile, list[int]]] = {}
             for row in range(sl.start, sl.stop):
