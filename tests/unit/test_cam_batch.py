@@ -236,11 +236,12 @@ def test_cams_started_together_give_the_same_motion_with_and_without_lanes(
 
 def test_a_profile_pickled_without_its_derived_values_derives_them() -> None:
     prof = profiles()[0]
-    state = {k: v for k, v in prof.__dict__.items() if k not in ("_start", "_end", "_length",
-                                                                 "_rise")}  # fmt: skip
+    derived = ("_start", "_end", "_length", "_rise", "_inner")
+    state = {k: v for k, v in prof.__dict__.items() if k not in derived}
     old = CamProfile.__new__(CamProfile)
     old.__setstate__(state)
     again = pickle.loads(pickle.dumps(old))
     for p in (old, again):
         assert (p.start, p.end, p.length) == (0.0, 360.0, 360.0)
         assert p.rise == 360.0  # f(end) - f(start) of the table's points
+        assert p.evaluate_many(np.array([45.0]))[0][0] == p.value(45.0)

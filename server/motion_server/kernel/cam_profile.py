@@ -69,6 +69,9 @@ class CamProfile:
         copies for the fast lanes, and the range and rise that every cam started on the
         profile reads (a cam start costs a few attribute reads, not a search)."""
         object.__setattr__(self, "_xs", np.array(self.x[:-1], dtype=float))
+        # the inner points: counting those at or below x gives x's segment, the end
+        # segments extended beyond the ends (what :meth:`segment` clips to), in one call
+        object.__setattr__(self, "_inner", np.array(self.x[1:-1], dtype=float))
         for name in "abcd":
             object.__setattr__(self, f"_{name}s", np.array(getattr(self, name), dtype=float))
         object.__setattr__(self, "_last", len(self.x) - 2)
@@ -80,7 +83,7 @@ class CamProfile:
     def __setstate__(self, state: dict[str, object]) -> None:
         # (a profile pickled before the derived values were kept: derived again)
         self.__dict__.update(state)
-        if "_rise" not in state:
+        if "_inner" not in state:
             self._derive()
 
     @property
@@ -131,8 +134,8 @@ class CamProfile:
     def evaluate_many(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`evaluate` for an array of master values, bit for bit."""
         xs: np.ndarray = self._xs  # type: ignore[attr-defined]
-        k = np.searchsorted(xs, x, side="right") - 1
-        np.clip(k, 0, self._last, out=k)  # type: ignore[attr-defined]
+        inner: np.ndarray = self._inner  # type: ignore[attr-defined]
+        k = np.searchsorted(inner, x, side="right")
         u = x - xs[k]
         b = self._bs[k]  # type: ignore[attr-defined]
         c = self._cs[k]  # type: ignore[attr-defined]

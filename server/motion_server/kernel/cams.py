@@ -94,6 +94,7 @@ class CamPhase(IntEnum):
 
 
 _IMMEDIATE = LockDirection.IMMEDIATE
+_LOCKED = CamPhase.LOCKED
 
 
 #: largest |scaling| accepted (PLCopen vendors refuse beyond +-2^31, Beckhoff 44037/38)
@@ -107,6 +108,29 @@ class CamProcess(Process):
     cam). ``master_scaling`` is master units (or seconds) per cam unit. ``master_lock``
     and ``lock`` give the lock condition; ``rollover`` is the master's (0: linear).
     """
+
+    # The state a new cam starts with, as class defaults: an instance stores what its
+    # start or its steps change (many cams start in one scan; every store costs).
+    phase: CamPhase = CamPhase.WAITING
+    #: the master position (or time) of the lock, the furthest point reached (slip
+    #: clutch), the master position and velocity of the previous cycle
+    m0 = 0.0
+    m_eff = 0.0
+    m_prev = 0.0
+    v_prev = 0.0
+    #: cycles since the time cam's clock started (a time cam's t = cycles x dt)
+    cycles = 0
+    #: the period index of the last step (the cam coordinate ``x`` is the instance's)
+    k = 0
+    #: inside the profile's range (Persistent: False while it holds at an end)
+    in_range = True
+    #: master moving the way that drives the slave (slip clutch)
+    engaged = True
+    passes = 0
+    successor: CamProcess | None = None
+    #: the ramp-in (x_start, x_sync) still ahead and its plan
+    ramp: tuple[float, float] | None = None
+    blend: Quintic | None = None
 
     def __init__(
         self,
@@ -160,28 +184,10 @@ class CamProcess(Process):
         self.master_direction = (
             direction if type(direction) is MasterDirection else MasterDirection(direction)
         )
-        self.phase = CamPhase.WAITING
-        #: the master position (or time) of the lock, the furthest point reached (slip
-        #: clutch) and the master position of the previous cycle
-        self.m0 = 0.0
-        self.m_eff = 0.0
-        self.m_prev = 0.0
-        self.v_prev = 0.0
-        #: cycles since the time cam's clock started (a time cam's t = cycles x dt)
-        self.cycles = 0
-        #: the cam coordinate and its period index of the last step
-        self.x = self.cam_lock
-        self.k = 0
-        #: inside the profile's range (Persistent: False while it holds at an end)
-        self.in_range = True
-        #: master moving the way that drives the slave (slip clutch)
-        self.engaged = True
-        self.passes = 0
-        self.successor: CamProcess | None = None
-        #: the ramp-in (x_start, x_sync) still ahead, its plan and its length in x
-        self.ramp = ramp_in
-        self.blend: Quintic | None = None
+        #: the cam coordinate of the last step
+        self.x = cam_lock
         if ramp_in is not None:
+            self.ramp = ramp_in
             x_start, x_sync = ramp_in
             span = x_sync - x_start
             if not span > 0.0:
@@ -198,7 +204,11 @@ class CamProcess(Process):
             self.v_prev = vel.item(master)
         self.m_prev = m
         if self.lock_direction is _IMMEDIATE:
-            self._lock(m)
+            # _lock(m), without the call and the stores of what a new cam already holds
+            self.phase = _LOCKED
+            self.m0 = self.m_eff = m
+            self.k = math.floor((cam_lock - p_start) / profile._length)  # type: ignore[attr-defined]
+            self.status_changed = True
 
     @property
     def locked(self) -> bool:
