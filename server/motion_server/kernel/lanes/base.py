@@ -261,10 +261,11 @@ class LevelledLane(Lane):
                 self.midx = np.zeros(0, dtype=np.intp)
             return
         perm = sorted(range(len(self.members)), key=levels.__getitem__)
-        sel = np.array(perm, dtype=np.intp)
-        for f in self.FIELDS:
-            self.arrays[f] = self.arrays[f][sel]
-        self._set_members([self.members[k] for k in perm], [self.axes[k] for k in perm])
+        if any(k != j for j, k in enumerate(perm)):  # (in order already: nothing to move)
+            sel = np.array(perm, dtype=np.intp)
+            for f in self.FIELDS:
+                self.arrays[f] = self.arrays[f][sel]
+            self._set_members([self.members[k] for k in perm], [self.axes[k] for k in perm])
         ordered = [levels[k] for k in perm]
         depth = ordered[-1] + 1 if ordered else 0
         self.levels = []
