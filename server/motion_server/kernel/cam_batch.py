@@ -24,18 +24,16 @@ ones after it: as the same starts one after the other would.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .axis import Axis
 from .cam_profile import CamProfile
 from .cams import CamMode, CamProcess, LockDirection
+from .controller import Controller
 from .enums import MasterReference, ProcessKind
 from .processes import Process, ProcessFactory
-
-if TYPE_CHECKING:
-    from .controller import Controller
 
 
 class CamStart(NamedTuple):
