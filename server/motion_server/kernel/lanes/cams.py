@@ -78,10 +78,15 @@ class CamLane(LevelledLane):
     )
     DTYPES: ClassVar[dict[str, Any]] = {"passes": np.int64}
 
+    #: per level: every cam of it is Continuous (set when the lane is ordered; None, a
+    #: class default, for a lane restored from state saved before: the general step)
+    _continuous: list[bool] | None = None
+
     def __init__(self, owner: LaneOwner, source: MasterReference) -> None:
         super().__init__(owner, source)
         #: per level: (profile, rows of the level's arrays) for each distinct profile
         self.by_profile: list[list[tuple[CamProfile, slice | np.ndarray]]] = []
+        self._continuous = []
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -166,6 +171,8 @@ class CamLane(LevelledLane):
 
     def order(self, levels: list[int]) -> None:
         super().order(levels)
+        mode = self.arrays["mode"]
+        self._continuous = [bool(np.all(mode[sl] == _CONTINUOUS)) for sl in self.levels]
         self.by_profile = []
         members = self.members
         if members:
@@ -197,9 +204,15 @@ class CamLane(LevelledLane):
         v = v_arr[mi]
         # CamProcess._locked_step: x from the master's displacement since the lock
         x = a["cam_lock"][level] + (m - a["m0"][level]) / a["ms"][level]
-        cont = a["mode"][level] == _CONTINUOUS
         start = a["start"][level]
         length = a["length"][level]
+        flags = self._continuous
+        if flags is not None and flags[lv]:
+            # every cam of the level Continuous (the usual case): the selections below
+            # all take their Continuous branch, and no cam leaves its range
+            self._step_continuous(s, lv, x, m, v, a_arr, dt)
+            return
+        cont = a["mode"][level] == _CONTINUOUS
         # events first (nothing written yet): a Once or Persistent cam leaving its range
         leaving = ~cont & ((x < start) | (x > a["end"][level]))
         movers: list[Axis] = []
@@ -237,3 +250,55 @@ class CamLane(LevelledLane):
         s.cmd_acc[si] = acc
         for ax in movers:
             compose(ax)
+
+    def _step_continuous(
+        self,
+        s: AxisArrays,
+        lv: int,
+        x: np.ndarray,
+        m: np.ndarray,
+        v: np.ndarray,
+        a_arr: np.ndarray | None,
+        dt: float,
+    ) -> None:
+        """:meth:`step` of a level of Continuous cams only: the same operations, in the
+        same order, without the selections by mode (each would take its Continuous
+        branch) and without looking for cams leaving their range (none does)."""
+        a = self.arrays
+        level = self.levels[lv]
+        mi = self.masters[lv]
+        if a_arr is not None:
+            am = a_arr[mi]
+        else:
+            am = (v - a["v_prev"][level]) / dt
+        a["v_prev"][level] = v
+        a["m_last"][level] = m
+        a["x"][level] = x
+        length = a["length"][level]
+        k = np.floor((x - a["start"][level]) / length)
+        passed = k != a["k"][level]
+        if passed.any():
+            a["passes"][level] += passed
+            a["k"][level] = k
+        c = x - k * length
+        parts = self.by_profile[lv]
+        if len(parts) == 1 and isinstance(parts[0][1], slice):
+            f, f1, f2 = parts[0][0].evaluate_many(c)  # one profile for the whole level
+        else:
+            f = np.empty_like(c)
+            f1 = np.empty_like(c)
+            f2 = np.empty_like(c)
+            for prof, rows in parts:
+                f[rows], f1[rows], f2[rows] = prof.evaluate_many(c[rows])
+        scale = a["scale"][level]
+        ms = a["ms"][level]
+        fk = f + k * a["rise"][level]
+        pos = a["origin"][level] + scale * (fk - a["f0"][level])
+        r = v / ms
+        vel = scale * f1 * r
+        acc = scale * (f2 * r * r + f1 * (am / ms))
+        a["pos"][level], a["vel"][level], a["acc"][level] = pos, vel, acc
+        si = self.slaves[lv]
+        s.cmd_pos[si] = a["base"][level] + pos
+        s.cmd_vel[si] = vel
+        s.cmd_acc[si] = acc
