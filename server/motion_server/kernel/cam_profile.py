@@ -62,26 +62,44 @@ class CamProfile:
     source: int = 0
 
     def __post_init__(self) -> None:
-        # numpy copies for the fast lanes (built once; the profile never changes)
+        self._derive()
+
+    def _derive(self) -> None:
+        """What is computed once from the points (the profile never changes): numpy
+        copies for the fast lanes, and the range and rise that every cam started on the
+        profile reads (a cam start costs a few attribute reads, not a search)."""
         object.__setattr__(self, "_xs", np.array(self.x[:-1], dtype=float))
+        # the inner points: counting those at or below x gives x's segment, the end
+        # segments extended beyond the ends (what :meth:`segment` clips to), in one call
+        object.__setattr__(self, "_inner", np.array(self.x[1:-1], dtype=float))
         for name in "abcd":
             object.__setattr__(self, f"_{name}s", np.array(getattr(self, name), dtype=float))
         object.__setattr__(self, "_last", len(self.x) - 2)
+        object.__setattr__(self, "_start", self.x[0])
+        object.__setattr__(self, "_end", self.x[-1])
+        object.__setattr__(self, "_length", self.x[-1] - self.x[0])
+        object.__setattr__(self, "_rise", self.value(self.x[-1]) - self.a[0])
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        # (a profile pickled before the derived values were kept: derived again)
+        self.__dict__.update(state)
+        if "_inner" not in state:
+            self._derive()
 
     @property
     def start(self) -> float:
         """Master value of the first point."""
-        return self.x[0]
+        return self._start  # type: ignore[attr-defined]
 
     @property
     def end(self) -> float:
         """Master value of the last point."""
-        return self.x[-1]
+        return self._end  # type: ignore[attr-defined]
 
     @property
     def length(self) -> float:
         """Master span of the profile."""
-        return self.x[-1] - self.x[0]
+        return self._length  # type: ignore[attr-defined]
 
     @property
     def points(self) -> int:
@@ -90,7 +108,7 @@ class CamProfile:
     @property
     def rise(self) -> float:
         """f(end) - f(start): what one pass of the profile adds to the slave."""
-        return self.value(self.x[-1]) - self.a[0]
+        return self._rise  # type: ignore[attr-defined]
 
     def segment(self, x: float) -> int:
         """The segment holding master value ``x`` (the first or last one beyond the ends)."""
@@ -116,8 +134,8 @@ class CamProfile:
     def evaluate_many(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`evaluate` for an array of master values, bit for bit."""
         xs: np.ndarray = self._xs  # type: ignore[attr-defined]
-        k = np.searchsorted(xs, x, side="right") - 1
-        np.clip(k, 0, self._last, out=k)  # type: ignore[attr-defined]
+        inner: np.ndarray = self._inner  # type: ignore[attr-defined]
+        k = np.searchsorted(inner, x, side="right")
         u = x - xs[k]
         b = self._bs[k]  # type: ignore[attr-defined]
         c = self._cs[k]  # type: ignore[attr-defined]

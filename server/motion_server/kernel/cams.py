@@ -93,6 +93,10 @@ class CamPhase(IntEnum):
     LOCKED = 1
 
 
+_IMMEDIATE = LockDirection.IMMEDIATE
+_LOCKED = CamPhase.LOCKED
+
+
 #: largest |scaling| accepted (PLCopen vendors refuse beyond +-2^31, Beckhoff 44037/38)
 MAX_SCALING = 2.0**31
 
@@ -104,6 +108,29 @@ class CamProcess(Process):
     cam). ``master_scaling`` is master units (or seconds) per cam unit. ``master_lock``
     and ``lock`` give the lock condition; ``rollover`` is the master's (0: linear).
     """
+
+    # The state a new cam starts with, as class defaults: an instance stores what its
+    # start or its steps change (many cams start in one scan; every store costs).
+    phase: CamPhase = CamPhase.WAITING
+    #: the master position (or time) of the lock, the furthest point reached (slip
+    #: clutch), the master position and velocity of the previous cycle
+    m0 = 0.0
+    m_eff = 0.0
+    m_prev = 0.0
+    v_prev = 0.0
+    #: cycles since the time cam's clock started (a time cam's t = cycles x dt)
+    cycles = 0
+    #: the period index of the last step (the cam coordinate ``x`` is the instance's)
+    k = 0
+    #: inside the profile's range (Persistent: False while it holds at an end)
+    in_range = True
+    #: master moving the way that drives the slave (slip clutch)
+    engaged = True
+    passes = 0
+    successor: CamProcess | None = None
+    #: the ramp-in (x_start, x_sync) still ahead and its plan
+    ramp: tuple[float, float] | None = None
+    blend: Quintic | None = None
 
     def __init__(
         self,
@@ -127,52 +154,40 @@ class CamProcess(Process):
         owner: Any = None,
     ) -> None:
         super().__init__(owner)
-        if not profile.start <= cam_lock <= profile.end:
+        # (many cams start in one scan: the enumerations are converted only when given as
+        # plain integers, the profile's range read once)
+        p_start: float = profile._start  # type: ignore[attr-defined]
+        p_end: float = profile._end  # type: ignore[attr-defined]
+        if not p_start <= cam_lock <= p_end:
             raise MotionError(
                 ErrorCode.PARAMETER_OUT_OF_RANGE,
                 f"cam lock position {cam_lock:g} is outside the profile's master range "
-                f"[{profile.start:g}, {profile.end:g}]",
+                f"[{p_start:g}, {p_end:g}]",
             )
         if kind is None:
             kind = ProcessKind.POSITION_CAM if master is not None else ProcessKind.TIME_CAM
         #: a time cam may run on a master's travel (MATC master driven through MDAC)
         self.kind = kind
         self.profile = profile
-        self.mode = CamMode(mode)
+        self.mode = mode if type(mode) is CamMode else CamMode(mode)
         self.scale = float(scale)
         self.master_scaling = float(master_scaling)
-        self.cam_lock = float(cam_lock)
-        self.f0 = profile.value(self.cam_lock)
+        self.cam_lock = cam_lock = float(cam_lock)
+        self.f0 = profile.value(cam_lock)
         self.origin = float(origin)
         self.index = master
         self.masters = (master_number,) if master is not None else ()
         self.source = source
-        self.lock_direction = LockDirection(lock)
+        self.lock_direction = lock if type(lock) is LockDirection else LockDirection(lock)
         self.master_lock = float(master_lock)
         self.rollover = float(rollover)
-        self.master_direction = MasterDirection(direction)
-        self.phase = CamPhase.WAITING
-        #: the master position (or time) of the lock, the furthest point reached (slip
-        #: clutch) and the master position of the previous cycle
-        self.m0 = 0.0
-        self.m_eff = 0.0
-        self.m_prev = 0.0
-        self.v_prev = 0.0
-        #: cycles since the time cam's clock started (a time cam's t = cycles x dt)
-        self.cycles = 0
-        #: the cam coordinate and its period index of the last step
-        self.x = self.cam_lock
-        self.k = 0
-        #: inside the profile's range (Persistent: False while it holds at an end)
-        self.in_range = True
-        #: master moving the way that drives the slave (slip clutch)
-        self.engaged = True
-        self.passes = 0
-        self.successor: CamProcess | None = None
-        #: the ramp-in (x_start, x_sync) still ahead, its plan and its length in x
-        self.ramp = ramp_in
-        self.blend: Quintic | None = None
+        self.master_direction = (
+            direction if type(direction) is MasterDirection else MasterDirection(direction)
+        )
+        #: the cam coordinate of the last step
+        self.x = cam_lock
         if ramp_in is not None:
+            self.ramp = ramp_in
             x_start, x_sync = ramp_in
             span = x_sync - x_start
             if not span > 0.0:
@@ -183,13 +198,17 @@ class CamProcess(Process):
                 0.0, 0.0, target, self.scale * f1 * span, self.scale * f2 * span * span
             )
         m = 0.0
-        if self.index is not None:
+        if master is not None:
             pos, vel, _ = ctx.master_arrays(source)
-            m = pos.item(self.index)
-            self.v_prev = vel.item(self.index)
+            m = pos.item(master)
+            self.v_prev = vel.item(master)
         self.m_prev = m
-        if self.lock_direction == LockDirection.IMMEDIATE:
-            self._lock(m)
+        if self.lock_direction is _IMMEDIATE:
+            # _lock(m), without the call and the stores of what a new cam already holds
+            self.phase = _LOCKED
+            self.m0 = self.m_eff = m
+            self.k = math.floor((cam_lock - p_start) / profile._length)  # type: ignore[attr-defined]
+            self.status_changed = True
 
     @property
     def locked(self) -> bool:
@@ -212,9 +231,9 @@ class CamProcess(Process):
         self.phase = CamPhase.LOCKED
         self.m0 = m0
         self.m_eff = m0
-        self.x = self.cam_lock
+        self.x = cam_lock = self.cam_lock
         prof = self.profile
-        self.k = math.floor((self.cam_lock - prof.start) / prof.length)
+        self.k = math.floor((cam_lock - prof._start) / prof._length)  # type: ignore[attr-defined]
         self.offer_pending = True
         self.status_changed = True
 

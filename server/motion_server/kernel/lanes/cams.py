@@ -12,6 +12,7 @@ or Persistent cam leaving the range is an event: it is moved out and stepped in 
 
 from __future__ import annotations
 
+from operator import attrgetter
 from typing import Any, ClassVar
 
 import numpy as np
@@ -25,6 +26,29 @@ from ..state import AxisArrays
 from .base import Compose, LaneOwner, LevelledLane
 
 _CONTINUOUS = float(CamMode.CONTINUOUS)
+
+#: the lane's fields read from a cam (:meth:`CamLane._load`) and the attributes that hold
+#: them, in one getter (:meth:`CamLane._batch_columns`)
+_STATE_FIELDS = {
+    "origin": "origin",
+    "scale": "scale",
+    "ms": "master_scaling",
+    "cam_lock": "cam_lock",
+    "f0": "f0",
+    "m0": "m0",
+    "mode": "mode",
+    "k": "k",
+    "v_prev": "v_prev",
+    "m_last": "m_prev",
+    "x": "x",
+    "pos": "position",
+    "vel": "velocity",
+    "acc": "acceleration",
+}
+_STATE_NAMES = tuple(_STATE_FIELDS)
+_STATE = attrgetter(*_STATE_FIELDS.values())
+#: the fields that are the profile's (the same for every cam on it)
+_PROFILE_NAMES = ("start", "end", "length", "rise")
 
 
 class CamLane(LevelledLane):
@@ -54,10 +78,15 @@ class CamLane(LevelledLane):
     )
     DTYPES: ClassVar[dict[str, Any]] = {"passes": np.int64}
 
+    #: per level: every cam of it is Continuous (set when the lane is ordered; None, a
+    #: class default, for a lane restored from state saved before: the general step)
+    _continuous: list[bool] | None = None
+
     def __init__(self, owner: LaneOwner, source: MasterReference) -> None:
         super().__init__(owner, source)
         #: per level: (profile, rows of the level's arrays) for each distinct profile
         self.by_profile: list[list[tuple[CamProfile, slice | np.ndarray]]] = []
+        self._continuous = []
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -75,8 +104,8 @@ class CamLane(LevelledLane):
 
     @staticmethod
     def master_index(p: Process) -> int:
-        assert isinstance(p, CamProcess) and p.index is not None
-        return p.index
+        # (called per member at every order: a member is a cam with a master, accepts)
+        return p.index  # type: ignore[attr-defined]
 
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         assert isinstance(p, CamProcess)
@@ -104,6 +133,30 @@ class CamLane(LevelledLane):
             p.acceleration,
         )
 
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The ``FIELDS`` of the cams joining, column by column: the values
+        :meth:`_load` reads, with one attribute getter per cam and one array for all
+        (not a tuple per cam and an array per field), the profile's constants
+        broadcast when every cam runs on one profile (the usual case: many slaves on
+        one table)."""
+        if not joining:
+            return None  # (nothing to add: the members kept are all there is)
+        procs = [p for p, _ in joining]
+        n = len(procs)
+        block = np.array([_STATE(p) for p in procs], dtype=float).reshape((n, len(_STATE_NAMES)))
+        col = {name: block[:, j] for j, name in enumerate(_STATE_NAMES)}
+        profiles = [p.profile for p in procs]  # type: ignore[attr-defined]
+        first = profiles[0]
+        if all(q is first for q in profiles):
+            for name in _PROFILE_NAMES:
+                col[name] = np.full(n, getattr(first, name), dtype=float)
+        else:
+            for name in _PROFILE_NAMES:
+                col[name] = np.array([getattr(q, name) for q in profiles], dtype=float)
+        col["base"] = np.array([ax.base for _, ax in joining], dtype=float)
+        col["passes"] = np.array([p.passes for p in procs], dtype=np.int64)  # type: ignore[attr-defined]
+        return [col[f] for f in self.FIELDS]
+
     def _store(self, p: Process, k: int) -> None:
         assert isinstance(p, CamProcess)
         a = self.arrays
@@ -118,7 +171,16 @@ class CamLane(LevelledLane):
 
     def order(self, levels: list[int]) -> None:
         super().order(levels)
+        mode = self.arrays["mode"]
+        self._continuous = [bool(np.all(mode[sl] == _CONTINUOUS)) for sl in self.levels]
         self.by_profile = []
+        members = self.members
+        if members:
+            first = members[0].profile  # type: ignore[attr-defined]
+            if all(p.profile is first for p in members):  # type: ignore[attr-defined]
+                # one profile for the whole lane: one evaluation per level, no grouping
+                self.by_profile = [[(first, slice(None))] for _ in self.levels]
+                return
         for sl in self.levels:
             groups: dict[int, tuple[CamProfile, list[int]]] = {}
             for row in range(sl.start, sl.stop):
@@ -142,9 +204,15 @@ class CamLane(LevelledLane):
         v = v_arr[mi]
         # CamProcess._locked_step: x from the master's displacement since the lock
         x = a["cam_lock"][level] + (m - a["m0"][level]) / a["ms"][level]
-        cont = a["mode"][level] == _CONTINUOUS
         start = a["start"][level]
         length = a["length"][level]
+        flags = self._continuous
+        if flags is not None and flags[lv]:
+            # every cam of the level Continuous (the usual case): the selections below
+            # all take their Continuous branch, and no cam leaves its range
+            self._step_continuous(s, lv, x, m, v, a_arr, dt)
+            return
+        cont = a["mode"][level] == _CONTINUOUS
         # events first (nothing written yet): a Once or Persistent cam leaving its range
         leaving = ~cont & ((x < start) | (x > a["end"][level]))
         movers: list[Axis] = []
@@ -182,3 +250,55 @@ class CamLane(LevelledLane):
         s.cmd_acc[si] = acc
         for ax in movers:
             compose(ax)
+
+    def _step_continuous(
+        self,
+        s: AxisArrays,
+        lv: int,
+        x: np.ndarray,
+        m: np.ndarray,
+        v: np.ndarray,
+        a_arr: np.ndarray | None,
+        dt: float,
+    ) -> None:
+        """:meth:`step` of a level of Continuous cams only: the same operations, in the
+        same order, without the selections by mode (each would take its Continuous
+        branch) and without looking for cams leaving their range (none does)."""
+        a = self.arrays
+        level = self.levels[lv]
+        mi = self.masters[lv]
+        if a_arr is not None:
+            am = a_arr[mi]
+        else:
+            am = (v - a["v_prev"][level]) / dt
+        a["v_prev"][level] = v
+        a["m_last"][level] = m
+        a["x"][level] = x
+        length = a["length"][level]
+        k = np.floor((x - a["start"][level]) / length)
+        passed = k != a["k"][level]
+        if passed.any():
+            a["passes"][level] += passed
+            a["k"][level] = k
+        c = x - k * length
+        parts = self.by_profile[lv]
+        if len(parts) == 1 and isinstance(parts[0][1], slice):
+            f, f1, f2 = parts[0][0].evaluate_many(c)  # one profile for the whole level
+        else:
+            f = np.empty_like(c)
+            f1 = np.empty_like(c)
+            f2 = np.empty_like(c)
+            for prof, rows in parts:
+                f[rows], f1[rows], f2[rows] = prof.evaluate_many(c[rows])
+        scale = a["scale"][level]
+        ms = a["ms"][level]
+        fk = f + k * a["rise"][level]
+        pos = a["origin"][level] + scale * (fk - a["f0"][level])
+        r = v / ms
+        vel = scale * f1 * r
+        acc = scale * (f2 * r * r + f1 * (am / ms))
+        a["pos"][level], a["vel"][level], a["acc"][level] = pos, vel, acc
+        si = self.slaves[lv]
+        s.cmd_pos[si] = a["base"][level] + pos
+        s.cmd_vel[si] = vel
+        s.cmd_acc[si] = acc
