@@ -671,7 +671,7 @@ class Controller:
         if actions is not None:
             # the common case: every axis ramps
             axes = self._motion_axes[g.number]
-            if stop_axes(self.motion, axes, owner):
+            if stop_axes(self.motion, axes, owner, idx=g.motion_idx):
                 latch_stops(self.arrays, axes, g.motion_idx, actions, handle)
                 g.after_stops = True
             else:
@@ -819,14 +819,14 @@ class Controller:
             return
         axes = [ax for ax, _ in ramping]
         owner = handle.owner
-        if not stop_axes(self.motion, axes, owner):
+        idx = np.array([ax.index for ax in axes], dtype=np.intp)
+        if not stop_axes(self.motion, axes, owner, idx=idx):
             for ax, action in ramping:
                 self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = action
                 g.after_stops = True
                 ax.stop_latch = handle
         else:
-            idx = np.array([ax.index for ax in axes], dtype=np.intp)
             latch_stops(self.arrays, axes, idx, [action for _, action in ramping], handle)
             g.after_stops = True
         ramping.clear()

@@ -35,6 +35,7 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from operator import attrgetter, itemgetter
 
 import numpy as np
 
@@ -55,6 +56,20 @@ _ABORTED = ProcessState.ABORTED
 _abort = Process.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
+_state = attrgetter("state")
+_processes = attrgetter("_processes")
+_first = itemgetter(0)
+_lane = attrgetter("lane")
+_stop_rows = attrgetter("stop_rows")
+_preloaded = attrgetter("preloaded_cams")
+_buffered = attrgetter("buffered")
+_max_deceleration = attrgetter("config.max_deceleration")
+_max_velocity = attrgetter("config.max_velocity")
+
+
+def _column(get: Callable[[object], float], objects: Sequence[object]) -> np.ndarray:
+    """``get`` of each of ``objects`` as a float array (no Python call per object)."""
+    return np.fromiter(map(get, objects), dtype=float, count=len(objects))
 
 
 def ramp(
@@ -186,10 +201,11 @@ def power_off_axes(
         motion.coupling_changed()
 
 
-def _refused(v: np.ndarray, d: np.ndarray) -> bool:
+def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
     """True if a ramp's constructor would refuse one of these (velocity, deceleration):
     ``Limits.validated`` (finite and positive limits) or ``judge_ramp`` (a ramp no plan
-    could hold)."""
+    could hold); or if one of the axes' maximum decelerations ``maximum`` (the ramps'
+    unless beyond the Maximum Speed) is not finite and positive."""
     with np.errstate(all="ignore"):
         big = np.maximum(np.abs(v), 1e-9) * 2.0
         duration = np.abs(v) / d
@@ -202,7 +218,190 @@ def _refused(v: np.ndarray, d: np.ndarray) -> bool:
             & (duration <= MAX_DURATION)
             & np.isfinite(duration * v)
         )
+        if maximum is not None:
+            ok &= np.isfinite(maximum) & (maximum > 0.0)
     return not bool(ok.all())
+
+
+def _only_processes(lanes: GroupLanes, axes: Sequence[Axis]) -> list[Process] | None:
+    """Each axis's only process, if the batch is that simple: every axis has exactly
+    one process, a member of one of the group's lanes stepped there since the last
+    rebuild (no lane has a process joining or evicted, nor stop rows), a plain process
+    (``Process.abort``), active; nothing buffered, no cam preloaded. Else None (then
+    :func:`stop_axes` settles and sums axis by axis). The checks read attributes with
+    ``operator.attrgetter`` (no Python call per axis)."""
+    lanes_in_use: set[object] = set()
+    total = 0
+    for lane in lanes.all:
+        members = lane.members
+        if lane._joining:
+            return None
+        if members:
+            if len(lane._slot) != len(members):
+                return None
+            lanes_in_use.add(lane)
+            total += len(members)
+    n = len(axes)
+    if total != n or lanes.stops.rows:
+        return None
+    lists = list(map(_processes, axes))
+    if list(map(len, lists)).count(1) != n:
+        return None
+    procs: list[Process] = list(map(_first, lists))
+    # every process in one of those lanes: as many as their members, so these are the
+    # members, all on ``axes``
+    if not set(map(_lane, procs)) <= lanes_in_use:
+        return None
+    kinds: set[type[Process]] = set(map(type, procs))
+    if any(kind.abort is not _abort for kind in kinds):
+        return None
+    if set(map(_state, procs)) != {_ACTIVE}:
+        return None
+    if any(map(_preloaded, axes)) or list(map(_buffered, axes)).count(None) != n:
+        return None
+    return procs
+
+
+def _stop_members(
+    motion: Motion,
+    lanes: GroupLanes,
+    procs: list[Process],
+    axes: Sequence[Axis],
+    idx: np.ndarray,
+    owner: object,
+    reason: AbortReason,
+) -> bool:
+    """:func:`stop_axes` for a batch :func:`_only_processes` accepted: each axis has one
+    process, a lane member the last step composed, so the controller's arrays already
+    hold what the stop needs. The command of such an axis is what composition writes
+    for one process (``Motion.compose``; the lanes write the same, bit for bit):
+    ``cmd_pos = base + position``, ``cmd_vel = velocity``, ``cmd_acc = acceleration``.
+    So the ramp inherits ``0.0 + cmd_vel`` and ``0.0 + cmd_acc`` (what
+    :meth:`Motion.start <.motion.Motion.start>` sums) and the axis's new base, its base
+    plus the aborted process's position, is ``cmd_pos``. No process is read for them.
+    The lanes write their members back at once (``Lane.evict_all``: the aborted
+    processes keep their final state, as axis by axis), and the processes are aborted
+    as ``Process.abort`` would abort them (state and reason: they left their lane)."""
+    for lane in lanes.all:
+        if lane.members:
+            lane.evict_all()
+    s = motion.s
+    v_arr = 0.0 + s.cmd_vel[idx]
+    a_arr = 0.0 + s.cmd_acc[idx]
+    dec = _column(_max_deceleration, axes)
+    vmax = _column(_max_velocity, axes)
+    with np.errstate(all="ignore"):
+        # group_stop_deceleration, element by element
+        d_arr = np.where(np.abs(v_arr) <= vmax, dec, dec * (np.abs(v_arr) / vmax))
+    if _refused(v_arr, d_arr, dec):
+        return False  # the lanes' write-back moved nothing
+    for p in procs:
+        p.state = _ABORTED
+        p.abort_reason = reason
+    # the emptied lanes empty now (their next rebuild has nothing to do); the processes
+    # they held are freed a chunk per step, as a rebuild would have them freed
+    lanes._defer_release([lane.clear() for lane in lanes.all if lane.members])
+    base = s.cmd_pos[idx]
+    rowed = s.drive_on[idx] & ((v_arr != 0.0) | (a_arr != 0.0))
+    if not motion.offers(axes[0].group):
+        rowed[:] = False
+    rows: StopRows | None = None
+    if rowed.all():
+        rows = StopRows(
+            lanes.stops, lanes, list(axes), idx, base, v_arr, d_arr, axes[0].period, owner, ramp
+        )
+        for ax, b in zip(axes, base.tolist(), strict=True):
+            ax.base = b
+            ax._processes = []
+            ax.stop_rows = rows
+    else:
+        rows = _some_rowed(motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr)
+    _retire_order(motion, lanes, rows if rowed.all() else None)
+    if rows is not None:
+        s.busy[rows.idx] = True
+        s.dirty.update(rows.idx.tolist())
+        lanes.stops.add_rows(rows)
+    return True
+
+
+def _some_rowed(
+    motion: Motion,
+    lanes: GroupLanes,
+    axes: Sequence[Axis],
+    idx: np.ndarray,
+    owner: object,
+    rowed: np.ndarray,
+    base: np.ndarray,
+    v_arr: np.ndarray,
+    a_arr: np.ndarray,
+    d_arr: np.ndarray,
+) -> StopRows | None:
+    """The ramps of :func:`_stop_members` when not all are rows (a ramp from rest, a
+    drive off, a group without lanes): those built here, the others' rows returned."""
+    s = motion.s
+    busy = s.scalars.busy
+    dirty = s.dirty
+    flags = rowed.tolist()
+    vs = v_arr.tolist()
+    accels = a_arr.tolist()
+    ds = d_arr.tolist()
+    shared: dict[tuple[float, float], Limits] = {}
+    rowed_axes: list[Axis] = []
+    for k, (ax, b) in enumerate(zip(axes, base.tolist(), strict=True)):
+        ax.base = b
+        if flags[k]:
+            rowed_axes.append(ax)
+            ax._processes = []
+            continue
+        v = vs[k]
+        key = (v, ds[k])
+        limits = shared.get(key)
+        r = ramp(ax.period, ds[k], v, owner, limits)
+        if limits is None:
+            shared[key] = r.limits
+        if v == 0.0 and accels[k] == 0.0:
+            r.state = _DONE
+        ax._processes = [r]
+        i = ax.index
+        busy[i] = r.state is _ACTIVE
+        dirty.add(i)
+    if not rowed_axes:
+        return None
+    sel = np.flatnonzero(rowed)
+    rows = StopRows(
+        lanes.stops,
+        lanes,
+        rowed_axes,
+        idx[sel],
+        base[sel],
+        v_arr[sel],
+        d_arr[sel],
+        axes[0].period,
+        owner,
+        ramp,
+    )
+    for ax in rowed_axes:
+        ax.stop_rows = rows
+    return rows
+
+
+def _retire_order(motion: Motion, lanes: GroupLanes, rows: StopRows | None) -> None:
+    """The stop removed processes that read masters: the composition order changes
+    (``Motion.coupling_changed``: every group sorted again at the next step). When the
+    rows hold every axis of the group and no other group waits for a sort, the order
+    is known without sorting: the group's axes as configured (none reads a master,
+    which is what ``Motion.sort`` gives them), usually the order already kept."""
+    g = lanes.group
+    if (
+        motion.order_dirty
+        or rows is None
+        or list(map(_stop_rows, g.axes)).count(rows) != len(g.axes)
+    ):
+        motion.coupling_changed()
+        return
+    if g.order != g.axes:
+        g.order = list(g.axes)
+        lanes.dirty = True
 
 
 def stop_axes(
@@ -210,6 +409,7 @@ def stop_axes(
     axes: Sequence[Axis],
     owner: object,
     reason: AbortReason = AbortReason.STOPPED,
+    idx: np.ndarray | None = None,
 ) -> bool:
     """Replace every process of each of ``axes`` (driven axes in Servo Control, in
     group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
@@ -218,13 +418,19 @@ def stop_axes(
     The ramps of axes whose drive is on, in a group with fast lanes, join its stop lane
     as one :class:`~.lanes.stop_rows.StopRows`: their objects are made when something
     reads the axis's processes. The others (a ramp from rest, done at once; no lanes)
-    are built here.
+    are built here. ``idx``: the axes' array indices, if the caller has them.
 
     Returns False without having changed anything if an axis's ramp would be refused (a
     non-finite velocity, a deceleration out of range, a ramp too long): the caller then
     stops them one by one, which raises as it always did."""
     if not axes:
         return True
+    lanes = motion.lanes[axes[0].group]
+    if idx is None:
+        idx = np.array([ax.index for ax in axes], dtype=np.intp)
+    procs = _only_processes(lanes, axes)
+    if procs is not None:
+        return _stop_members(motion, lanes, procs, axes, idx, owner, reason)
     lanes = _empty_lanes(motion, axes)
     n = len(axes)
     vs = [0.0] * n

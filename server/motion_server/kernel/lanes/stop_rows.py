@@ -81,8 +81,8 @@ class StopRows:
         self.dt = dt
         self.owner = owner
         self._make = make
-        #: axis index -> row
-        self.row_of: dict[int, int] = dict(zip(self.idx.tolist(), range(n), strict=True))
+        #: axis index -> row, made when a ramp is first made (:attr:`row_of`)
+        self._row_of: dict[int, int] | None = None
         #: row -> the ramp's object, once made
         self.made: dict[int, StopRamp] = {}
         self._row_by_id: dict[int, int] = {}  # id(made ramp) -> row
@@ -95,8 +95,19 @@ class StopRows:
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        # (state saved before ``row_of`` was made lazily held the dict itself)
+        state["_row_of"] = state.pop("row_of", state.get("_row_of"))
         self.__dict__.update(state)
         self._row_by_id = {id(r): k for k, r in self.made.items()}
+
+    @property
+    def row_of(self) -> dict[int, int]:
+        """Axis index -> row (made the first time a ramp is made: a stop that nothing
+        reads before it ends never needs it)."""
+        row_of = self._row_of
+        if row_of is None:
+            row_of = self._row_of = dict(zip(self.idx.tolist(), range(len(self.idx)), strict=True))
+        return row_of
 
     def __len__(self) -> int:
         return int(self.live.sum()) if self.left else len(self.axes)
@@ -162,7 +173,7 @@ class StopRows:
         self.left = 0
         self.made = {int(new_row[k]): r for k, r in self.made.items()}
         self._row_by_id = {id(r): k for k, r in self.made.items()}
-        self.row_of = dict(zip(self.idx.tolist(), range(keep.size), strict=True))
+        self._row_of = None
         return True
 
     def step(self, s: AxisArrays, dt: float, compose: Callable[[Axis], None]) -> None:
