@@ -26,6 +26,7 @@ import functools
 import math
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager
+from operator import attrgetter
 from typing import NamedTuple, cast
 
 import numpy as np
@@ -69,6 +70,9 @@ __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArra
 #: a ramped stop mode (as a plain int: hashed in C) -> what follows the ramp
 _AFTER_RAMP = {int(mode): action for mode, action in AFTER_FAST_STOP.items()}
 _SERVO_CONTROL = AxisState.SERVO_CONTROL
+#: an axis's programmed stop mode, read without a Python call per axis
+_PROGRAMMED_STOP_MODE = attrgetter("config.programmed_stop_mode")
+_CONFIG = attrgetter("config")
 _SERVO_CONTROL_INT = int(AxisState.SERVO_CONTROL)  # (numpy compares a plain int faster)
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 # read every cycle, as a module constant (see .enums)
@@ -152,6 +156,12 @@ class Controller:
             g.number: [ax for ax in g.axes if ax.type != AxisType.FEEDBACK_ONLY]
             for g in self.groups
         }
+        #: per group: the configurations of its motion axes and, read from them, their
+        #: maximum decelerations and velocities, which a group stop's ramps need
+        #: (:meth:`_group_stop_limits`)
+        self._stop_limits: dict[int, tuple[list[AxisConfig], np.ndarray, np.ndarray]] = {}
+        for g in self.groups:
+            self._group_stop_limits(g.number)
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
         #: the groups whose processes may join fast lanes (the others' lanes stay empty)
@@ -671,7 +681,8 @@ class Controller:
         if actions is not None:
             # the common case: every axis ramps
             axes = self._motion_axes[g.number]
-            if stop_axes(self.motion, axes, owner, idx=g.motion_idx):
+            maxima = self._group_stop_limits(g.number)
+            if stop_axes(self.motion, axes, owner, idx=g.motion_idx, maxima=maxima):
                 latch_stops(self.arrays, axes, g.motion_idx, actions, handle)
                 g.after_stops = True
             else:
@@ -716,6 +727,25 @@ class Controller:
         g.stops.append(handle)
         return handle
 
+    def _group_stop_limits(self, group: int) -> tuple[np.ndarray, np.ndarray]:
+        """The maximum deceleration and velocity of each motion axis of ``group`` as
+        arrays, read when the controller is built and again only when an axis's
+        configuration changed (a limit written at run time replaces the configuration:
+        :mod:`.appl_limits`); checked with one comparison of the configurations."""
+        axes = self._motion_axes[group]
+        configs = list(map(_CONFIG, axes))
+        kept = getattr(self, "_stop_limits", {}).get(group)
+        if kept is None or kept[0] != configs:
+            kept = (
+                configs,
+                np.array([c.max_deceleration for c in configs], dtype=float),
+                np.array([c.max_velocity for c in configs], dtype=float),
+            )
+            if not hasattr(self, "_stop_limits"):
+                self._stop_limits = {}  # (a controller restored from older state)
+            self._stop_limits[group] = kept
+        return kept[1], kept[2]
+
     def _all_ramping(
         self, g: MotionGroup, forced: ProgrammedStopMode | None
     ) -> list[AfterStop] | None:
@@ -730,7 +760,12 @@ class Controller:
         if forced is not None:
             action = _AFTER_RAMP.get(int(forced))
             return None if action is None else [action] * len(axes)
-        actions = [_AFTER_RAMP.get(int(ax.config.programmed_stop_mode)) for ax in axes]
+        modes = list(map(_PROGRAMMED_STOP_MODE, axes))
+        if modes and modes.count(modes[0]) == len(modes):
+            # one programmed mode for all (the usual configuration): judged once
+            action = _AFTER_RAMP.get(int(modes[0]))
+            return None if action is None else [action] * len(axes)
+        actions = [_AFTER_RAMP.get(int(mode)) for mode in modes]
         if None in actions:
             return None
         return cast(list[AfterStop], actions)

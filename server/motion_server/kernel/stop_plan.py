@@ -35,13 +35,14 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from operator import attrgetter, itemgetter
+from operator import attrgetter
 
 import numpy as np
 
 from .axis import Axis
 from .enums import AbortReason, AfterStop, AxisState, ProcessState
 from .lanes import GroupLanes
+from .lanes.base import Lane
 from .lanes.stop_rows import StopRows
 from .limits import Limits
 from .motion import Motion
@@ -56,13 +57,9 @@ _ABORTED = ProcessState.ABORTED
 _abort = Process.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
-_state = attrgetter("state")
-_processes = attrgetter("_processes")
-_first = itemgetter(0)
-_lane = attrgetter("lane")
+_class_and_state = attrgetter("__class__", "state")
 _stop_rows = attrgetter("stop_rows")
 _preloaded = attrgetter("preloaded_cams")
-_buffered = attrgetter("buffered")
 _max_deceleration = attrgetter("config.max_deceleration")
 _max_velocity = attrgetter("config.max_velocity")
 
@@ -111,17 +108,29 @@ def ramp(
     return r
 
 
-def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> GroupLanes:
+def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> tuple[GroupLanes, list[Lane]]:
     """Evict, lane by lane, every lane of the axes' group whose processes are all on
     ``axes`` (the others' members leave one by one as their axes are settled); the
-    group's lanes."""
+    group's lanes, and the lanes emptied (see :func:`_clear`)."""
     lanes = motion.lanes[axes[0].group]
+    emptied: list[Lane] = []
     if len(lanes):
         batch = {ax.index for ax in axes}
         for whole in lanes.all:
             if len(whole) and whole.within(batch):
                 whole.evict_all()
-    return lanes
+                emptied.append(whole)
+    return lanes, emptied
+
+
+def _clear(lanes: GroupLanes, emptied: list[Lane]) -> None:
+    """Once every process of the batch has ended: clear the lanes :func:`_empty_lanes`
+    emptied, unless a process joined one since (a follower released by a shutdown), so
+    that the next rebuild has nothing to do for them; the processes they held are freed
+    a chunk per step, as that rebuild would have them freed (``Lane.clear``)."""
+    dropped = [lane.clear() for lane in emptied if not lane._joining and lane.members]
+    if dropped:
+        lanes._defer_release(dropped)
 
 
 def power_off_axes(
@@ -143,7 +152,7 @@ def power_off_axes(
     if not axes:
         return
     reason = ABORT_REASON[event]
-    _empty_lanes(motion, axes)
+    lanes, emptied = _empty_lanes(motion, axes)
     s = motion.s
     busy = s.scalars.busy
     dirty = s.dirty
@@ -197,6 +206,7 @@ def power_off_axes(
         drive_on[i] = False
         if after is not None:
             after(ax)
+    _clear(lanes, emptied)
     if coupling:
         motion.coupling_changed()
 
@@ -223,14 +233,21 @@ def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) ->
     return not bool(ok.all())
 
 
-def _only_processes(lanes: GroupLanes, axes: Sequence[Axis]) -> list[Process] | None:
-    """Each axis's only process, if the batch is that simple: every axis has exactly
-    one process, a member of one of the group's lanes stepped there since the last
-    rebuild (no lane has a process joining or evicted, nor stop rows), a plain process
-    (``Process.abort``), active; nothing buffered, no cam preloaded. Else None (then
-    :func:`stop_axes` settles and sums axis by axis). The checks read attributes with
-    ``operator.attrgetter`` (no Python call per axis)."""
-    lanes_in_use: set[object] = set()
+def _member_lanes(
+    motion: Motion, lanes: GroupLanes, axes: Sequence[Axis], idx: np.ndarray
+) -> list[Lane] | None:
+    """The lanes holding every process of ``axes``, if the batch is that simple: each
+    axis's only process a member of one of the group's lanes, stepped there since the
+    last rebuild (no lane has a process joining or evicted, nor stop rows), a plain
+    process (``Process.abort``), active; no cam preloaded. Else None (then
+    :func:`stop_axes` settles and sums axis by axis).
+
+    Found from the lanes: a lane's member is the only process of its axis, with nothing
+    buffered (a command, a buffered one too, takes the axis out of its lane first), so
+    members on ``axes`` alone, as many as the axes, are one process per axis. The
+    members' classes and states are read with ``operator.attrgetter`` (no Python call
+    per process)."""
+    found: list[Lane] = []
     total = 0
     for lane in lanes.all:
         members = lane.members
@@ -239,39 +256,34 @@ def _only_processes(lanes: GroupLanes, axes: Sequence[Axis]) -> list[Process] | 
         if members:
             if len(lane._slot) != len(members):
                 return None
-            lanes_in_use.add(lane)
+            found.append(lane)
             total += len(members)
-    n = len(axes)
-    if total != n or lanes.stops.rows:
+    if total != len(axes) or lanes.stops.rows:
         return None
-    lists = list(map(_processes, axes))
-    if list(map(len, lists)).count(1) != n:
+    batch = np.zeros(len(motion.s.busy), dtype=bool)
+    batch[idx] = True
+    for lane in found:
+        if not batch[lane.idx].all():
+            return None
+        for kind, state in set(map(_class_and_state, lane.members)):
+            if kind.abort is not _abort or state is not _ACTIVE:
+                return None
+    if any(map(_preloaded, axes)):
         return None
-    procs: list[Process] = list(map(_first, lists))
-    # every process in one of those lanes: as many as their members, so these are the
-    # members, all on ``axes``
-    if not set(map(_lane, procs)) <= lanes_in_use:
-        return None
-    kinds: set[type[Process]] = set(map(type, procs))
-    if any(kind.abort is not _abort for kind in kinds):
-        return None
-    if set(map(_state, procs)) != {_ACTIVE}:
-        return None
-    if any(map(_preloaded, axes)) or list(map(_buffered, axes)).count(None) != n:
-        return None
-    return procs
+    return found
 
 
 def _stop_members(
     motion: Motion,
     lanes: GroupLanes,
-    procs: list[Process],
+    member_lanes: list[Lane],
     axes: Sequence[Axis],
     idx: np.ndarray,
     owner: object,
     reason: AbortReason,
+    maxima: tuple[np.ndarray, np.ndarray] | None,
 ) -> bool:
-    """:func:`stop_axes` for a batch :func:`_only_processes` accepted: each axis has one
+    """:func:`stop_axes` for a batch :func:`_member_lanes` accepted: each axis has one
     process, a lane member the last step composed, so the controller's arrays already
     hold what the stop needs. The command of such an axis is what composition writes
     for one process (``Motion.compose``; the lanes write the same, bit for bit):
@@ -282,25 +294,28 @@ def _stop_members(
     The lanes write their members back at once (``Lane.evict_all``: the aborted
     processes keep their final state, as axis by axis), and the processes are aborted
     as ``Process.abort`` would abort them (state and reason: they left their lane)."""
-    for lane in lanes.all:
-        if lane.members:
-            lane.evict_all()
+    for lane in member_lanes:
+        lane.evict_all()
     s = motion.s
     v_arr = 0.0 + s.cmd_vel[idx]
     a_arr = 0.0 + s.cmd_acc[idx]
-    dec = _column(_max_deceleration, axes)
-    vmax = _column(_max_velocity, axes)
+    if maxima is None:
+        dec = _column(_max_deceleration, axes)
+        vmax = _column(_max_velocity, axes)
+    else:
+        dec, vmax = maxima
     with np.errstate(all="ignore"):
         # group_stop_deceleration, element by element
         d_arr = np.where(np.abs(v_arr) <= vmax, dec, dec * (np.abs(v_arr) / vmax))
     if _refused(v_arr, d_arr, dec):
         return False  # the lanes' write-back moved nothing
-    for p in procs:
-        p.state = _ABORTED
-        p.abort_reason = reason
+    for lane in member_lanes:
+        for p in lane.members:
+            p.state = _ABORTED
+            p.abort_reason = reason
     # the emptied lanes empty now (their next rebuild has nothing to do); the processes
     # they held are freed a chunk per step, as a rebuild would have them freed
-    lanes._defer_release([lane.clear() for lane in lanes.all if lane.members])
+    _clear(lanes, member_lanes)
     base = s.cmd_pos[idx]
     rowed = s.drive_on[idx] & ((v_arr != 0.0) | (a_arr != 0.0))
     if not motion.offers(axes[0].group):
@@ -410,6 +425,7 @@ def stop_axes(
     owner: object,
     reason: AbortReason = AbortReason.STOPPED,
     idx: np.ndarray | None = None,
+    maxima: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> bool:
     """Replace every process of each of ``axes`` (driven axes in Servo Control, in
     group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
@@ -418,7 +434,8 @@ def stop_axes(
     The ramps of axes whose drive is on, in a group with fast lanes, join its stop lane
     as one :class:`~.lanes.stop_rows.StopRows`: their objects are made when something
     reads the axis's processes. The others (a ramp from rest, done at once; no lanes)
-    are built here. ``idx``: the axes' array indices, if the caller has them.
+    are built here. ``idx``: the axes' array indices, ``maxima``: their maximum
+    decelerations and velocities, if the caller has them.
 
     Returns False without having changed anything if an axis's ramp would be refused (a
     non-finite velocity, a deceleration out of range, a ramp too long): the caller then
@@ -428,10 +445,10 @@ def stop_axes(
     lanes = motion.lanes[axes[0].group]
     if idx is None:
         idx = np.array([ax.index for ax in axes], dtype=np.intp)
-    procs = _only_processes(lanes, axes)
-    if procs is not None:
-        return _stop_members(motion, lanes, procs, axes, idx, owner, reason)
-    lanes = _empty_lanes(motion, axes)
+    member_lanes = _member_lanes(motion, lanes, axes, idx)
+    if member_lanes is not None:
+        return _stop_members(motion, lanes, member_lanes, axes, idx, owner, reason, maxima)
+    lanes, emptied = _empty_lanes(motion, axes)
     n = len(axes)
     vs = [0.0] * n
     accels = [0.0] * n
@@ -521,6 +538,7 @@ def stop_axes(
         ax.processes = [r]
         busy[i] = r.state is _ACTIVE
         dirty.add(i)
+    _clear(lanes, emptied)
     if coupling:
         motion.coupling_changed()
     if rowed:

@@ -160,7 +160,8 @@ class Lane:
         by field. Returns the members dropped (the caller decides when they are
         freed)."""
         members = self.members
-        self.arrays = {f: self._empty(f) for f in self.FIELDS}
+        # (zero-length views: the dtype and row shape a rebuild's selection leaves)
+        self.arrays = {f: a[:0] for f, a in self.arrays.items()}
         self._joining = []
         self._slot = {}
         self._batch = None
