@@ -26,6 +26,7 @@ from motion_server.kernel import (
     Limits,
     ProgrammedStopMode,
 )
+from motion_server.kernel.appl_limits import Limit, set_application_limit
 from motion_server.kernel.processes import Process
 
 from .test_stop_plan import (
@@ -255,6 +256,23 @@ def test_commands_in_the_stops_scan_keep_it_off_the_arrays_path() -> None:
         ctl.group_stop(1, MODES[0])
     assert not stopped_by_arrays(fast)
     for k in range(80):
+        fast.step()
+        ref.step()
+        assert_same_unread(fast, ref, [], [], f"cycle {k}")
+    assert_same(fast, ref, jogs[0], jogs[1], [], [], "at the end")
+
+
+def test_a_limit_changed_at_run_time_is_the_one_the_stop_ramps_at() -> None:
+    """The group keeps its axes' maximum decelerations and velocities as arrays: an
+    application limit written at run time (MC_WriteParameter) replaces an axis's
+    configuration, and the next group stop ramps at the new limit, as the reference."""
+    fast, ref, jogs = jogging_pair()
+    for ctl in (fast, ref):
+        set_application_limit(ctl.axes[2], Limit.DECELERATION, 700.0)
+        set_application_limit(ctl.axes[7], Limit.VELOCITY, 20.0)  # below its jog's speed
+        ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+    assert stopped_by_arrays(fast)
+    for k in range(120):
         fast.step()
         ref.step()
         assert_same_unread(fast, ref, [], [], f"cycle {k}")
