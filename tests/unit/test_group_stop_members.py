@@ -128,7 +128,9 @@ def stopped_by_arrays(ctl: Controller) -> bool:
         ),
     ),
     stop=st.one_of(
-        st.tuples(st.just("mgs"), st.just(0), st.just(0), st.sampled_from([-1.0, 0.0, 1.0, 3.0])),
+        st.tuples(
+            st.just("mgs"), st.just(0), st.just(0), st.sampled_from([-1.0, 0.0, 1.0, 2.0, 3.0, 4.0])
+        ),
         st.just(("program", 0, 0, 0.0)),
     ),
     reads=st.lists(st.integers(0, 120), max_size=3),
@@ -170,7 +172,8 @@ def test_a_group_stop_of_lane_members_equals_the_stop_axis_by_axis(
         if cmd[0] in ("gear",) and cmd[2] >= cmd[1]:
             continue  # masters before their slaves (no loops)
         assert apply(fast, cmd, fp, fs) == apply(ref, cmd, rp, rs), cmd
-    event(f"the stop took the arrays' path: {stopped_by_arrays(fast)}")
+    lanes = fast.motion.lanes[1]
+    event(f"the stop left no lane to rebuild: {not any(lane.changed for lane in lanes.all)}")
     assert_same_unread(fast, ref, fs, rs, "after the stop")
     for cycle in range(1, 121):
         fast.step()
@@ -277,3 +280,22 @@ def test_a_limit_changed_at_run_time_is_the_one_the_stop_ramps_at() -> None:
         ref.step()
         assert_same_unread(fast, ref, [], [], f"cycle {k}")
     assert_same(fast, ref, jogs[0], jogs[1], [], [], "at the end")
+
+
+def test_a_hard_disable_of_lane_members_switches_the_group_off_in_one_batch() -> None:
+    """Hard Disable of jogging axes, then a Fast Disable's drives switched off once the
+    group is at rest: the lanes are emptied at once, the jogs aborted and the axes in
+    Axis Ready with their status as the reference's, after every cycle."""
+    for mode in (ProgrammedStopMode.HARD_DISABLE, ProgrammedStopMode.FAST_DISABLE):
+        fast, ref, jogs = jogging_pair()
+        lanes = fast.motion.lanes[1]
+        for ctl in (fast, ref):
+            ctl.group_stop(1, mode)
+        assert not any(lane.members or lane.changed for lane in lanes.all)
+        assert_same(fast, ref, jogs[0], jogs[1], [], [], f"{mode.name}: after the stop")
+        for k in range(150):
+            fast.step()
+            ref.step()
+            assert_same_unread(fast, ref, [], [], f"{mode.name}: cycle {k}")
+        assert not fast.drive_on.any()
+        assert_same(fast, ref, jogs[0], jogs[1], [], [], f"{mode.name}: at the end")

@@ -73,6 +73,8 @@ _SERVO_CONTROL = AxisState.SERVO_CONTROL
 #: an axis's programmed stop mode, read without a Python call per axis
 _PROGRAMMED_STOP_MODE = attrgetter("config.programmed_stop_mode")
 _CONFIG = attrgetter("config")
+_AFTER_STOP = attrgetter("_after_stop")
+_INDEX = attrgetter("index")
 _SERVO_CONTROL_INT = int(AxisState.SERVO_CONTROL)  # (numpy compares a plain int faster)
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 # read every cycle, as a module constant (see .enums)
@@ -363,6 +365,26 @@ class Controller:
         fast disable or shutdown), the drives off in two batches
         (:func:`.stop_plan.power_off_axes`): each axis's event concerns it alone, so
         the order of the axes does not matter."""
+        actions = list(map(_AFTER_STOP, due))
+        first = actions[0]
+        if (
+            actions.count(first) == len(actions)
+            and (
+                self.arrays.axis_state[np.fromiter(map(_INDEX, due), np.intp, len(due))]
+                == _SERVO_CONTROL_INT
+            ).all()
+        ):
+            # one action for all, every axis in Servo Control (a group come to rest):
+            # the drives off in one batch, which drops the action as Power._enter does
+            disabling = first == AfterStop.DISABLE
+            power_off_axes(
+                self.motion,
+                due,
+                AxisState.AXIS_READY if disabling else AxisState.AXIS_SHUTDOWN,
+                PowerEvent.STOPPED_DISABLE if disabling else PowerEvent.STOPPED_SHUTDOWN,
+                self.drive.switched,
+            )
+            return
         disable: list[Axis] = []
         shutdown: list[Axis] = []
         for ax in due:

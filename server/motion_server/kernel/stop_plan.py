@@ -58,6 +58,9 @@ _abort = Process.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
 _class_and_state = attrgetter("__class__", "state")
+_index = attrgetter("index")
+_own_processes = attrgetter("_processes")
+_buffered = attrgetter("buffered")
 _stop_rows = attrgetter("stop_rows")
 _preloaded = attrgetter("preloaded_cams")
 _max_deceleration = attrgetter("config.max_deceleration")
@@ -152,6 +155,8 @@ def power_off_axes(
     if not axes:
         return
     reason = ABORT_REASON[event]
+    if after is None and _power_off_members(motion, axes, state, event, reason, switched):
+        return
     lanes, emptied = _empty_lanes(motion, axes)
     s = motion.s
     busy = s.scalars.busy
@@ -209,6 +214,88 @@ def power_off_axes(
     _clear(lanes, emptied)
     if coupling:
         motion.coupling_changed()
+
+
+def _power_off_members(
+    motion: Motion,
+    axes: Sequence[Axis],
+    state: AxisState,
+    event: PowerEvent,
+    reason: AbortReason,
+    switched: Callable[[], None],
+) -> bool:
+    """:func:`power_off_axes` without ``after``, when every axis either has no motion at
+    all (at rest after a fast disable's ramp) or one process that is a lane member the
+    last step composed (a Hard Disable of moving axes): the members are written back
+    at once and aborted, the base of an axis with one is its command (as in
+    :func:`_stop_members`), and the axes' power state, latch and after-stop action are
+    set with their status arrays written once for all. False (nothing changed) when the
+    batch is not that simple."""
+    lanes = motion.lanes[axes[0].group]
+    n = len(axes)
+    found: list[Lane] = []
+    total = 0
+    for lane in lanes.all:
+        members = lane.members
+        if lane._joining:
+            return False
+        if members:
+            if len(lane._slot) != len(members):
+                return False
+            found.append(lane)
+            total += len(members)
+    # (another stop's rows may still ramp other axes: an axis of the batch with a row,
+    # or with its ramp made from one, is refused below)
+    idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
+    if found:
+        batch = np.zeros(len(motion.s.busy), dtype=bool)
+        batch[idx] = True
+        for lane in found:
+            if not batch[lane.idx].all():
+                return False
+            for kind, p_state in set(map(_class_and_state, lane.members)):
+                if kind.abort is not _abort or p_state is not _ACTIVE:
+                    return False
+    # the members, one process each, are all the processes of the batch; nothing else
+    # is on its axes (no ramp still a row, nothing buffered, no cam preloaded)
+    if (
+        sum(map(len, map(_own_processes, axes))) != total
+        or list(map(_stop_rows, axes)).count(None) != n
+        or list(map(_buffered, axes)).count(None) != n
+        or any(map(_preloaded, axes))
+    ):
+        return False
+    s = motion.s
+    for lane in found:
+        lane.evict_all()
+        for p in lane.members:
+            p.state = _ABORTED
+            p.abort_reason = reason
+        # Motion.abort folds the aborted process into the base: base + position, which
+        # is the command composition wrote (see _stop_members)
+        for ax, b in zip(lane.axes, s.cmd_pos[lane.idx].tolist(), strict=True):
+            ax.base = b
+            ax._processes = []
+    _clear(lanes, found)
+    code = int(event)
+    nothing = AfterStop.NOTHING
+    for ax in axes:
+        ax.power_event = code
+        ax._stop_latch = None
+        ax._after_stop = nothing
+        ax._state = state
+    s.busy[idx] = False
+    s.axis_state[idx] = int(state)
+    s.after_stop[idx] = int(nothing)
+    s.state_changes += n
+    s.dirty.update(idx.tolist())
+    drive_on = s.drive_on
+    for _ in range(int(np.count_nonzero(drive_on[idx]))):
+        switched()  # (once per drive switched off, as axis by axis)
+    drive_on[idx] = False
+    if total:
+        _retire_order(motion, lanes, _idle(lanes.group.axes))
+    return True
 
 
 def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
@@ -331,7 +418,7 @@ def _stop_members(
             ax.stop_rows = rows
     else:
         rows = _some_rowed(motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr)
-    _retire_order(motion, lanes, rows if rowed.all() else None)
+    _retire_order(motion, lanes, _rows_hold(lanes, rows if rowed.all() else None))
     if rows is not None:
         s.busy[rows.idx] = True
         s.dirty.update(rows.idx.tolist())
@@ -400,23 +487,33 @@ def _some_rowed(
     return rows
 
 
-def _retire_order(motion: Motion, lanes: GroupLanes, rows: StopRows | None) -> None:
+def _retire_order(motion: Motion, lanes: GroupLanes, whole: bool) -> None:
     """The stop removed processes that read masters: the composition order changes
     (``Motion.coupling_changed``: every group sorted again at the next step). When the
-    rows hold every axis of the group and no other group waits for a sort, the order
-    is known without sorting: the group's axes as configured (none reads a master,
-    which is what ``Motion.sort`` gives them), usually the order already kept."""
-    g = lanes.group
-    if (
-        motion.order_dirty
-        or rows is None
-        or list(map(_stop_rows, g.axes)).count(rows) != len(g.axes)
-    ):
+    stop left no axis of the group reading a master (``whole``: every axis of the group
+    either a row of the stop lane or without motion) and no other group waits for a
+    sort, the order is known without sorting: the group's axes as configured (what
+    ``Motion.sort`` gives axes that read no master), usually the order already kept."""
+    if motion.order_dirty or not whole:
         motion.coupling_changed()
         return
+    g = lanes.group
     if g.order != g.axes:
         g.order = list(g.axes)
         lanes.dirty = True
+
+
+def _rows_hold(lanes: GroupLanes, rows: StopRows | None) -> bool:
+    """Every axis of the group is a row of ``rows``."""
+    axes = lanes.group.axes
+    return rows is not None and list(map(_stop_rows, axes)).count(rows) == len(axes)
+
+
+def _idle(axes: Sequence[Axis]) -> bool:
+    """No axis of ``axes`` has a process (nor a ramp left as a row)."""
+    return not any(map(_own_processes, axes)) and list(map(_stop_rows, axes)).count(None) == len(
+        axes
+    )
 
 
 def stop_axes(
