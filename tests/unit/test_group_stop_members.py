@@ -299,3 +299,36 @@ def test_a_hard_disable_of_lane_members_switches_the_group_off_in_one_batch() ->
             assert_same_unread(fast, ref, [], [], f"{mode.name}: cycle {k}")
         assert not fast.drive_on.any()
         assert_same(fast, ref, jogs[0], jogs[1], [], [], f"{mode.name}: at the end")
+
+
+def test_a_hard_shutdown_releases_followers_as_axis_by_axis() -> None:
+    """Hard Shutdown of a group where gears follow masters shut down before them (whose
+    release gives them a stop ramp, aborted at once by their own shutdown) and masters
+    shut down after them: in one batch, the same processes, bases and status as axis
+    by axis, whatever signed zeros the ramps fold into the bases."""
+    fast, ref = pair(False)
+    fp: list[Process] = []
+    rp: list[Process] = []
+    # axes 1-3 jog (one backwards, one at rest); 4-7 follow 1-3 (after their masters),
+    # 0 follows 5 (before its master), the others jog
+    script: list[Command] = [
+        ("jog", 1, 0, 40.0), ("jog", 2, 0, -25.0), ("jog", 3, 0, 0.0),
+        ("gear", 4, 1, 2.0), ("gear", 5, 2, -3.0), ("gear", 6, 3, 1.0), ("gear", 7, 1, -5.0),
+        ("gear", 0, 5, 1.0),
+        *[("jog", k, 0, 10.0 + k) for k in range(8, N)],
+    ]  # fmt: skip
+    for cmd in script:
+        assert apply(fast, cmd, fp, []) == apply(ref, cmd, rp, []), cmd
+    fast.run(40)
+    ref.run(40)
+    for ctl in (fast, ref):
+        ctl.group_stop(1, ProgrammedStopMode.HARD_SHUTDOWN)
+    lanes = fast.motion.lanes[1]
+    assert not any(lane.members or lane.changed for lane in lanes.all)
+    assert_same(fast, ref, fp, rp, [], [], "after the stop")
+    assert [repr(ax.base) for ax in fast.axes] == [repr(ax.base) for ax in ref.axes]
+    for k in range(50):
+        fast.step()
+        ref.step()
+        assert_same_unread(fast, ref, [], [], f"cycle {k}")
+    assert_same(fast, ref, fp, rp, [], [], "at the end")

@@ -837,6 +837,7 @@ class Controller:
             PowerEvent.SHUTDOWN,
             self.drive.switched,
             release,
+            releasing=True,
         )
 
     def _group_stop_by_axis(

@@ -59,6 +59,7 @@ _abort = Process.abort
 _set = object.__setattr__  # Limits is a frozen dataclass
 _class_and_state = attrgetter("__class__", "state")
 _index = attrgetter("index")
+_masters = attrgetter("masters")
 _own_processes = attrgetter("_processes")
 _buffered = attrgetter("buffered")
 _stop_rows = attrgetter("stop_rows")
@@ -143,6 +144,7 @@ def power_off_axes(
     event: PowerEvent,
     switched: Callable[[], None],
     after: Callable[[Axis], None] | None = None,
+    releasing: bool = False,
 ) -> None:
     """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
     Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
@@ -151,11 +153,14 @@ def power_off_axes(
     with the event's abort reason), the after-stop action and the latch are dropped,
     the drive goes off (``switched``: the drive model's). The lanes are written back
     lane by lane, the processes' bookkeeping is inline. ``after(ax)`` runs after each
-    axis (a shutdown releases the axis's followers there, before the next axis)."""
+    axis (a shutdown releases the axis's followers there, before the next axis;
+    ``releasing``: that is all ``after`` does, ``Motion.release_followers``)."""
     if not axes:
         return
     reason = ABORT_REASON[event]
-    if after is None and _power_off_members(motion, axes, state, event, reason, switched):
+    if (after is None or releasing) and _power_off_members(
+        motion, axes, state, event, reason, switched, releasing
+    ):
         return
     lanes, emptied = _empty_lanes(motion, axes)
     s = motion.s
@@ -223,14 +228,25 @@ def _power_off_members(
     event: PowerEvent,
     reason: AbortReason,
     switched: Callable[[], None],
+    releasing: bool = False,
 ) -> bool:
-    """:func:`power_off_axes` without ``after``, when every axis either has no motion at
+    """:func:`power_off_axes` without ``after`` (or, ``releasing``, with the shutdown's
+    release of each axis's followers), when every axis either has no motion at
     all (at rest after a fast disable's ramp) or one process that is a lane member the
     last step composed (a Hard Disable of moving axes): the members are written back
     at once and aborted, the base of an axis with one is its command (as in
     :func:`_stop_members`), and the axes' power state, latch and after-stop action are
     set with their status arrays written once for all. False (nothing changed) when the
-    batch is not that simple."""
+    batch is not that simple.
+
+    A shutdown releases the followers of each axis before the next (``releasing``):
+    a follower after its master in the batch has its process aborted there (the same
+    reason), folded into its base, and, its drive on and its velocity not zero, a stop
+    ramp from that velocity, which its own shutdown then aborts where it started (its
+    base plus 0.0); a follower before its master is shut down before the release finds
+    anything. So with every process reading one master, nothing outside the batch in
+    motion and no such ramp refused (then axis by axis raises), the result is the
+    batch's with 0.0 added to the bases of the followers that had a ramp."""
     lanes = motion.lanes[axes[0].group]
     n = len(axes)
     found: list[Lane] = []
@@ -266,6 +282,9 @@ def _power_off_members(
     ):
         return False
     s = motion.s
+    ramped = _released_with_ramp(motion, found, axes, idx) if releasing else None
+    if releasing and ramped is None:
+        return False
     for lane in found:
         lane.evict_all()
         for p in lane.members:
@@ -273,7 +292,10 @@ def _power_off_members(
             p.abort_reason = reason
         # Motion.abort folds the aborted process into the base: base + position, which
         # is the command composition wrote (see _stop_members)
-        for ax, b in zip(lane.axes, s.cmd_pos[lane.idx].tolist(), strict=True):
+        bases = s.cmd_pos[lane.idx]
+        if ramped is not None and ramped.any():
+            bases = np.where(ramped[lane.idx], bases + 0.0, bases)
+        for ax, b in zip(lane.axes, bases.tolist(), strict=True):
             ax.base = b
             ax._processes = []
     _clear(lanes, found)
@@ -296,6 +318,53 @@ def _power_off_members(
     if total:
         _retire_order(motion, lanes, _idle(lanes.group.axes))
     return True
+
+
+def _released_with_ramp(
+    motion: Motion, found: list[Lane], axes: Sequence[Axis], idx: np.ndarray
+) -> np.ndarray | None:
+    """For a shutdown of ``axes`` (array indices ``idx``) whose processes are the
+    members of ``found``: a mask over the controller's axes of the followers its
+    release gives a stop ramp (see :func:`_power_off_members`); None when the batch
+    is not that simple."""
+    s = motion.s
+    n_all = len(s.busy)
+    if len(axes) != len(motion.axes):
+        outside = np.ones(n_all, dtype=bool)
+        outside[idx] = False
+        others = [motion.axes[i] for i in np.flatnonzero(outside).tolist()]
+        if any(map(_own_processes, others)) or list(map(_stop_rows, others)).count(None) != len(
+            others
+        ):
+            return None  # a process outside the batch may read one of its axes
+    order = np.full(n_all, -1, dtype=np.intp)
+    order[idx] = np.arange(len(axes))
+    by_number = {ax.number: ax.index for ax in motion.axes}
+    ramped = np.zeros(n_all, dtype=bool)
+    for lane in found:
+        masters = list(map(_masters, lane.members))
+        if not any(masters):
+            continue
+        for ms, ax in zip(masters, lane.axes, strict=True):
+            if not ms:
+                continue
+            if len(ms) != 1:
+                return None
+            m = by_number.get(ms[0])
+            if m is None or m == ax.index:
+                return None
+            if 0 <= order[m] < order[ax.index]:
+                ramped[ax.index] = True  # released by its master's shutdown, before its own
+    # the release ramps the velocity it sums (0 + velocity: the command's), the drive on
+    i = np.flatnonzero(ramped)
+    v = 0.0 + s.cmd_vel[i]
+    ramped[i] = s.drive_on[i] & (v != 0.0)
+    i = np.flatnonzero(ramped)
+    if i.size:
+        dec = np.array([motion.axes[k].config.max_deceleration for k in i.tolist()], dtype=float)
+        if _refused(s.cmd_vel[i] + 0.0, dec, dec):
+            return None  # a ramp the release would refuse: axis by axis raises
+    return ramped
 
 
 def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
