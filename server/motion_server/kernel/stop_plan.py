@@ -573,9 +573,9 @@ def _retire_order(motion: Motion, lanes: GroupLanes, whole: bool) -> None:
 
 
 def _rows_hold(lanes: GroupLanes, rows: StopRows | None) -> bool:
-    """Every axis of the group is a row of ``rows``."""
-    axes = lanes.group.axes
-    return rows is not None and list(map(_stop_rows, axes)).count(rows) == len(axes)
+    """Every axis of the group is a row of ``rows`` (made just now, one row per axis of
+    the group: as many rows as the group has axes)."""
+    return rows is not None and len(rows.axes) == len(lanes.group.axes)
 
 
 def _idle(axes: Sequence[Axis]) -> bool:
