@@ -825,7 +825,12 @@ class Controller:
                 motion, axes, AxisState.AXIS_READY, PowerEvent.SERVO_OFF, self.drive.switched
             )
             return
-        followers = motion.followers()
+        # who reads each master, found (before any axis is shut down) only if the axes
+        # are shut down one by one: the batch knows its followers without it
+        followers: dict[int, list[Axis]] = {}
+
+        def prepare() -> None:
+            followers.update(motion.followers())
 
         def release(ax: Axis) -> None:
             motion.release_followers(ax, AbortReason.SHUTDOWN, followers.get(ax.number, []))
@@ -838,6 +843,7 @@ class Controller:
             self.drive.switched,
             release,
             releasing=True,
+            prepare=prepare,
         )
 
     def _group_stop_by_axis(

@@ -145,6 +145,7 @@ def power_off_axes(
     switched: Callable[[], None],
     after: Callable[[Axis], None] | None = None,
     releasing: bool = False,
+    prepare: Callable[[], None] | None = None,
 ) -> None:
     """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
     Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
@@ -154,7 +155,9 @@ def power_off_axes(
     the drive goes off (``switched``: the drive model's). The lanes are written back
     lane by lane, the processes' bookkeeping is inline. ``after(ax)`` runs after each
     axis (a shutdown releases the axis's followers there, before the next axis;
-    ``releasing``: that is all ``after`` does, ``Motion.release_followers``)."""
+    ``releasing``: that is all ``after`` does, ``Motion.release_followers``).
+    ``prepare()`` runs before the first axis when they are taken one by one (what
+    ``after`` needs, found before anything changes)."""
     if not axes:
         return
     reason = ABORT_REASON[event]
@@ -162,6 +165,8 @@ def power_off_axes(
         motion, axes, state, event, reason, switched, releasing
     ):
         return
+    if prepare is not None:
+        prepare()
     lanes, emptied = _empty_lanes(motion, axes)
     s = motion.s
     busy = s.scalars.busy
