@@ -844,6 +844,7 @@ class Controller:
             release,
             releasing=True,
             prepare=prepare,
+            maxima=self._group_stop_limits(g.number),
         )
 
     def _group_stop_by_axis(

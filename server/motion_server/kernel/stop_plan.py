@@ -35,7 +35,7 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from operator import attrgetter
+from operator import attrgetter, itemgetter
 
 import numpy as np
 
@@ -60,6 +60,8 @@ _set = object.__setattr__  # Limits is a frozen dataclass
 _class_and_state = attrgetter("__class__", "state")
 _index = attrgetter("index")
 _masters = attrgetter("masters")
+_number = attrgetter("number")
+_first = itemgetter(0)
 _own_processes = attrgetter("_processes")
 _buffered = attrgetter("buffered")
 _stop_rows = attrgetter("stop_rows")
@@ -146,6 +148,7 @@ def power_off_axes(
     after: Callable[[Axis], None] | None = None,
     releasing: bool = False,
     prepare: Callable[[], None] | None = None,
+    maxima: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> None:
     """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
     Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
@@ -157,12 +160,13 @@ def power_off_axes(
     axis (a shutdown releases the axis's followers there, before the next axis;
     ``releasing``: that is all ``after`` does, ``Motion.release_followers``).
     ``prepare()`` runs before the first axis when they are taken one by one (what
-    ``after`` needs, found before anything changes)."""
+    ``after`` needs, found before anything changes). ``maxima``: the axes' maximum
+    decelerations and velocities, if the caller has them."""
     if not axes:
         return
     reason = ABORT_REASON[event]
     if (after is None or releasing) and _power_off_members(
-        motion, axes, state, event, reason, switched, releasing
+        motion, axes, state, event, reason, switched, releasing, maxima
     ):
         return
     if prepare is not None:
@@ -234,6 +238,7 @@ def _power_off_members(
     reason: AbortReason,
     switched: Callable[[], None],
     releasing: bool = False,
+    maxima: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> bool:
     """:func:`power_off_axes` without ``after`` (or, ``releasing``, with the shutdown's
     release of each axis's followers), when every axis either has no motion at
@@ -287,7 +292,7 @@ def _power_off_members(
     ):
         return False
     s = motion.s
-    ramped = _released_with_ramp(motion, found, axes, idx) if releasing else None
+    ramped = _released_with_ramp(motion, found, axes, idx, maxima) if releasing else None
     if releasing and ramped is None:
         return False
     for lane in found:
@@ -326,15 +331,20 @@ def _power_off_members(
 
 
 def _released_with_ramp(
-    motion: Motion, found: list[Lane], axes: Sequence[Axis], idx: np.ndarray
+    motion: Motion,
+    found: list[Lane],
+    axes: Sequence[Axis],
+    idx: np.ndarray,
+    maxima: tuple[np.ndarray, np.ndarray] | None,
 ) -> np.ndarray | None:
     """For a shutdown of ``axes`` (array indices ``idx``) whose processes are the
     members of ``found``: a mask over the controller's axes of the followers its
     release gives a stop ramp (see :func:`_power_off_members`); None when the batch
-    is not that simple."""
+    is not that simple. ``maxima``: the axes' maximum decelerations (and velocities),
+    if the caller has them."""
     s = motion.s
     n_all = len(s.busy)
-    if len(axes) != len(motion.axes):
+    if len(axes) != n_all:
         outside = np.ones(n_all, dtype=bool)
         outside[idx] = False
         others = [motion.axes[i] for i in np.flatnonzero(outside).tolist()]
@@ -344,29 +354,40 @@ def _released_with_ramp(
             return None  # a process outside the batch may read one of its axes
     order = np.full(n_all, -1, dtype=np.intp)
     order[idx] = np.arange(len(axes))
-    by_number = {ax.number: ax.index for ax in motion.axes}
     ramped = np.zeros(n_all, dtype=bool)
+    index_of: np.ndarray | None = None
     for lane in found:
         masters = list(map(_masters, lane.members))
-        if not any(masters):
+        counts = list(map(len, masters))
+        if counts.count(0) == len(counts):
             continue
-        for ms, ax in zip(masters, lane.axes, strict=True):
-            if not ms:
-                continue
-            if len(ms) != 1:
-                return None
-            m = by_number.get(ms[0])
-            if m is None or m == ax.index:
-                return None
-            if 0 <= order[m] < order[ax.index]:
-                ramped[ax.index] = True  # released by its master's shutdown, before its own
+        if max(counts) > 1:
+            return None  # a process reading two masters: released as a whole, one by one
+        if index_of is None:
+            numbers = np.fromiter(map(_number, motion.axes), dtype=np.intp, count=n_all)
+            index_of = np.full(int(numbers.max()) + 1, -1, dtype=np.intp)
+            index_of[numbers] = np.arange(n_all)
+        reads = np.fromiter(map(bool, counts), dtype=bool, count=len(counts))
+        wanted = np.fromiter(map(_first, filter(None, masters)), dtype=np.intp)
+        if wanted.min() < 0 or wanted.max() >= index_of.size:
+            return None
+        m = index_of[wanted]
+        slaves = lane.idx[reads]
+        if (m < 0).any() or (m == slaves).any():
+            return None
+        # released by its master's shutdown, before its own
+        released = (order[m] >= 0) & (order[m] < order[slaves])
+        ramped[slaves[released]] = True
     # the release ramps the velocity it sums (0 + velocity: the command's), the drive on
     i = np.flatnonzero(ramped)
     v = 0.0 + s.cmd_vel[i]
     ramped[i] = s.drive_on[i] & (v != 0.0)
     i = np.flatnonzero(ramped)
     if i.size:
-        dec = np.array([motion.axes[k].config.max_deceleration for k in i.tolist()], dtype=float)
+        if maxima is None:
+            dec = np.array([motion.axes[k].config.max_deceleration for k in i.tolist()])
+        else:
+            dec = maxima[0][order[i]]
         if _refused(s.cmd_vel[i] + 0.0, dec, dec):
             return None  # a ramp the release would refuse: axis by axis raises
     return ramped
