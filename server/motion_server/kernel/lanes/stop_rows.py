@@ -163,15 +163,31 @@ class StopRows:
             self.made = {}
             self._row_by_id = {}
             return False
-        new_row = np.cumsum(self.live) - 1
-        self.axes = [self.axes[k] for k in keep.tolist()]
-        self.idx = self.idx[keep]
-        self.at = compact(self.idx)
-        for name in ("base", "pos", "vel", "acc", "decel", "v0"):
-            setattr(self, name, getattr(self, name)[keep])
+        first, last = int(keep[0]), int(keep[-1])
+        if last - first + 1 == keep.size:
+            # the rows left are one block (the axes that still ramp were stopped from
+            # the higher speeds, usually consecutive): slices, views instead of copies
+            block = slice(first, last + 1)
+            self.axes = self.axes[block]
+            self.idx = self.idx[block]
+            at = self.at
+            if isinstance(at, slice):
+                self.at = slice(at.start + first, at.start + last + 1)
+            else:
+                self.at = compact(self.idx)
+            for name in ("base", "pos", "vel", "acc", "decel", "v0"):
+                setattr(self, name, getattr(self, name)[block])
+            self.made = {k - first: r for k, r in self.made.items()}
+        else:
+            new_row = np.cumsum(self.live) - 1
+            self.axes = [self.axes[k] for k in keep.tolist()]
+            self.idx = self.idx[keep]
+            self.at = compact(self.idx)
+            for name in ("base", "pos", "vel", "acc", "decel", "v0"):
+                setattr(self, name, getattr(self, name)[keep])
+            self.made = {int(new_row[k]): r for k, r in self.made.items()}
         self.live = np.ones(keep.size, dtype=bool)
         self.left = 0
-        self.made = {int(new_row[k]): r for k, r in self.made.items()}
         self._row_by_id = {id(r): k for k, r in self.made.items()}
         self._row_of = None
         return True
