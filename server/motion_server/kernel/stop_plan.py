@@ -57,7 +57,7 @@ _ABORTED = ProcessState.ABORTED
 _abort = Process.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
-_class_and_state = attrgetter("__class__", "state")
+_state = attrgetter("state")
 _index = attrgetter("index")
 _masters = attrgetter("masters")
 _number = attrgetter("number")
@@ -279,9 +279,8 @@ def _power_off_members(
         for lane in found:
             if not batch[lane.idx].all():
                 return False
-            for kind, p_state in set(map(_class_and_state, lane.members)):
-                if kind.abort is not _abort or p_state is not _ACTIVE:
-                    return False
+            if not _plain_and_active(lane.members):
+                return False
     # the members, one process each, are all the processes of the batch; nothing else
     # is on its axes (no ramp still a row, nothing buffered, no cam preloaded)
     if (
@@ -415,6 +414,16 @@ def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) ->
     return not bool(ok.all())
 
 
+def _plain_and_active(members: list[Process]) -> bool:
+    """Every process of ``members`` is active and aborts as ``Process.abort`` does (its
+    class does not override it). Read without a Python call per process (the states
+    counted, not hashed: an enum member's hash is a Python call)."""
+    kinds: set[type[Process]] = set(map(type, members))
+    if any(kind.abort is not _abort for kind in kinds):
+        return False
+    return list(map(_state, members)).count(_ACTIVE) == len(members)
+
+
 def _member_lanes(
     motion: Motion, lanes: GroupLanes, axes: Sequence[Axis], idx: np.ndarray
 ) -> list[Lane] | None:
@@ -447,9 +456,8 @@ def _member_lanes(
     for lane in found:
         if not batch[lane.idx].all():
             return None
-        for kind, state in set(map(_class_and_state, lane.members)):
-            if kind.abort is not _abort or state is not _ACTIVE:
-                return None
+        if not _plain_and_active(lane.members):
+            return None
     if any(map(_preloaded, axes)):
         return None
     return found
