@@ -589,7 +589,8 @@ class Controller:
         if mode == self.mode:
             return []
         self.mode = mode
-        self.mdsc.break_all(AbortReason.STOPPED)
+        if self.mdsc.linked:  # (no link, no pending reassignment: nothing to break)
+            self.mdsc.break_all(AbortReason.STOPPED)
         if mode == OperatingMode.RUN:
             return []
         return [self.group_stop(g.number) for g in self.groups]
