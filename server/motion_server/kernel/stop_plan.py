@@ -22,10 +22,21 @@ batch of axes:
 4. the ramps join the group's :class:`~.lanes.ramps.StopLane` as one batch, their lane
    state already in arrays, so the next rebuild loads no member one by one.
 
+The usual batch is simpler still (:func:`_member_lanes`, :func:`_stop_members`): every
+axis has one process, a lane member the last step composed. Then the controller's
+arrays already hold the sums and the fold (composition writes ``cmd_pos = base +
+position``, ``cmd_vel = velocity``, ``cmd_acc = acceleration`` for one process, the
+lanes the same bit for bit), so no process is read for them: the members are written
+back and aborted lane by lane, the lanes the stop empties are cleared at once
+(``Lane.clear``), and the composition order is kept when no axis reads a master any
+more (:func:`_retire_order`).
+
 A group stop in Hard Disable or Hard Shutdown of a group whose axes are all in Servo
 Control switches them off the same way (:func:`power_off_axes`): lanes written back at
 once, each axis's processes ended and its power state changed inline, in axis order (a
-shutdown releases its axis's followers before the next axis, as axis by axis).
+shutdown releases its axis's followers before the next axis, as axis by axis); a group
+of lane members, or of axes at rest, without per-axis bookkeeping at all
+(:func:`_power_off_members`, the followers' release worked out as arrays).
 
 The result is bit-identical to the reference path: the same process objects in the same
 states, the same axis bases, status arrays and lane membership (tested side by side in
