@@ -363,8 +363,19 @@ def latch_stops(
     """``ax.after_stop = action`` and ``ax.stop_latch = holder`` for every axis of
     ``axes`` (array indices ``idx``) and its action, the status arrays written once for
     all (a group stop's axes)."""
-    for ax, action in zip(axes, actions, strict=True):
-        ax._after_stop = action
-        ax._stop_latch = holder
-    s.after_stop[idx] = actions
+    if not actions:
+        return
+    first = actions[0]
+    if actions.count(first) == len(actions):
+        # one action for all (a forced stop mode, or one programmed for every axis): the
+        # array takes it as one value, not as a list of enum members to convert
+        for ax in axes:
+            ax._after_stop = first
+            ax._stop_latch = holder
+        s.after_stop[idx] = int(first)
+    else:
+        for ax, action in zip(axes, actions, strict=True):
+            ax._after_stop = action
+            ax._stop_latch = holder
+        s.after_stop[idx] = actions
     s.dirty.update(idx.tolist())

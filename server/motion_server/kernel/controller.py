@@ -26,6 +26,7 @@ import functools
 import math
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager
+from operator import attrgetter
 from typing import NamedTuple, cast
 
 import numpy as np
@@ -70,6 +71,11 @@ __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArra
 #: a ramped stop mode (as a plain int: hashed in C) -> what follows the ramp
 _AFTER_RAMP = {int(mode): action for mode, action in AFTER_FAST_STOP.items()}
 _SERVO_CONTROL = AxisState.SERVO_CONTROL
+#: an axis's programmed stop mode, read without a Python call per axis
+_PROGRAMMED_STOP_MODE = attrgetter("config.programmed_stop_mode")
+_CONFIG = attrgetter("config")
+_AFTER_STOP = attrgetter("_after_stop")
+_INDEX = attrgetter("index")
 _SERVO_CONTROL_INT = int(AxisState.SERVO_CONTROL)  # (numpy compares a plain int faster)
 _DECEL_BIT = 2  # MotionStatus bit 1; bit 0 (Accel) is added as a boolean
 # read every cycle, as a module constant (see .enums)
@@ -153,6 +159,12 @@ class Controller:
             g.number: [ax for ax in g.axes if ax.type != AxisType.FEEDBACK_ONLY]
             for g in self.groups
         }
+        #: per group: the configurations of its motion axes and, read from them, their
+        #: maximum decelerations and velocities, which a group stop's ramps need
+        #: (:meth:`_group_stop_limits`)
+        self._stop_limits: dict[int, tuple[list[AxisConfig], np.ndarray, np.ndarray]] = {}
+        for g in self.groups:
+            self._group_stop_limits(g.number)
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
         #: the groups whose processes may join fast lanes (the others' lanes stay empty)
@@ -354,6 +366,26 @@ class Controller:
         fast disable or shutdown), the drives off in two batches
         (:func:`.stop_plan.power_off_axes`): each axis's event concerns it alone, so
         the order of the axes does not matter."""
+        actions = list(map(_AFTER_STOP, due))
+        first = actions[0]
+        if (
+            actions.count(first) == len(actions)
+            and (
+                self.arrays.axis_state[np.fromiter(map(_INDEX, due), np.intp, len(due))]
+                == _SERVO_CONTROL_INT
+            ).all()
+        ):
+            # one action for all, every axis in Servo Control (a group come to rest):
+            # the drives off in one batch, which drops the action as Power._enter does
+            disabling = first == AfterStop.DISABLE
+            power_off_axes(
+                self.motion,
+                due,
+                AxisState.AXIS_READY if disabling else AxisState.AXIS_SHUTDOWN,
+                PowerEvent.STOPPED_DISABLE if disabling else PowerEvent.STOPPED_SHUTDOWN,
+                self.drive.switched,
+            )
+            return
         disable: list[Axis] = []
         shutdown: list[Axis] = []
         for ax in due:
@@ -558,7 +590,8 @@ class Controller:
         if mode == self.mode:
             return []
         self.mode = mode
-        self.mdsc.break_all(AbortReason.STOPPED)
+        if self.mdsc.linked:  # (no link, no pending reassignment: nothing to break)
+            self.mdsc.break_all(AbortReason.STOPPED)
         if mode == OperatingMode.RUN:
             return []
         return [self.group_stop(g.number) for g in self.groups]
@@ -685,7 +718,8 @@ class Controller:
         if actions is not None:
             # the common case: every axis ramps
             axes = self._motion_axes[g.number]
-            if stop_axes(self.motion, axes, owner):
+            maxima = self._group_stop_limits(g.number)
+            if stop_axes(self.motion, axes, owner, idx=g.motion_idx, maxima=maxima):
                 latch_stops(self.arrays, axes, g.motion_idx, actions, handle)
                 g.after_stops = True
             else:
@@ -730,6 +764,25 @@ class Controller:
         g.stops.append(handle)
         return handle
 
+    def _group_stop_limits(self, group: int) -> tuple[np.ndarray, np.ndarray]:
+        """The maximum deceleration and velocity of each motion axis of ``group`` as
+        arrays, read when the controller is built and again only when an axis's
+        configuration changed (a limit written at run time replaces the configuration:
+        :mod:`.appl_limits`); checked with one comparison of the configurations."""
+        axes = self._motion_axes[group]
+        configs = list(map(_CONFIG, axes))
+        kept = getattr(self, "_stop_limits", {}).get(group)
+        if kept is None or kept[0] != configs:
+            kept = (
+                configs,
+                np.array([c.max_deceleration for c in configs], dtype=float),
+                np.array([c.max_velocity for c in configs], dtype=float),
+            )
+            if not hasattr(self, "_stop_limits"):
+                self._stop_limits = {}  # (a controller restored from older state)
+            self._stop_limits[group] = kept
+        return kept[1], kept[2]
+
     def _all_ramping(
         self, g: MotionGroup, forced: ProgrammedStopMode | None
     ) -> list[AfterStop] | None:
@@ -744,7 +797,12 @@ class Controller:
         if forced is not None:
             action = _AFTER_RAMP.get(int(forced))
             return None if action is None else [action] * len(axes)
-        actions = [_AFTER_RAMP.get(int(ax.config.programmed_stop_mode)) for ax in axes]
+        modes = list(map(_PROGRAMMED_STOP_MODE, axes))
+        if modes and modes.count(modes[0]) == len(modes):
+            # one programmed mode for all (the usual configuration): judged once
+            action = _AFTER_RAMP.get(int(modes[0]))
+            return None if action is None else [action] * len(axes)
+        actions = [_AFTER_RAMP.get(int(mode)) for mode in modes]
         if None in actions:
             return None
         return cast(list[AfterStop], actions)
@@ -782,7 +840,12 @@ class Controller:
                 motion, axes, AxisState.AXIS_READY, PowerEvent.SERVO_OFF, self.drive.switched
             )
             return
-        followers = motion.followers()
+        # who reads each master, found (before any axis is shut down) only if the axes
+        # are shut down one by one: the batch knows its followers without it
+        followers: dict[int, list[Axis]] = {}
+
+        def prepare() -> None:
+            followers.update(motion.followers())
 
         def release(ax: Axis) -> None:
             motion.release_followers(ax, AbortReason.SHUTDOWN, followers.get(ax.number, []))
@@ -794,6 +857,9 @@ class Controller:
             PowerEvent.SHUTDOWN,
             self.drive.switched,
             release,
+            releasing=True,
+            prepare=prepare,
+            maxima=self._group_stop_limits(g.number),
         )
 
     def _group_stop_by_axis(
@@ -833,14 +899,14 @@ class Controller:
             return
         axes = [ax for ax, _ in ramping]
         owner = handle.owner
-        if not stop_axes(self.motion, axes, owner):
+        idx = np.array([ax.index for ax in axes], dtype=np.intp)
+        if not stop_axes(self.motion, axes, owner, idx=idx):
             for ax, action in ramping:
                 self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = action
                 g.after_stops = True
                 ax.stop_latch = handle
         else:
-            idx = np.array([ax.index for ax in axes], dtype=np.intp)
             latch_stops(self.arrays, axes, idx, [action for _, action in ramping], handle)
             g.after_stops = True
         ramping.clear()

@@ -22,10 +22,21 @@ batch of axes:
 4. the ramps join the group's :class:`~.lanes.ramps.StopLane` as one batch, their lane
    state already in arrays, so the next rebuild loads no member one by one.
 
+The usual batch is simpler still (:func:`_member_lanes`, :func:`_stop_members`): every
+axis has one process, a lane member the last step composed. Then the controller's
+arrays already hold the sums and the fold (composition writes ``cmd_pos = base +
+position``, ``cmd_vel = velocity``, ``cmd_acc = acceleration`` for one process, the
+lanes the same bit for bit), so no process is read for them: the members are written
+back and aborted lane by lane, the lanes the stop empties are cleared at once
+(``Lane.clear``), and the composition order is kept when no axis reads a master any
+more (:func:`_retire_order`).
+
 A group stop in Hard Disable or Hard Shutdown of a group whose axes are all in Servo
 Control switches them off the same way (:func:`power_off_axes`): lanes written back at
 once, each axis's processes ended and its power state changed inline, in axis order (a
-shutdown releases its axis's followers before the next axis, as axis by axis).
+shutdown releases its axis's followers before the next axis, as axis by axis); a group
+of lane members, or of axes at rest, without per-axis bookkeeping at all
+(:func:`_power_off_members`, the followers' release worked out as arrays).
 
 The result is bit-identical to the reference path: the same process objects in the same
 states, the same axis bases, status arrays and lane membership (tested side by side in
@@ -35,12 +46,14 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from operator import attrgetter, itemgetter
 
 import numpy as np
 
 from .axis import Axis
 from .enums import AbortReason, AfterStop, AxisState, ProcessState
 from .lanes import GroupLanes
+from .lanes.base import Lane
 from .lanes.stop_rows import StopRows
 from .limits import Limits
 from .motion import Motion
@@ -55,6 +68,22 @@ _ABORTED = ProcessState.ABORTED
 _abort = Process.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
+_state = attrgetter("state")
+_index = attrgetter("index")
+_masters = attrgetter("masters")
+_number = attrgetter("number")
+_first = itemgetter(0)
+_own_processes = attrgetter("_processes")
+_buffered = attrgetter("buffered")
+_stop_rows = attrgetter("stop_rows")
+_preloaded = attrgetter("preloaded_cams")
+_max_deceleration = attrgetter("config.max_deceleration")
+_max_velocity = attrgetter("config.max_velocity")
+
+
+def _column(get: Callable[[object], float], objects: Sequence[object]) -> np.ndarray:
+    """``get`` of each of ``objects`` as a float array (no Python call per object)."""
+    return np.fromiter(map(get, objects), dtype=float, count=len(objects))
 
 
 def ramp(
@@ -96,17 +125,29 @@ def ramp(
     return r
 
 
-def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> GroupLanes:
+def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> tuple[GroupLanes, list[Lane]]:
     """Evict, lane by lane, every lane of the axes' group whose processes are all on
     ``axes`` (the others' members leave one by one as their axes are settled); the
-    group's lanes."""
+    group's lanes, and the lanes emptied (see :func:`_clear`)."""
     lanes = motion.lanes[axes[0].group]
+    emptied: list[Lane] = []
     if len(lanes):
         batch = {ax.index for ax in axes}
         for whole in lanes.all:
             if len(whole) and whole.within(batch):
                 whole.evict_all()
-    return lanes
+                emptied.append(whole)
+    return lanes, emptied
+
+
+def _clear(lanes: GroupLanes, emptied: list[Lane]) -> None:
+    """Once every process of the batch has ended: clear the lanes :func:`_empty_lanes`
+    emptied, unless a process joined one since (a follower released by a shutdown), so
+    that the next rebuild has nothing to do for them; the processes they held are freed
+    a chunk per step, as that rebuild would have them freed (``Lane.clear``)."""
+    dropped = [lane.clear() for lane in emptied if not lane._joining and lane.members]
+    if dropped:
+        lanes._defer_release(dropped)
 
 
 def power_off_axes(
@@ -116,6 +157,9 @@ def power_off_axes(
     event: PowerEvent,
     switched: Callable[[], None],
     after: Callable[[Axis], None] | None = None,
+    releasing: bool = False,
+    prepare: Callable[[], None] | None = None,
+    maxima: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> None:
     """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
     Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
@@ -124,11 +168,21 @@ def power_off_axes(
     with the event's abort reason), the after-stop action and the latch are dropped,
     the drive goes off (``switched``: the drive model's). The lanes are written back
     lane by lane, the processes' bookkeeping is inline. ``after(ax)`` runs after each
-    axis (a shutdown releases the axis's followers there, before the next axis)."""
+    axis (a shutdown releases the axis's followers there, before the next axis;
+    ``releasing``: that is all ``after`` does, ``Motion.release_followers``).
+    ``prepare()`` runs before the first axis when they are taken one by one (what
+    ``after`` needs, found before anything changes). ``maxima``: the axes' maximum
+    decelerations and velocities, if the caller has them."""
     if not axes:
         return
     reason = ABORT_REASON[event]
-    _empty_lanes(motion, axes)
+    if (after is None or releasing) and _power_off_members(
+        motion, axes, state, event, reason, switched, releasing, maxima
+    ):
+        return
+    if prepare is not None:
+        prepare()
+    lanes, emptied = _empty_lanes(motion, axes)
     s = motion.s
     busy = s.scalars.busy
     dirty = s.dirty
@@ -182,14 +236,178 @@ def power_off_axes(
         drive_on[i] = False
         if after is not None:
             after(ax)
+    _clear(lanes, emptied)
     if coupling:
         motion.coupling_changed()
 
 
-def _refused(v: np.ndarray, d: np.ndarray) -> bool:
+def _power_off_members(
+    motion: Motion,
+    axes: Sequence[Axis],
+    state: AxisState,
+    event: PowerEvent,
+    reason: AbortReason,
+    switched: Callable[[], None],
+    releasing: bool = False,
+    maxima: tuple[np.ndarray, np.ndarray] | None = None,
+) -> bool:
+    """:func:`power_off_axes` without ``after`` (or, ``releasing``, with the shutdown's
+    release of each axis's followers), when every axis either has no motion at
+    all (at rest after a fast disable's ramp) or one process that is a lane member the
+    last step composed (a Hard Disable of moving axes): the members are written back
+    at once and aborted, the base of an axis with one is its command (as in
+    :func:`_stop_members`), and the axes' power state, latch and after-stop action are
+    set with their status arrays written once for all. False (nothing changed) when the
+    batch is not that simple.
+
+    A shutdown releases the followers of each axis before the next (``releasing``):
+    a follower after its master in the batch has its process aborted there (the same
+    reason), folded into its base, and, its drive on and its velocity not zero, a stop
+    ramp from that velocity, which its own shutdown then aborts where it started (its
+    base plus 0.0); a follower before its master is shut down before the release finds
+    anything. So with every process reading one master, nothing outside the batch in
+    motion and no such ramp refused (then axis by axis raises), the result is the
+    batch's with 0.0 added to the bases of the followers that had a ramp."""
+    lanes = motion.lanes[axes[0].group]
+    n = len(axes)
+    found: list[Lane] = []
+    total = 0
+    for lane in lanes.all:
+        members = lane.members
+        if lane._joining:
+            return False
+        if members:
+            if len(lane._slot) != len(members):
+                return False
+            found.append(lane)
+            total += len(members)
+    # (another stop's rows may still ramp other axes: an axis of the batch with a row,
+    # or with its ramp made from one, is refused below)
+    idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
+    if found:
+        batch = np.zeros(len(motion.s.busy), dtype=bool)
+        batch[idx] = True
+        for lane in found:
+            if not batch[lane.idx].all():
+                return False
+            if not _plain_and_active(lane.members):
+                return False
+    # the members, one process each, are all the processes of the batch; nothing else
+    # is on its axes (no ramp still a row, nothing buffered, no cam preloaded)
+    if (
+        sum(map(len, map(_own_processes, axes))) != total
+        or list(map(_stop_rows, axes)).count(None) != n
+        or list(map(_buffered, axes)).count(None) != n
+        or any(map(_preloaded, axes))
+    ):
+        return False
+    s = motion.s
+    ramped = _released_with_ramp(motion, found, axes, idx, maxima) if releasing else None
+    if releasing and ramped is None:
+        return False
+    for lane in found:
+        lane.evict_all()
+        for p in lane.members:
+            p.state = _ABORTED
+            p.abort_reason = reason
+        # Motion.abort folds the aborted process into the base: base + position, which
+        # is the command composition wrote (see _stop_members)
+        bases = s.cmd_pos[lane.idx]
+        if ramped is not None and ramped.any():
+            bases = np.where(ramped[lane.idx], bases + 0.0, bases)
+        for ax, b in zip(lane.axes, bases.tolist(), strict=True):
+            ax.base = b
+            ax._processes = []
+    _clear(lanes, found)
+    code = int(event)
+    nothing = AfterStop.NOTHING
+    for ax in axes:
+        ax.power_event = code
+        ax._stop_latch = None
+        ax._after_stop = nothing
+        ax._state = state
+    s.busy[idx] = False
+    s.axis_state[idx] = int(state)
+    s.after_stop[idx] = int(nothing)
+    s.state_changes += n
+    s.dirty.update(idx.tolist())
+    drive_on = s.drive_on
+    for _ in range(int(np.count_nonzero(drive_on[idx]))):
+        switched()  # (once per drive switched off, as axis by axis)
+    drive_on[idx] = False
+    if total:
+        _retire_order(motion, lanes, _idle(lanes.group.axes))
+    return True
+
+
+def _released_with_ramp(
+    motion: Motion,
+    found: list[Lane],
+    axes: Sequence[Axis],
+    idx: np.ndarray,
+    maxima: tuple[np.ndarray, np.ndarray] | None,
+) -> np.ndarray | None:
+    """For a shutdown of ``axes`` (array indices ``idx``) whose processes are the
+    members of ``found``: a mask over the controller's axes of the followers its
+    release gives a stop ramp (see :func:`_power_off_members`); None when the batch
+    is not that simple. ``maxima``: the axes' maximum decelerations (and velocities),
+    if the caller has them."""
+    s = motion.s
+    n_all = len(s.busy)
+    if len(axes) != n_all:
+        outside = np.ones(n_all, dtype=bool)
+        outside[idx] = False
+        others = [motion.axes[i] for i in np.flatnonzero(outside).tolist()]
+        if any(map(_own_processes, others)) or list(map(_stop_rows, others)).count(None) != len(
+            others
+        ):
+            return None  # a process outside the batch may read one of its axes
+    order = np.full(n_all, -1, dtype=np.intp)
+    order[idx] = np.arange(len(axes))
+    ramped = np.zeros(n_all, dtype=bool)
+    index_of: np.ndarray | None = None
+    for lane in found:
+        masters = list(map(_masters, lane.members))
+        counts = list(map(len, masters))
+        if counts.count(0) == len(counts):
+            continue
+        if max(counts) > 1:
+            return None  # a process reading two masters: released as a whole, one by one
+        if index_of is None:
+            numbers = np.fromiter(map(_number, motion.axes), dtype=np.intp, count=n_all)
+            index_of = np.full(int(numbers.max()) + 1, -1, dtype=np.intp)
+            index_of[numbers] = np.arange(n_all)
+        reads = np.fromiter(map(bool, counts), dtype=bool, count=len(counts))
+        wanted = np.fromiter(map(_first, filter(None, masters)), dtype=np.intp)
+        if wanted.min() < 0 or wanted.max() >= index_of.size:
+            return None
+        m = index_of[wanted]
+        slaves = lane.idx[reads]
+        if (m < 0).any() or (m == slaves).any():
+            return None
+        # released by its master's shutdown, before its own
+        released = (order[m] >= 0) & (order[m] < order[slaves])
+        ramped[slaves[released]] = True
+    # the release ramps the velocity it sums (0 + velocity: the command's), the drive on
+    i = np.flatnonzero(ramped)
+    v = 0.0 + s.cmd_vel[i]
+    ramped[i] = s.drive_on[i] & (v != 0.0)
+    i = np.flatnonzero(ramped)
+    if i.size:
+        if maxima is None:
+            dec = np.array([motion.axes[k].config.max_deceleration for k in i.tolist()])
+        else:
+            dec = maxima[0][order[i]]
+        if _refused(s.cmd_vel[i] + 0.0, dec, dec):
+            return None  # a ramp the release would refuse: axis by axis raises
+    return ramped
+
+
+def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
     """True if a ramp's constructor would refuse one of these (velocity, deceleration):
     ``Limits.validated`` (finite and positive limits) or ``judge_ramp`` (a ramp no plan
-    could hold)."""
+    could hold); or if one of the axes' maximum decelerations ``maximum`` (the ramps'
+    unless beyond the Maximum Speed) is not finite and positive."""
     with np.errstate(all="ignore"):
         big = np.maximum(np.abs(v), 1e-9) * 2.0
         duration = np.abs(v) / d
@@ -202,7 +420,214 @@ def _refused(v: np.ndarray, d: np.ndarray) -> bool:
             & (duration <= MAX_DURATION)
             & np.isfinite(duration * v)
         )
+        if maximum is not None:
+            ok &= np.isfinite(maximum) & (maximum > 0.0)
     return not bool(ok.all())
+
+
+def _plain_and_active(members: list[Process]) -> bool:
+    """Every process of ``members`` is active and aborts as ``Process.abort`` does (its
+    class does not override it). Read without a Python call per process (the states
+    counted, not hashed: an enum member's hash is a Python call)."""
+    kinds: set[type[Process]] = set(map(type, members))
+    if any(kind.abort is not _abort for kind in kinds):
+        return False
+    return list(map(_state, members)).count(_ACTIVE) == len(members)
+
+
+def _member_lanes(
+    motion: Motion, lanes: GroupLanes, axes: Sequence[Axis], idx: np.ndarray
+) -> list[Lane] | None:
+    """The lanes holding every process of ``axes``, if the batch is that simple: each
+    axis's only process a member of one of the group's lanes, stepped there since the
+    last rebuild (no lane has a process joining or evicted, nor stop rows), a plain
+    process (``Process.abort``), active; no cam preloaded. Else None (then
+    :func:`stop_axes` settles and sums axis by axis).
+
+    Found from the lanes: a lane's member is the only process of its axis, with nothing
+    buffered (a command, a buffered one too, takes the axis out of its lane first), so
+    members on ``axes`` alone, as many as the axes, are one process per axis. The
+    members' classes and states are read with ``operator.attrgetter`` (no Python call
+    per process)."""
+    found: list[Lane] = []
+    total = 0
+    for lane in lanes.all:
+        members = lane.members
+        if lane._joining:
+            return None
+        if members:
+            if len(lane._slot) != len(members):
+                return None
+            found.append(lane)
+            total += len(members)
+    if total != len(axes) or lanes.stops.rows:
+        return None
+    batch = np.zeros(len(motion.s.busy), dtype=bool)
+    batch[idx] = True
+    for lane in found:
+        if not batch[lane.idx].all():
+            return None
+        if not _plain_and_active(lane.members):
+            return None
+    if any(map(_preloaded, axes)):
+        return None
+    return found
+
+
+def _stop_members(
+    motion: Motion,
+    lanes: GroupLanes,
+    member_lanes: list[Lane],
+    axes: Sequence[Axis],
+    idx: np.ndarray,
+    owner: object,
+    reason: AbortReason,
+    maxima: tuple[np.ndarray, np.ndarray] | None,
+) -> bool:
+    """:func:`stop_axes` for a batch :func:`_member_lanes` accepted: each axis has one
+    process, a lane member the last step composed, so the controller's arrays already
+    hold what the stop needs. The command of such an axis is what composition writes
+    for one process (``Motion.compose``; the lanes write the same, bit for bit):
+    ``cmd_pos = base + position``, ``cmd_vel = velocity``, ``cmd_acc = acceleration``.
+    So the ramp inherits ``0.0 + cmd_vel`` and ``0.0 + cmd_acc`` (what
+    :meth:`Motion.start <.motion.Motion.start>` sums) and the axis's new base, its base
+    plus the aborted process's position, is ``cmd_pos``. No process is read for them.
+    The lanes write their members back at once (``Lane.evict_all``: the aborted
+    processes keep their final state, as axis by axis), and the processes are aborted
+    as ``Process.abort`` would abort them (state and reason: they left their lane)."""
+    for lane in member_lanes:
+        lane.evict_all()
+    s = motion.s
+    v_arr = 0.0 + s.cmd_vel[idx]
+    a_arr = 0.0 + s.cmd_acc[idx]
+    if maxima is None:
+        dec = _column(_max_deceleration, axes)
+        vmax = _column(_max_velocity, axes)
+    else:
+        dec, vmax = maxima
+    with np.errstate(all="ignore"):
+        # group_stop_deceleration, element by element
+        d_arr = np.where(np.abs(v_arr) <= vmax, dec, dec * (np.abs(v_arr) / vmax))
+    if _refused(v_arr, d_arr, dec):
+        return False  # the lanes' write-back moved nothing
+    for lane in member_lanes:
+        for p in lane.members:
+            p.state = _ABORTED
+            p.abort_reason = reason
+    # the emptied lanes empty now (their next rebuild has nothing to do); the processes
+    # they held are freed a chunk per step, as a rebuild would have them freed
+    _clear(lanes, member_lanes)
+    base = s.cmd_pos[idx]
+    rowed = s.drive_on[idx] & ((v_arr != 0.0) | (a_arr != 0.0))
+    if not motion.offers(axes[0].group):
+        rowed[:] = False
+    rows: StopRows | None = None
+    if rowed.all():
+        rows = StopRows(
+            lanes.stops, lanes, list(axes), idx, base, v_arr, d_arr, axes[0].period, owner, ramp
+        )
+        for ax, b in zip(axes, base.tolist(), strict=True):
+            ax.base = b
+            ax._processes = []
+            ax.stop_rows = rows
+    else:
+        rows = _some_rowed(motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr)
+    _retire_order(motion, lanes, _rows_hold(lanes, rows if rowed.all() else None))
+    if rows is not None:
+        s.busy[rows.idx] = True
+        s.dirty.update(rows.idx.tolist())
+        lanes.stops.add_rows(rows)
+    return True
+
+
+def _some_rowed(
+    motion: Motion,
+    lanes: GroupLanes,
+    axes: Sequence[Axis],
+    idx: np.ndarray,
+    owner: object,
+    rowed: np.ndarray,
+    base: np.ndarray,
+    v_arr: np.ndarray,
+    a_arr: np.ndarray,
+    d_arr: np.ndarray,
+) -> StopRows | None:
+    """The ramps of :func:`_stop_members` when not all are rows (a ramp from rest, a
+    drive off, a group without lanes): those built here, the others' rows returned."""
+    s = motion.s
+    busy = s.scalars.busy
+    dirty = s.dirty
+    flags = rowed.tolist()
+    vs = v_arr.tolist()
+    accels = a_arr.tolist()
+    ds = d_arr.tolist()
+    shared: dict[tuple[float, float], Limits] = {}
+    rowed_axes: list[Axis] = []
+    for k, (ax, b) in enumerate(zip(axes, base.tolist(), strict=True)):
+        ax.base = b
+        if flags[k]:
+            rowed_axes.append(ax)
+            ax._processes = []
+            continue
+        v = vs[k]
+        key = (v, ds[k])
+        limits = shared.get(key)
+        r = ramp(ax.period, ds[k], v, owner, limits)
+        if limits is None:
+            shared[key] = r.limits
+        if v == 0.0 and accels[k] == 0.0:
+            r.state = _DONE
+        ax._processes = [r]
+        i = ax.index
+        busy[i] = r.state is _ACTIVE
+        dirty.add(i)
+    if not rowed_axes:
+        return None
+    sel = np.flatnonzero(rowed)
+    rows = StopRows(
+        lanes.stops,
+        lanes,
+        rowed_axes,
+        idx[sel],
+        base[sel],
+        v_arr[sel],
+        d_arr[sel],
+        axes[0].period,
+        owner,
+        ramp,
+    )
+    for ax in rowed_axes:
+        ax.stop_rows = rows
+    return rows
+
+
+def _retire_order(motion: Motion, lanes: GroupLanes, whole: bool) -> None:
+    """The stop removed processes that read masters: the composition order changes
+    (``Motion.coupling_changed``: every group sorted again at the next step). When the
+    stop left no axis of the group reading a master (``whole``: every axis of the group
+    either a row of the stop lane or without motion) and no other group waits for a
+    sort, the order is known without sorting: the group's axes as configured (what
+    ``Motion.sort`` gives axes that read no master), usually the order already kept."""
+    if motion.order_dirty or not whole:
+        motion.coupling_changed()
+        return
+    g = lanes.group
+    if g.order != g.axes:
+        g.order = list(g.axes)
+        lanes.dirty = True
+
+
+def _rows_hold(lanes: GroupLanes, rows: StopRows | None) -> bool:
+    """Every axis of the group is a row of ``rows`` (made just now, one row per axis of
+    the group: as many rows as the group has axes)."""
+    return rows is not None and len(rows.axes) == len(lanes.group.axes)
+
+
+def _idle(axes: Sequence[Axis]) -> bool:
+    """No axis of ``axes`` has a process (nor a ramp left as a row)."""
+    return not any(map(_own_processes, axes)) and list(map(_stop_rows, axes)).count(None) == len(
+        axes
+    )
 
 
 def stop_axes(
@@ -210,6 +635,8 @@ def stop_axes(
     axes: Sequence[Axis],
     owner: object,
     reason: AbortReason = AbortReason.STOPPED,
+    idx: np.ndarray | None = None,
+    maxima: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> bool:
     """Replace every process of each of ``axes`` (driven axes in Servo Control, in
     group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
@@ -218,14 +645,21 @@ def stop_axes(
     The ramps of axes whose drive is on, in a group with fast lanes, join its stop lane
     as one :class:`~.lanes.stop_rows.StopRows`: their objects are made when something
     reads the axis's processes. The others (a ramp from rest, done at once; no lanes)
-    are built here.
+    are built here. ``idx``: the axes' array indices, ``maxima``: their maximum
+    decelerations and velocities, if the caller has them.
 
     Returns False without having changed anything if an axis's ramp would be refused (a
     non-finite velocity, a deceleration out of range, a ramp too long): the caller then
     stops them one by one, which raises as it always did."""
     if not axes:
         return True
-    lanes = _empty_lanes(motion, axes)
+    lanes = motion.lanes[axes[0].group]
+    if idx is None:
+        idx = np.array([ax.index for ax in axes], dtype=np.intp)
+    member_lanes = _member_lanes(motion, lanes, axes, idx)
+    if member_lanes is not None:
+        return _stop_members(motion, lanes, member_lanes, axes, idx, owner, reason, maxima)
+    lanes, emptied = _empty_lanes(motion, axes)
     n = len(axes)
     vs = [0.0] * n
     accels = [0.0] * n
@@ -315,6 +749,7 @@ def stop_axes(
         ax.processes = [r]
         busy[i] = r.state is _ACTIVE
         dirty.add(i)
+    _clear(lanes, emptied)
     if coupling:
         motion.coupling_changed()
     if rowed:

@@ -190,6 +190,22 @@ class Lane:
         self.changed = True
         self._owner.dirty = True
 
+    def clear(self) -> list[Process]:
+        """After :meth:`evict_all`, with nothing joining: leave the lane empty now, as
+        its next :meth:`rebuild` would (no member, empty arrays, nothing to rebuild),
+        so that a group stop's first step does not rebuild the lanes it emptied field
+        by field. Returns the members dropped (the caller decides when they are
+        freed)."""
+        members = self.members
+        # (zero-length views: the dtype and row shape a rebuild's selection leaves)
+        self.arrays = {f: a[:0] for f, a in self.arrays.items()}
+        self._joining = []
+        self._slot = {}
+        self._batch = None
+        self._set_members([], [])
+        self.changed = False
+        return members
+
     def sync(self, p: Process) -> None:
         """Write the lane's state into ``p`` and keep it."""
         k = self._slot.get(id(p))

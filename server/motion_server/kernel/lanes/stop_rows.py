@@ -81,8 +81,8 @@ class StopRows:
         self.dt = dt
         self.owner = owner
         self._make = make
-        #: axis index -> row
-        self.row_of: dict[int, int] = dict(zip(self.idx.tolist(), range(n), strict=True))
+        #: axis index -> row, made when a ramp is first made (:attr:`row_of`)
+        self._row_of: dict[int, int] | None = None
         #: row -> the ramp's object, once made
         self.made: dict[int, StopRamp] = {}
         self._row_by_id: dict[int, int] = {}  # id(made ramp) -> row
@@ -95,8 +95,19 @@ class StopRows:
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        # (state saved before ``row_of`` was made lazily held the dict itself)
+        state["_row_of"] = state.pop("row_of", state.get("_row_of"))
         self.__dict__.update(state)
         self._row_by_id = {id(r): k for k, r in self.made.items()}
+
+    @property
+    def row_of(self) -> dict[int, int]:
+        """Axis index -> row (made the first time a ramp is made: a stop that nothing
+        reads before it ends never needs it)."""
+        row_of = self._row_of
+        if row_of is None:
+            row_of = self._row_of = dict(zip(self.idx.tolist(), range(len(self.idx)), strict=True))
+        return row_of
 
     def __len__(self) -> int:
         return int(self.live.sum()) if self.left else len(self.axes)
@@ -152,17 +163,33 @@ class StopRows:
             self.made = {}
             self._row_by_id = {}
             return False
-        new_row = np.cumsum(self.live) - 1
-        self.axes = [self.axes[k] for k in keep.tolist()]
-        self.idx = self.idx[keep]
-        self.at = compact(self.idx)
-        for name in ("base", "pos", "vel", "acc", "decel", "v0"):
-            setattr(self, name, getattr(self, name)[keep])
+        first, last = int(keep[0]), int(keep[-1])
+        if last - first + 1 == keep.size:
+            # the rows left are one block (the axes that still ramp were stopped from
+            # the higher speeds, usually consecutive): slices, views instead of copies
+            block = slice(first, last + 1)
+            self.axes = self.axes[block]
+            self.idx = self.idx[block]
+            at = self.at
+            if isinstance(at, slice):
+                self.at = slice(at.start + first, at.start + last + 1)
+            else:
+                self.at = compact(self.idx)
+            for name in ("base", "pos", "vel", "acc", "decel", "v0"):
+                setattr(self, name, getattr(self, name)[block])
+            self.made = {k - first: r for k, r in self.made.items()}
+        else:
+            new_row = np.cumsum(self.live) - 1
+            self.axes = [self.axes[k] for k in keep.tolist()]
+            self.idx = self.idx[keep]
+            self.at = compact(self.idx)
+            for name in ("base", "pos", "vel", "acc", "decel", "v0"):
+                setattr(self, name, getattr(self, name)[keep])
+            self.made = {int(new_row[k]): r for k, r in self.made.items()}
         self.live = np.ones(keep.size, dtype=bool)
         self.left = 0
-        self.made = {int(new_row[k]): r for k, r in self.made.items()}
         self._row_by_id = {id(r): k for k, r in self.made.items()}
-        self.row_of = dict(zip(self.idx.tolist(), range(keep.size), strict=True))
+        self._row_of = None
         return True
 
     def step(self, s: AxisArrays, dt: float, compose: Callable[[Axis], None]) -> None:
