@@ -33,6 +33,9 @@ from .cam_profile import CamProfile
 from .cams import CamMode, CamProcess, LockDirection
 from .controller import Controller
 from .enums import MasterReference, ProcessKind
+from .errors import MotionError
+from .lanes import GroupLanes
+from .lanes.cams import CamLane
 from .processes import Process, ProcessFactory
 
 
@@ -97,6 +100,296 @@ def _factory(ctl: Controller, c: CamStart) -> ProcessFactory:
 
 def start_position_cams(ctl: Controller, starts: Sequence[CamStart]) -> list[CamProcess]:
     """Start the cams of ``starts`` in order (see the module docstring); returns them."""
+    if not starts:
+        return []
+    rows = _as_rows(ctl, starts)
+    if rows is not None:
+        return rows
+    return _one_after_another(ctl, starts)
+
+
+def _as_rows(ctl: Controller, starts: Sequence[CamStart]) -> list[CamProcess] | None:
+    """The usual batch, started as rows of the cam lanes: every slave distinct, in one
+    group whose lanes take processes, its drive on, without motion (no process, no
+    preloaded cam, nothing buffered, no stop row), every cam one the cam lane takes
+    (a position cam locked at once on another axis, whose master is settled as
+    ``GroupLanes._offer_cam`` asks). Otherwise None, and nothing has changed.
+
+    Each cam is a copy of its parameter set's template with its own master's position
+    and velocity (gathered once); the cam lane takes the batch's columns as arrays
+    (:meth:`~.lanes.cams.CamLane.admit_batch`), and when the group's composition order
+    and the followers' levels stay valid with the new links (checked as arrays and
+    from the levels the lanes hold), neither is computed again at the next step."""
+    motion = ctl.motion
+    s = motion.s
+    n = len(starts)
+    lanes = motion.lanes_for(starts[0].slave)
+    if lanes is None:
+        return None
+    group = lanes.group.number
+    # one pass over the starts: what each must be, and its parameter set
+    templates: dict[tuple[Any, ...], int] = {}
+    firsts: list[CamStart] = []  # the first start of each parameter set
+    which: list[int] = []
+    prev: CamStart | None = None
+    t = -1
+    position_cam = ProcessKind.POSITION_CAM
+    for c in starts:
+        ax = c[0]
+        if (
+            ax.group != group
+            or ax.stop_rows is not None
+            or ax._processes
+            or ax.preloaded_cams
+            or ax.buffered is not None
+            or c[1] is ax
+            or (c[9] is not None and c[9] != position_cam)
+        ):
+            return None
+        if (
+            prev is None
+            or c[2:10] != prev[2:10]  # (a profile compares by identity)
+            or c[1].config.rollover != prev[1].config.rollover
+        ):
+            key = _shared(c)
+            t = templates.setdefault(key, len(firsts))
+            if t == len(firsts):
+                firsts.append(c)
+        which.append(t)
+        prev = c
+    slaves = [c[0] for c in starts]
+    masters = [c[1] for c in starts]
+    slave_idx = [ax.index for ax in slaves]
+    if len(set(slave_idx)) != n:
+        return None
+    sl = np.array(slave_idx, dtype=np.intp)
+    midx = np.array([ax.index for ax in masters], dtype=np.intp)
+    if not s.drive_on[sl].all():
+        return None
+    sources = {c.source for c in starts}
+    cam_lanes = {src: _cam_lane(lanes, src) for src in sources}
+    # the group's composition order: where each axis composes (-1: not in the group)
+    order = lanes.group.order
+    if lanes._order is order:
+        order_idx = lanes._order_idx
+    else:
+        order_idx = np.array([ax.index for ax in order], dtype=np.intp)
+    at = np.full(len(s.busy), -1, dtype=np.intp)
+    at[order_idx] = np.arange(len(order_idx))
+    # the level each new cam on a command position gets (None: levelled again at the
+    # rebuild), and whether its master is settled (GroupLanes._offer_cam)
+    levelled = not (lanes.dirty or lanes.handed)
+    levels = _levels(lanes, starts, sl, midx, at) if levelled else None
+    if levels is None:
+        in_batch = set(slave_idx)
+        settled = lanes._master_settled
+        for c in starts:
+            m = c[1].index
+            if c.source == MasterReference.COMMAND and m not in in_batch and not settled(m):
+                return None  # (the lanes would keep it out)
+    # one template per parameter set: what the constructor leaves, as the lane finds it
+    shared: list[dict[str, Any]] = []
+    for c in firsts:
+        try:
+            p = c.build(ctl)
+        except MotionError:
+            return None  # started one after the other: it raises where it must
+        if not CamLane.accepts(p):
+            return None
+        d = dict(p.__dict__)
+        d["lane"] = cam_lanes[c.source]
+        d["offer_pending"] = False  # (Motion.offer clears it before the lane admits)
+        shared.append(d)
+    # the masters' positions and velocities, read as each constructor reads them
+    if len(sources) == 1:
+        pos, vel, _ = ctl.master_arrays(next(iter(sources)))
+        m_at, v_at = pos[midx], vel[midx]
+    else:
+        m_at = np.empty(n)
+        v_at = np.empty(n)
+        for src in sources:
+            pos, vel, _ = ctl.master_arrays(src)
+            sel = np.array([c.source == src for c in starts], dtype=bool)
+            m_at[sel] = pos[midx[sel]]
+            v_at[sel] = vel[midx[sel]]
+    # from here on the batch starts: each cam the only process of its slave
+    out: list[CamProcess] = []
+    new = CamProcess.__new__
+    for c, ax, k, m, v in zip(starts, slaves, which, m_at.tolist(), v_at.tolist(), strict=True):
+        master = c[1]
+        p = new(CamProcess)
+        p.__dict__.update(shared[k])
+        p.owner = c.owner
+        p.index = master.index
+        p.masters = (master.number,)
+        p.m_prev = p.m0 = p.m_eff = m
+        p.v_prev = v
+        ax._processes.append(p)
+        out.append(p)
+    # Motion.start_from_rest, for all of them: busy, the status marked stale, the order
+    s.busy[sl] = True
+    s.dirty.update(slave_idx)
+    if not motion.order_dirty and not _order_holds(at, sl, midx):
+        motion.order_dirty = True
+    ids = None
+    if levels is not None and not motion.order_dirty:
+        ids = {id(p): lv for p, lv in zip(out, levels, strict=True) if lv >= 0}
+    # the lanes' admission, in the batch's order
+    if len(sources) == 1:
+        lane = cam_lanes[next(iter(sources))]
+        joined = list(zip(out, slaves, strict=True))
+        lane.admit_batch(joined, _columns(shared, which, m_at, v_at), ids)
+    else:
+        for src, lane in cam_lanes.items():
+            rows = [k for k in range(n) if starts[k].source == src]
+            joining: list[tuple[Process, Axis]] = [(out[k], slaves[k]) for k in rows]
+            cols = _columns(shared, [which[k] for k in rows], m_at[rows], v_at[rows])
+            lane.admit_batch(joining, cols, ids)
+    return out
+
+
+def _cam_lane(lanes: GroupLanes, source: MasterReference) -> CamLane:
+    for follower in lanes.followers[source]:
+        if isinstance(follower, CamLane):
+            return follower
+    raise AssertionError("every source has a cam lane")
+
+
+def _columns(
+    shared: list[dict[str, Any]], which: list[int], m_at: np.ndarray, v_at: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The cam lane's ``FIELDS`` (but ``base``) of cams of the batch (``which``: the
+    parameter set of each), what ``CamLane._load`` reads from each: the templates'
+    values, the masters' positions and velocities."""
+    count = len(which)
+    one = len(shared) == 1
+    sel = None if one else np.array(which, dtype=np.intp)
+    col: dict[str, np.ndarray] = {}
+    for name, attr in _TEMPLATE_FIELDS.items():
+        values = [float(d.get(attr, 0.0)) for d in shared]
+        col[name] = np.full(count, values[0]) if sel is None else np.array(values)[sel]
+    for name in ("start", "end", "length", "rise"):
+        values = [float(getattr(d["profile"], name)) for d in shared]
+        col[name] = np.full(count, values[0]) if sel is None else np.array(values)[sel]
+    col["m0"] = m_at
+    col["m_last"] = m_at
+    col["v_prev"] = v_at
+    col["passes"] = np.zeros(count, dtype=np.int64)
+    return col
+
+
+#: the cam lane's fields that a new cam takes from its template (its parameter set), and
+#: the attributes that hold them (absent from a new cam's instance: the class default 0)
+_TEMPLATE_FIELDS = {
+    "origin": "origin",
+    "scale": "scale",
+    "ms": "master_scaling",
+    "cam_lock": "cam_lock",
+    "f0": "f0",
+    "mode": "mode",
+    "k": "k",
+    "x": "x",
+    "pos": "position",
+    "vel": "velocity",
+    "acc": "acceleration",
+}
+
+
+def _order_holds(at: np.ndarray, sl: np.ndarray, midx: np.ndarray) -> bool:
+    """``Motion._order_holds`` of every cam of the batch, as arrays (``at``: each axis's
+    place in the group's composition order, -1 outside the group, whose order holds
+    every axis of it): each slave composes after its master when that is in the
+    group."""
+    here = at[sl]
+    if (here < 0).any():
+        return False
+    before = at[midx]
+    return bool((before < here).all())
+
+
+def _levels(
+    lanes: GroupLanes,
+    starts: Sequence[CamStart],
+    sl: np.ndarray,
+    midx: np.ndarray,
+    at: np.ndarray,
+) -> list[int] | None:
+    """The command level each new cam gets at the next rebuild (-1 for a cam on an
+    actual position, which is not levelled), as ``GroupLanes._order_command_followers``
+    would find it, if the levels of the followers already in the lanes stay as they
+    are: none of them reads a new slave (a master without motion is read at level 0; in
+    a lane it may not be). Called only when nothing else waits for the followers to be
+    levelled again (``dirty``, ``handed``). None when not sure (or when a master is not
+    settled: then the caller asks ``GroupLanes._master_settled``)."""
+    cmd = lanes.followers[MasterReference.COMMAND]
+    # the level a command follower of each axis gets: 0 outside the group or in a lane
+    # that steps first; its own level + 1 in a command follower lane; -1 not known here
+    lv = np.where(at < 0, 0, -1)
+    for lane in (
+        lanes.cruise,
+        lanes.profiles,
+        lanes.stops,
+        lanes.scurves,
+        *lanes.followers[MasterReference.ACTUAL],
+    ):
+        if lane.members:
+            lv[lane.idx] = 0
+    for lane in cmd:
+        if lane.members:
+            if len(lane.member_levels) != len(lane.members) or np.isin(lane.midx, sl).any():
+                return None
+            lv[lane.idx] = np.array(lane.member_levels) + 1
+    lv[sl] = -2  # slaves of the batch: levelled below
+    of_master = lv[midx]
+    command = [c.source == MasterReference.COMMAND for c in starts]
+    if all(command) and bool((of_master >= 0).all()):
+        return of_master.tolist()  # (the usual batch: every master settled and known)
+    ups = of_master.tolist()
+    by_slave = {c.slave.index: j for j, c in enumerate(starts)}
+    group = lanes.group
+    found: dict[int, int | None] = {}
+
+    def level(k: int) -> int | None:
+        """The level of the batch's cam ``k`` (on a command position)."""
+        if k in found:
+            return found[k]
+        found[k] = None  # (a loop of masters: not levelled here)
+        up: int | None = ups[k]
+        if up == -1:
+            up = _master_level(group.by_index[starts[k].master.index])
+        elif up == -2:
+            j = by_slave[starts[k].master.index]
+            if not command[j]:
+                up = 0  # (an actual-position lane steps first)
+            else:
+                below = level(j)
+                up = None if below is None else below + 1
+        found[k] = up
+        return up
+
+    out: list[int] = []
+    for k in range(len(starts)):
+        if not command[k]:
+            out.append(-1)
+            continue
+        got = level(k)
+        if got is None:
+            return None
+        out.append(got)
+    return out
+
+
+def _master_level(master: Axis) -> int | None:
+    """The level a command follower of ``master`` (in the group, in no lane as a
+    member, not a slave of the batch) gets, if it is settled and known: 0 without
+    motion; else None (joining a lane: its level is decided at the rebuild)."""
+    if master.stop_rows is None and not master._processes and master.buffered is None:
+        return 0
+    return None
+
+
+def _one_after_another(ctl: Controller, starts: Sequence[CamStart]) -> list[CamProcess]:
+    """The cams of ``starts`` started in order, each offered to the lanes on its own."""
     motion = ctl.motion
     s = motion.s
     out: list[CamProcess] = []

@@ -133,7 +133,57 @@ class CamLane(LevelledLane):
             p.acceleration,
         )
 
+    def admit_batch(
+        self,
+        joining: list[tuple[Process, Axis]],
+        columns: dict[str, np.ndarray],
+        levels: dict[int, int] | None,
+    ) -> None:
+        """:meth:`admit` of each of ``joining`` (new cams, in order, each the only process
+        of an axis that had none, already marked as in this lane and offered), with
+        their ``FIELDS`` but ``base`` as ``columns``, what :meth:`_load` would read
+        (:func:`~..cam_batch.start_position_cams` computes them from the masters' arrays
+        and the cams' shared parameters): the next rebuild takes them instead of
+        reading the cams one by one, if nothing joined after them and none left.
+
+        ``levels``: the command level each new cam will have, by ``id`` of the cam (the
+        caller checked that no follower already in the lanes reads one of these
+        slaves): the next rebuild orders the follower lanes by the levels they had and
+        these (``GroupLanes._hand_over``) instead of levelling every follower again.
+        None: the followers are levelled again, as after any admission."""
+        mine = self._joining
+        self._batch = (joining[0][0], len(mine), len(joining), columns)
+        mine.extend(joining)
+        self.changed = True
+        owner = self._owner
+        if levels is None:
+            owner.dirty = True
+            return
+        owner.handed = True
+        handed = owner.__dict__.get("_handed")
+        if handed is None:
+            owner._handed = handed = {}  # type: ignore[attr-defined]
+        handed.update(levels)
+
     def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The ``FIELDS`` of the cams joining, column by column: those of a batch
+        (:meth:`admit_batch`) as it left them, the others read from the cams
+        (:meth:`_read_columns`)."""
+        batch = self._batch
+        if batch is not None:
+            first, before, count, columns = batch
+            if len(joining) == before + count and joining[before][0] is first:
+                col = dict(columns)
+                col["base"] = np.array([ax.base for _, ax in joining[before:]], dtype=float)
+                if before:
+                    head = self._read_columns(joining[:before])
+                    return [
+                        np.concatenate((h, col[f])) for h, f in zip(head, self.FIELDS, strict=True)
+                    ]
+                return [col[f] for f in self.FIELDS]
+        return self._read_columns(joining)
+
+    def _read_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
         """The ``FIELDS`` of the cams joining, column by column: the values
         :meth:`_load` reads, with one attribute getter per cam and one array for all
         (not a tuple per cam and an array per field), the profile's constants
