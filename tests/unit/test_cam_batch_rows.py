@@ -4,8 +4,8 @@ the new links keep the order and the levels) and changes nothing but speed.
 
 - Random scans on 20 axes: jogs (time lanes) and gears (command followers, in levels,
   some reading others) running; in one scan other commands before the batch, the batch
-  (cams on distinct slaves at rest, masters anywhere, slaves of the same batch among
-  them, both references, several parameter sets), other commands after it (a gear on a
+  or two (cams on distinct slaves at rest, masters anywhere, slaves of the same batch
+  among them, both references, several parameter sets), other commands after it (a gear on a
   new slave, a jog on a master, a slave stopped); the processes read through
   ``Controller.settle`` at random moments, the controller copied through the snapshot
   codec at a random cycle. Compared after every cycle: the batch with lanes against the
@@ -172,6 +172,7 @@ def same_cams(batch: list[Process], seq: list[Process], where: str) -> None:
     after=st.lists(other, max_size=3),
     reads=st.lists(st.tuples(st.integers(0, 39), st.integers(1, AXES)), max_size=4),
     snapshot=st.integers(0, 40),
+    split=st.integers(0, 14),
 )
 def test_a_batch_as_rows_moves_as_the_cams_one_by_one(
     jogs: list[int],
@@ -182,6 +183,7 @@ def test_a_batch_as_rows_moves_as_the_cams_one_by_one(
     after: list[tuple[object, ...]],
     reads: list[tuple[int, int]],
     snapshot: int,
+    split: int,
 ) -> None:
     batch, seq, ref = controller(True), controller(True), controller(False)
     ctls = (batch, seq, ref)
@@ -196,11 +198,12 @@ def test_a_batch_as_rows_moves_as_the_cams_one_by_one(
         ctl.run(20)
         for cmd in before:
             command(ctl, cmd)
-    started = (
-        start_position_cams(batch, cam_starts(batch, picks, sets)),
-        one_by_one(seq, cam_starts(seq, picks, sets)),
-        one_by_one(ref, cam_starts(ref, picks, sets)),
-    )
+    started: tuple[list[Process], list[Process], list[Process]] = ([], [], [])
+    for part in (picks[:split], picks[split:]):  # one batch or two in the scan
+        if part:
+            started[0].extend(start_position_cams(batch, cam_starts(batch, part, sets)))
+            started[1].extend(one_by_one(seq, cam_starts(seq, part, sets)))
+            started[2].extend(one_by_one(ref, cam_starts(ref, part, sets)))
     for ctl in ctls:
         for cmd in after:
             command(ctl, cmd)

@@ -12,6 +12,7 @@ or Persistent cam leaving the range is an event: it is moved out and stepped in 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from operator import attrgetter
 from typing import Any, ClassVar
 
@@ -135,7 +136,7 @@ class CamLane(LevelledLane):
 
     def admit_batch(
         self,
-        joining: list[tuple[Process, Axis]],
+        joining: Sequence[tuple[Process, Axis]],
         columns: dict[str, np.ndarray],
         levels: dict[int, int] | None,
     ) -> None:
@@ -177,6 +178,7 @@ class CamLane(LevelledLane):
                 col["base"] = np.array([ax.base for _, ax in joining[before:]], dtype=float)
                 if before:
                     head = self._read_columns(joining[:before])
+                    assert head is not None  # (cams joined before the batch)
                     return [
                         np.concatenate((h, col[f])) for h, f in zip(head, self.FIELDS, strict=True)
                     ]
