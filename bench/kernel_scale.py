@@ -80,7 +80,7 @@ from motion_server.kernel import (
 )
 from motion_server.kernel.axis import Axis
 from motion_server.kernel.cam_profile import CamProfile, SegmentType, compute_profile
-from motion_server.kernel.cams import CamMode, CamProcess, LockDirection
+from motion_server.kernel.cams import CamMode, CamProcess
 from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference, RateRamp
 from motion_server.kernel.group import OperatingMode
 
@@ -151,29 +151,30 @@ def cam_profile() -> CamProfile:
 
 def cam(ctl: Controller) -> None:
     """MAPC on every slave as the instruction builds it: Continuous, Immediate, on its
-    master's command position, slave scaling 1, cam lock position 0."""
+    master's command position, slave scaling 1, cam lock position 0; the cams of the scan
+    started as one batch (``start_position_cams``: what ``ctl.start`` on each slave
+    does)."""
+    from motion_server.kernel.cam_batch import CamStart, start_position_cams
+
     half = len(ctl.axes) // 2
     profile = cam_profile()
-    for k in range(half):
-        slave = ctl.axes[half + k]
-        master = ctl.axes[k]
-
-        def make(v: float, a: float, master: Axis = master) -> CamProcess:
-            return CamProcess(
-                ctl,
+    axes: list[Axis] = ctl.axes
+    start_position_cams(
+        ctl,
+        [
+            CamStart(
+                axes[half + k],
+                axes[k],
                 profile,
                 CamMode.CONTINUOUS,
                 1.0,
                 CAM_MASTER_SCALING,
                 0.0,
-                master=master.index,
-                source=MasterReference.COMMAND,
-                master_number=master.number,
-                lock=LockDirection.IMMEDIATE,
-                rollover=master.config.rollover,
+                MasterReference.COMMAND,
             )
-
-        ctl.start(slave, make, replace=())
+            for k in range(half)
+        ],
+    )
 
 
 def cams_in_lanes(ctl: Controller) -> tuple[int, int]:
