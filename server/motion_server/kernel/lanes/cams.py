@@ -23,7 +23,7 @@ from ..cam_profile import CamProfile
 from ..cams import CamMode, CamPhase, CamProcess, MasterDirection
 from ..enums import MasterReference, ProcessKind
 from ..processes import Process
-from ..state import AxisArrays
+from ..state import AxisArrays, compact
 from .base import Compose, LaneOwner, LevelledLane
 
 _CONTINUOUS = float(CamMode.CONTINUOUS)
@@ -48,6 +48,8 @@ _STATE_FIELDS = {
 }
 _STATE_NAMES = tuple(_STATE_FIELDS)
 _STATE = attrgetter(*_STATE_FIELDS.values())
+#: a member's master index (``CamLane.master_index``), without a call per member
+_MASTER = attrgetter("index")
 #: the fields that are the profile's (the same for every cam on it)
 _PROFILE_NAMES = ("start", "end", "length", "rise")
 
@@ -78,6 +80,10 @@ class CamLane(LevelledLane):
         "acc",
     )
     DTYPES: ClassVar[dict[str, Any]] = {"passes": np.int64}
+
+    #: the member list of a rebuild made of one batch, until the lane is ordered (see
+    #: :meth:`rebuild`; a class default: None)
+    _fresh: list[Process] | None = None
 
     #: per level: every cam of it is Continuous (set when the lane is ordered; None, a
     #: class default, for a lane restored from state saved before: the general step)
@@ -221,8 +227,62 @@ class CamLane(LevelledLane):
         p.x = float(a["x"][k])
         p.m_prev = p.m_eff = float(a["m_last"][k])
 
+    def rebuild(self) -> None:
+        """:meth:`Lane.rebuild <.base.Lane.rebuild>`; when the lane was empty and one
+        batch is all that joined (:meth:`admit_batch`, none of it evicted), the same
+        result straight from the batch's columns: no row to keep, select or append."""
+        batch = self._batch
+        joining = self._joining
+        if (
+            not self.changed
+            or batch is None
+            or self.members
+            or batch[1] != 0
+            or len(joining) != batch[2]
+        ):
+            super().rebuild()
+            return
+        procs = [p for p, _ in joining]
+        if any(p.lane is not self for p in procs):
+            super().rebuild()
+            return
+        columns = self._batch_columns(joining)
+        assert columns is not None
+        axes = [ax for _, ax in joining]
+        self._joining = []
+        self._batch = None
+        self._kept = []
+        dtypes = self.DTYPES
+        # (copies: two fields may share one column, and the lane writes its fields in place)
+        self.arrays = {
+            f: np.array(c, dtype=dtypes.get(f, float))
+            for f, c in zip(self.FIELDS, columns, strict=True)
+        }
+        self.members = procs
+        self.axes = axes
+        self._slot = dict(zip(map(id, procs), range(len(procs)), strict=True))
+        self.idx = np.array([ax.index for ax in axes], dtype=np.intp)
+        self.at = compact(self.idx)
+        self.changed = False
+        self._fresh = procs
+
     def order(self, levels: list[int]) -> None:
-        super().order(levels)
+        fresh = self._fresh is self.members
+        self._fresh = None
+        n = len(levels)
+        if fresh and n and levels.count(levels[0]) == n:
+            # a lane just made of one batch, every cam at one level L (the usual batch):
+            # what LevelledLane.order leaves (nothing to sort; levels below L empty),
+            # without walking the members level by level
+            top = levels[0]
+            self.member_levels = list(levels)
+            self.levels = [slice(0, 0)] * top + [slice(0, n)]
+            self.midx = np.array(list(map(_MASTER, self.members)), dtype=np.intp)
+            self.slaves = [compact(self.idx[sl]) for sl in self.levels]
+            self.whole = [sl.stop - sl.start == n for sl in self.levels]
+            self.masters = [compact(self.midx[sl]) for sl in self.levels]
+        else:
+            super().order(levels)
         mode = self.arrays["mode"]
         self._continuous = [bool(np.all(mode[sl] == _CONTINUOUS)) for sl in self.levels]
         self.by_profile = []
