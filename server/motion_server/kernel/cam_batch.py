@@ -131,8 +131,9 @@ def _as_rows(ctl: Controller, starts: Sequence[CamStart]) -> list[CamProcess] | 
     templates: dict[tuple[Any, ...], int] = {}
     firsts: list[CamStart] = []  # the first start of each parameter set
     which: list[int] = []
-    prev: CamStart | None = None
+    last: tuple[Any, ...] | None = None  # the parameters of the start before
     t = -1
+    rollover = 0.0
     position_cam = ProcessKind.POSITION_CAM
     for c in starts:
         ax = c[0]
@@ -146,17 +147,15 @@ def _as_rows(ctl: Controller, starts: Sequence[CamStart]) -> list[CamProcess] | 
             or (c[9] is not None and c[9] != position_cam)
         ):
             return None
-        if (
-            prev is None
-            or c[2:10] != prev[2:10]  # (a profile compares by identity)
-            or c[1].config.rollover != prev[1].config.rollover
-        ):
+        params = c[2:10]  # (a profile compares by identity)
+        if params != last or c[1].config.rollover != rollover:
             key = _shared(c)
             t = templates.setdefault(key, len(firsts))
             if t == len(firsts):
                 firsts.append(c)
+            rollover = c[1].config.rollover
         which.append(t)
-        prev = c
+        last = params
     slaves = [c[0] for c in starts]
     masters = [c[1] for c in starts]
     slave_idx = [ax.index for ax in slaves]
@@ -341,9 +340,10 @@ def _levels(
             lv[lane.idx] = np.array(lane.member_levels) + 1
     lv[sl] = -2  # slaves of the batch: levelled below
     of_master = lv[midx]
-    command = [c.source == MasterReference.COMMAND for c in starts]
-    if all(command) and bool((of_master >= 0).all()):
+    everyone = all(c.source == MasterReference.COMMAND for c in starts)
+    if everyone and bool((of_master >= 0).all()):
         return of_master.tolist()  # (the usual batch: every master settled and known)
+    command = [c.source == MasterReference.COMMAND for c in starts]
     ups = of_master.tolist()
     by_slave = {c.slave.index: j for j, c in enumerate(starts)}
     group = lanes.group
