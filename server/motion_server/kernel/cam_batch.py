@@ -16,6 +16,26 @@ but plans what they share once:
   motion, without the factory's calls; any other slave (one with processes, a cam
   preloaded on it) goes through ``Controller.start`` itself.
 
+**The usual batch as lane rows** (:func:`_as_rows`): when every slave is distinct, at
+rest, driven and in one group whose lanes take processes, and every cam is one the cam
+lane takes (locked at once, its master settled), the batch is planned as arrays, with
+the same result:
+
+- the cams are made from their templates in one loop (no lane admission each);
+- the cam lane takes the batch's columns as computed from the templates and the
+  masters' arrays (``CamLane.admit_batch``), not read back from the objects; a lane that
+  was empty is rebuilt from them directly;
+- the group's composition order is checked for the new links as arrays (each slave
+  after its master): when it holds, the group is not sorted again at the next step;
+- the level each new cam will have is found from the levels the lanes hold (its
+  master's lane, or its master a cam of the same batch), and when no follower already
+  in the lanes reads one of the new slaves, the cams are handed to the lane with these
+  levels: the next step orders the lanes that changed, without levelling every follower
+  of the group again (``GroupLanes._hand_over``).
+
+Anything else (a slave moving, a master composed in Python, a cam that cannot start) takes
+the path above, one cam after the other.
+
 A cam that cannot start (its cam lock position outside the profile's range) raises
 :class:`~.errors.MotionError` there, after the cams before it started and before the
 ones after it: as the same starts one after the other would.
