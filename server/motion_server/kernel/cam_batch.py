@@ -252,7 +252,10 @@ def _as_rows(ctl: Controller, starts: Sequence[CamStart]) -> list[CamProcess] | 
         motion.order_dirty = True
     ids = None
     if levels is not None and not motion.order_dirty:
-        ids = {id(p): lv for p, lv in zip(out, levels, strict=True) if lv >= 0}
+        if len(sources) == 1 and MasterReference.COMMAND in sources:
+            ids = dict(zip(map(id, out), levels, strict=True))  # (every cam levelled)
+        else:
+            ids = {id(p): lv for p, lv in zip(out, levels, strict=True) if lv >= 0}
     # the lanes' admission, in the batch's order
     if len(sources) == 1:
         lane = cam_lanes[next(iter(sources))]
