@@ -127,15 +127,43 @@ def _copy(
 
 
 class _Joining:
-    """The gears of the batch bound for one follower lane, admitted together."""
+    """The gears of the batch bound for one follower lane, admitted together: the
+    members, their rows of the lane's ``FIELDS``, whether all step at level 0."""
 
-    __slots__ = ("at_zero", "columns", "lane", "members")
+    __slots__ = ("at_zero", "lane", "members", "rows")
 
     def __init__(self, lane: BatchedLane) -> None:
         self.lane = lane
         self.members: list[tuple[Process, Axis]] = []
-        self.columns: list[list[Any]] = [[] for _ in lane.FIELDS]
+        self.rows: list[tuple[Any, ...]] = []
         self.at_zero = True
+
+
+class _Batch:
+    """What the gears of one call share while they start: the lanes they join, and what
+    is known of the masters and readers of each group's lanes."""
+
+    __slots__ = ("first", "joining", "masters_at_zero", "readers")
+
+    def __init__(self) -> None:
+        self.joining: dict[int, _Joining] = {}
+        #: per group: the ids of the lanes stepped before every follower
+        self.first: dict[int, set[int]] = {}
+        #: master index -> a command follower of it steps at level 0
+        self.masters_at_zero: dict[int, bool] = {}
+        #: per group: the axis indices the followers in its lanes read (a slave among
+        #: them changes their levels when it joins a lane)
+        self.readers: dict[int, set[int]] = {}
+
+    def admit(self) -> None:
+        """Hand the gathered gears to their lanes (in the order they started), and
+        forget what the lanes held: another start may change it."""
+        for j in self.joining.values():
+            columns = [list(col) for col in zip(*j.rows, strict=True)]
+            j.lane.admit_started(j.members, columns, j.at_zero)
+        self.joining.clear()
+        self.masters_at_zero.clear()
+        self.readers.clear()
 
 
 def start_gears(
@@ -165,14 +193,13 @@ def start_gears(
     busy = ctx.scalars.busy
     dirty = ctx.dirty
     drive_on = ctx.drive_on
+    offer_to = motion._offer_to
+    index_of = ctx.index_of
     started: list[Process] = []
     # per set of parameters, the first gear the constructors built (so its ratio and
     # rate were judged valid; an unseen or refused set is built, and raises, as usual)
     templates: dict[tuple[Any, ...], _Template] = {}
-    joining: dict[int, _Joining] = {}
-    # per group: the axis indices the followers in its lanes read (a slave among them
-    # changes their levels when it joins a lane)
-    readers: dict[int, set[int]] = {}
+    batch = _Batch()
     try:
         for k in range(n):
             ax = slaves[k]
@@ -183,12 +210,13 @@ def start_gears(
             procs = ax._processes if ax.stop_rows is None else ax.processes
             if procs or ax.preloaded_cams or ax.buffered is not None:
                 # not an axis without motion: the start's own path, in the loop's order
-                _admit(joining)
+                batch.admit()
                 make = _factory(ctx, ax, term, rate, owner, direction)
                 started.append(motion.start(ax, make, _REPLACE))
                 continue
             num, den = term.numerator, term.denominator
-            key = (type(num), num, type(den), den, term.counts, term.source, rate, direction)
+            source = term.source
+            key = (num, type(num), den, type(den), term.counts, int(source), rate, direction)
             t = templates.get(key)
             if t is None:
                 p = _factory(ctx, ax, term, rate, owner, direction)(0.0, 0.0)
@@ -196,7 +224,7 @@ def start_gears(
                 templates[key] = _Template(p)
                 index = p._c[0].index
             else:
-                index = ctx.index_of(term.master)  # (raises as the coupling does)
+                index = index_of(term.master)  # (raises as the coupling does)
                 p = _copy(t, ctx, ax, term, index, owner)
                 ax.gear_direction = -1 if direction < 0 else 1
             # Motion.start_from_rest, the lane's admission gathered
@@ -206,15 +234,15 @@ def start_gears(
             i = ax.index
             busy[i] = True
             dirty.add(i)
-            lanes = motion._offer_to.get(ax.group)
+            lanes = offer_to.get(ax.group)
             if lanes is not None and drive_on.item(i):
-                _join(lanes, p, ax, index, term.source, joining, readers)
+                _join(lanes, p, ax, index, source, batch)
             if p.lane is None:
                 motion.lanes[ax.group].dirty = True
             started.append(p)
     finally:
         # (also when a gear is refused: those before it started, as in the loop)
-        _admit(joining)
+        batch.admit()
     return started
 
 
@@ -224,12 +252,13 @@ def _join(
     ax: Axis,
     index: int,
     source: MasterReference,
-    joining: dict[int, _Joining],
-    readers: dict[int, set[int]],
+    batch: _Batch,
 ) -> None:
     """``GroupLanes.offer`` of the gear ``p`` just started on ``ax`` (without motion
-    before), the admission itself gathered in ``joining``."""
-    if source == _COMMAND and not lanes._master_settled(index):
+    before), the admission itself gathered in ``batch``."""
+    p.offer_pending = False  # (offered, whether a lane takes it or not)
+    command = source == _COMMAND
+    if command and not lanes._master_settled(index):
         return  # its master is composed in Python: so must it be
     c = p.single
     assert c is not None
@@ -237,77 +266,70 @@ def _join(
     # ``followers`` whose ``accepts`` holds), without asking each
     followers = lanes.followers[source]
     lane: BatchedLane
-    if not p.locked:
+    ramp = p._ramp
+    if ramp is not None:
         lane = followers[2]  # type: ignore[assignment]
-        assert type(lane) is CatchUpLane and type(p.ramp) is RateRamp
+        assert type(lane) is CatchUpLane and type(ramp) is RateRamp
+        # CatchUpLane.FIELDS: base, ratio, v_prev, accel, decel, pos, vel, acc
+        row: tuple[Any, ...] = (
+            ax.base, c.ratio, c.v_prev, ramp.accel, ramp.decel, ramp.position,
+            ramp.velocity, ramp.acceleration,
+        )  # fmt: skip
     elif not c.exact:
         lane = followers[0]  # type: ignore[assignment]
         assert type(lane) is GearLane
+        # GearLane.FIELDS: base, at_lock, lock_pos, num, den, ratio, v_prev, pos, vel, acc
+        row = (
+            ax.base, p.at_lock, c.lock_pos, c.num, c.den, c.ratio, c.v_prev, p.position,
+            p.velocity, p.acceleration,
+        )  # fmt: skip
     else:
         fraction = followers[1]
         if fraction.accepts(p):
             # (a fraction gear locked at once: admitted and loaded as usual)
-            p.offer_pending = False
             fraction.admit(p, ax)
         return
-    p.offer_pending = False
     p.lane = lane
-    j = joining.get(id(lane))
+    j = batch.joining.get(id(lane))
     if j is None:
-        j = joining[id(lane)] = _Joining(lane)
+        j = batch.joining[id(lane)] = _Joining(lane)
     j.members.append((p, ax))
-    if j.at_zero and source == _COMMAND:
-        j.at_zero = _at_level_zero(lanes, ax, index, readers)
-    cols = j.columns
-    if type(lane) is CatchUpLane:
-        # CatchUpLane.FIELDS: base, ratio, v_prev, accel, decel, pos, vel, acc
-        ramp = p.ramp
-        assert isinstance(ramp, RateRamp)
-        values: tuple[Any, ...] = (
-            ax.base, c.ratio, c.v_prev, ramp.accel, ramp.decel, ramp.position,
-            ramp.velocity, ramp.acceleration,
-        )  # fmt: skip
-    else:
-        # GearLane.FIELDS: base, at_lock, lock_pos, num, den, ratio, v_prev, pos, vel, acc
-        values = (
-            ax.base, p.at_lock, c.lock_pos, c.num, c.den, c.ratio, c.v_prev, p.position,
-            p.velocity, p.acceleration,
-        )  # fmt: skip
-    for col, x in zip(cols, values, strict=True):
-        col.append(x)
+    j.rows.append(row)
+    if j.at_zero and command:
+        j.at_zero = _at_level_zero(lanes, ax, index, batch)
 
 
-def _at_level_zero(lanes: GroupLanes, ax: Axis, index: int, readers: dict[int, set[int]]) -> bool:
+def _at_level_zero(lanes: GroupLanes, ax: Axis, index: int, batch: _Batch) -> bool:
     """A command follower of the master at ``index`` just joining a lane on ``ax``
     (which had no motion) steps at level 0 and changes no other follower's level: the
     master is in another group or its one process is in a lane stepped before every
     follower (``GroupLanes._order_command_followers``: a time-driven lane or a follower
     of an actual position), and no follower in the lanes reads ``ax``."""
-    master = lanes.group.by_index.get(index)
-    if master is not None:
-        mprocs = master._processes if master.stop_rows is None else master.processes
-        if len(mprocs) != 1:
-            return False
-        first = (lanes.cruise, lanes.profiles, lanes.stops, lanes.scurves)
-        where = mprocs[0].lane
-        if not any(where is lane for lane in first) and not any(
-            where is lane for lane in lanes.followers[MasterReference.ACTUAL]
-        ):
-            return False
     group = lanes.group.number
-    read = readers.get(group)
+    master_ok = batch.masters_at_zero.get(index)
+    if master_ok is None:
+        first = batch.first.get(group)
+        if first is None:
+            first = batch.first[group] = {
+                id(lane)
+                for lane in (lanes.cruise, lanes.profiles, lanes.stops, lanes.scurves,
+                             *lanes.followers[MasterReference.ACTUAL])
+            }  # fmt: skip
+        master = lanes.group.by_index.get(index)
+        if master is None:
+            master_ok = True
+        else:
+            mprocs = master._processes if master.stop_rows is None else master.processes
+            master_ok = len(mprocs) == 1 and id(mprocs[0].lane) in first
+        batch.masters_at_zero[index] = master_ok
+    if not master_ok:
+        return False
+    read = batch.readers.get(group)
     if read is None:
         read = set()
         for lane in lanes.followers[_COMMAND]:
             read.update(lane.midx.tolist())
             for q, _ in lane._joining:
                 read.add(lane.master_index(q))
-        readers[group] = read
+        batch.readers[group] = read
     return ax.index not in read
-
-
-def _admit(joining: dict[int, _Joining]) -> None:
-    """Hand the gathered gears to their lanes (in the order they started); empty it."""
-    for j in joining.values():
-        j.lane.admit_started(j.members, j.columns, j.at_zero)
-    joining.clear()
