@@ -35,6 +35,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 from .axis import Axis
 from .enums import MasterReference, ProcessKind
 from .gearing import GearProcess, GearTerm, RateRamp, _Coupling
@@ -143,7 +145,7 @@ class _Batch:
     """What the gears of one call share while they start: the lanes they join, and what
     is known of the masters and readers of each group's lanes."""
 
-    __slots__ = ("first", "joining", "masters_at_zero", "readers")
+    __slots__ = ("first", "joining", "masters_at_zero", "positions", "readers")
 
     def __init__(self) -> None:
         self.joining: dict[int, _Joining] = {}
@@ -154,12 +156,15 @@ class _Batch:
         #: per group: the axis indices the followers in its lanes read (a slave among
         #: them changes their levels when it joins a lane)
         self.readers: dict[int, set[int]] = {}
+        #: per group: each axis index's place in the composition order
+        self.positions: dict[int, dict[int, int]] = {}
 
     def admit(self) -> None:
         """Hand the gathered gears to their lanes (in the order they started), and
         forget what the lanes held: another start may change it."""
         for j in self.joining.values():
-            columns = [list(col) for col in zip(*j.rows, strict=True)]
+            # (one conversion for every row, as the rebuild converts the rows it loads)
+            columns = list(np.array(j.rows, dtype=float).T)
             j.lane.admit_started(j.members, columns, j.at_zero)
         self.joining.clear()
         self.masters_at_zero.clear()
@@ -229,9 +234,9 @@ def start_gears(
                 ax.gear_direction = -1 if direction < 0 else 1
             # Motion.start_from_rest, the lane's admission gathered
             procs.append(p)
-            if not motion.order_dirty and not motion._order_holds(ax, p):
-                motion.order_dirty = True
             i = ax.index
+            if not motion.order_dirty and not _order_holds(motion, ax, i, index, batch):
+                motion.order_dirty = True
             busy[i] = True
             dirty.add(i)
             lanes = offer_to.get(ax.group)
@@ -244,6 +249,27 @@ def start_gears(
         # (also when a gear is refused: those before it started, as in the loop)
         batch.admit()
     return started
+
+
+def _order_holds(motion: Motion, ax: Axis, i: int, index: int, batch: _Batch) -> bool:
+    """``Motion._order_holds`` of a gear on ``ax`` (index ``i``, without motion before)
+    reading the master at ``index``: the master, if in the group, composes before it.
+    The group's order does not change during the call (it is sorted at the next step),
+    so its positions are looked up once per group."""
+    at = batch.positions.get(ax.group)
+    if at is None:
+        motion._order_holds(ax, Process())  # (no masters: the positions cached, True)
+        cached = motion._positions
+        assert cached is not None
+        at = batch.positions[ax.group] = cached[ax.group][1]
+    here = at.get(i)
+    if here is None:
+        return False
+    master = motion.axes[index]
+    if master.group != ax.group:
+        return True
+    before = at.get(index)
+    return before is not None and before < here
 
 
 def _join(
