@@ -81,7 +81,7 @@ from motion_server.kernel import (
 from motion_server.kernel.axis import Axis
 from motion_server.kernel.cam_profile import CamProfile, SegmentType, compute_profile
 from motion_server.kernel.cams import CamMode, CamProcess
-from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference, RateRamp
+from motion_server.kernel.gearing import GearTerm, MasterReference
 from motion_server.kernel.group import OperatingMode
 
 PERIOD = 0.001
@@ -126,15 +126,9 @@ def jog(ctl: Controller, jerk: float = 0.0) -> None:
 def gear(ctl: Controller, clutch: bool) -> None:
     """MAG on every slave, to its master's command position."""
     half = len(ctl.axes) // 2
-    for k in range(half):
-        slave = ctl.axes[half + k]
-        term = GearTerm(k + 1, MasterReference.COMMAND, *RATIO)
-
-        def make(v: float, a: float, slave: object = slave, term: GearTerm = term) -> GearProcess:
-            ramp = RateRamp(RATE) if clutch else None
-            return GearProcess(ctl, slave, (term,), ramp, v, a)  # type: ignore[arg-type]
-
-        ctl.start(slave, make, replace=(ProcessKind.GEAR,))
+    slaves = ctl.axes[half:]
+    terms = [GearTerm(k + 1, MasterReference.COMMAND, *RATIO) for k in range(half)]
+    ctl.start_gears(slaves, terms, [RATE if clutch else None] * half)
 
 
 #: the cam table: 9 points over 0..360, a dwell (0..90), a rise of 10 (90..270), a dwell

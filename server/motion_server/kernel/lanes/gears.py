@@ -30,7 +30,69 @@ def gear_source(p: GearProcess) -> MasterReference:
     return MasterReference.COMMAND if c.acc is not None else MasterReference.ACTUAL
 
 
-class GearLane(LevelledLane):
+class BatchedLane(LevelledLane):
+    """A follower lane that can take a batch of members as columns: gears the catch-up
+    lane locked (:meth:`CatchUpLane._lock`), gears started together
+    (:mod:`..gear_batch`)."""
+
+    def take_batch(self, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
+        """``joining`` were admitted last, in this order; ``columns`` holds their
+        ``FIELDS``, what :meth:`_load` would read: if they are all that joined since the
+        last rebuild, the next rebuild takes the columns instead of loading them one by
+        one."""
+        mine = self._joining
+        if (
+            joining
+            and len(mine) == len(joining)
+            and all(q is p for (q, _), (p, _) in zip(mine, joining, strict=True))
+        ):
+            self._batch = (joining[0][0], len(joining), columns)
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        batch = self._batch
+        if batch is None or not joining or joining[0][0] is not batch[0]:
+            return None
+        if len(joining) != batch[1]:
+            return None
+        return [np.asarray(col, dtype=float) for col in batch[2]]
+
+    def admit_started(
+        self, joining: Sequence[tuple[Process, Axis]], columns: list[Any] | None, at_zero: bool
+    ) -> None:
+        """:meth:`~.base.Lane.admit` of each of ``joining`` (gears just started on axes
+        without motion, in this order, each already marked ``p.lane is self``), with
+        their ``FIELDS`` as ``columns`` (None: loaded one by one at the rebuild).
+
+        ``at_zero``: every one of them steps at level 0 and no follower's level changes
+        by their joining (the caller checked: each reads a master stepped before every
+        follower, and no follower in the lanes reads their slaves). The rebuild then
+        orders the follower lanes by the levels their members had, these at 0
+        (``GroupLanes._hand_over``, as for gears handed over locked), instead of
+        levelling every follower again; otherwise the followers are levelled again,
+        as ``admit`` does."""
+        if not joining:
+            return
+        self._batch = None
+        self._joining.extend(joining)
+        self.changed = True
+        if columns is not None:
+            self.take_batch(joining, columns)
+        owner = self._owner
+        if not at_zero:
+            owner.dirty = True
+            return
+        if self.source == MasterReference.COMMAND:
+            # the levels by identity, read by the hand-over (a dict of the owner's own:
+            # not the class default of lanes restored from older state)
+            handed = vars(owner).get("_handed")
+            if handed is None:
+                handed = {}
+                owner._handed = handed  # type: ignore[attr-defined]
+            handed.update(dict.fromkeys([id(p) for p, _ in joining], 0))
+        owner.handed = True
+
+
+class GearLane(BatchedLane):
     """Locked real-ratio gears on one master (``GearProcess.step``, locked, one term)."""
 
     FIELDS = ("base", "at_lock", "lock_pos", "num", "den", "ratio", "v_prev", "pos", "vel", "acc")
@@ -70,25 +132,6 @@ class GearLane(LevelledLane):
         p.velocity = float(a["vel"][k])
         p.acceleration = float(a["acc"][k])
         p.single.v_prev = float(a["v_prev"][k])
-
-    def take_batch(self, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
-        """``joining`` (gears the catch-up lane locked, :meth:`CatchUpLane._lock`) were
-        admitted last, in this order; ``columns`` holds their ``FIELDS``, what
-        :meth:`_load` would read: if they are all that joined since the last rebuild,
-        the next rebuild takes the columns instead of loading them one by one."""
-        mine = self._joining
-        if len(mine) == len(joining) and all(
-            q is p for (q, _), (p, _) in zip(mine, joining, strict=True)
-        ):
-            self._batch = (joining[0][0], len(joining), columns)
-
-    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        batch = self._batch
-        if batch is None or not joining or joining[0][0] is not batch[0]:
-            return None
-        if len(joining) != batch[1]:
-            return None
-        return [np.asarray(col, dtype=float) for col in batch[2]]
 
     def _store_columns(self, members: list[Any], columns: dict[str, list[Any]]) -> None:
         for p, x, v, a, vp in zip(members, columns["pos"], columns["vel"], columns["acc"],
@@ -226,7 +269,7 @@ class FractionLane(LevelledLane):
             compose(ax)
 
 
-class CatchUpLane(LevelledLane):
+class CatchUpLane(BatchedLane):
     """Gears on one master catching up at a rate (``GearProcess.step`` before the lock
     with a ``RateRamp``); the step that catches up (and locks) is the gear's own (moved
     out)."""
