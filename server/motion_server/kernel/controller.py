@@ -368,12 +368,10 @@ class Controller:
         the order of the axes does not matter."""
         actions = list(map(_AFTER_STOP, due))
         first = actions[0]
+        idx = np.fromiter(map(_INDEX, due), np.intp, len(due))
         if (
             actions.count(first) == len(actions)
-            and (
-                self.arrays.axis_state[np.fromiter(map(_INDEX, due), np.intp, len(due))]
-                == _SERVO_CONTROL_INT
-            ).all()
+            and (self.arrays.axis_state[idx] == _SERVO_CONTROL_INT).all()
         ):
             # one action for all, every axis in Servo Control (a group come to rest):
             # the drives off in one batch, which drops the action as Power._enter does
@@ -384,6 +382,7 @@ class Controller:
                 AxisState.AXIS_READY if disabling else AxisState.AXIS_SHUTDOWN,
                 PowerEvent.STOPPED_DISABLE if disabling else PowerEvent.STOPPED_SHUTDOWN,
                 self.drive.switched,
+                idx=idx,
             )
             return
         disable: list[Axis] = []
@@ -790,13 +789,15 @@ class Controller:
         (Fast Stop, Fast Disable, Fast Shutdown): the action after the stop of each
         (``_motion_axes`` order), found with array operations; else None (the axes are
         then sorted one by one)."""
+        forced_action = None if forced is None else _AFTER_RAMP.get(int(forced))
+        if forced is not None and forced_action is None:
+            return None  # (a forced Hard Disable or Hard Shutdown: no state to read)
         idx = g.motion_idx
         if not (self.arrays.axis_state[idx] == _SERVO_CONTROL_INT).all():
             return None
         axes = self._motion_axes[g.number]
-        if forced is not None:
-            action = _AFTER_RAMP.get(int(forced))
-            return None if action is None else [action] * len(axes)
+        if forced_action is not None:
+            return [forced_action] * len(axes)
         modes = list(map(_PROGRAMMED_STOP_MODE, axes))
         if modes and modes.count(modes[0]) == len(modes):
             # one programmed mode for all (the usual configuration): judged once
@@ -837,7 +838,12 @@ class Controller:
         motion = self.motion
         if mode == ProgrammedStopMode.HARD_DISABLE:
             power_off_axes(
-                motion, axes, AxisState.AXIS_READY, PowerEvent.SERVO_OFF, self.drive.switched
+                motion,
+                axes,
+                AxisState.AXIS_READY,
+                PowerEvent.SERVO_OFF,
+                self.drive.switched,
+                idx=g.motion_idx,
             )
             return
         # who reads each master, found (before any axis is shut down) only if the axes
@@ -860,6 +866,7 @@ class Controller:
             releasing=True,
             prepare=prepare,
             maxima=self._group_stop_limits(g.number),
+            idx=g.motion_idx,
         )
 
     def _group_stop_by_axis(

@@ -45,7 +45,9 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
+from itertools import repeat
 from operator import attrgetter, itemgetter
 
 import numpy as np
@@ -71,10 +73,11 @@ _set = object.__setattr__  # Limits is a frozen dataclass
 _state = attrgetter("state")
 _index = attrgetter("index")
 _masters = attrgetter("masters")
-_number = attrgetter("number")
 _first = itemgetter(0)
 _own_processes = attrgetter("_processes")
 _buffered = attrgetter("buffered")
+_rows_and_buffered = attrgetter("stop_rows", "buffered")
+_NEITHER = (None, None)
 _stop_rows = attrgetter("stop_rows")
 _preloaded = attrgetter("preloaded_cams")
 _max_deceleration = attrgetter("config.max_deceleration")
@@ -160,6 +163,7 @@ def power_off_axes(
     releasing: bool = False,
     prepare: Callable[[], None] | None = None,
     maxima: tuple[np.ndarray, np.ndarray] | None = None,
+    idx: np.ndarray | None = None,
 ) -> None:
     """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
     Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
@@ -172,12 +176,12 @@ def power_off_axes(
     ``releasing``: that is all ``after`` does, ``Motion.release_followers``).
     ``prepare()`` runs before the first axis when they are taken one by one (what
     ``after`` needs, found before anything changes). ``maxima``: the axes' maximum
-    decelerations and velocities, if the caller has them."""
+    decelerations and velocities, ``idx`` their array indices, if the caller has them."""
     if not axes:
         return
     reason = ABORT_REASON[event]
     if (after is None or releasing) and _power_off_members(
-        motion, axes, state, event, reason, switched, releasing, maxima
+        motion, axes, state, event, reason, switched, releasing, maxima, idx
     ):
         return
     if prepare is not None:
@@ -250,6 +254,7 @@ def _power_off_members(
     switched: Callable[[], None],
     releasing: bool = False,
     maxima: tuple[np.ndarray, np.ndarray] | None = None,
+    idx: np.ndarray | None = None,
 ) -> bool:
     """:func:`power_off_axes` without ``after`` (or, ``releasing``, with the shutdown's
     release of each axis's followers), when every axis either has no motion at
@@ -283,12 +288,17 @@ def _power_off_members(
             total += len(members)
     # (another stop's rows may still ramp other axes: an axis of the batch with a row,
     # or with its ramp made from one, is refused below)
-    idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
+    if idx is None:
+        idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
+    # the batch is every axis of the group: every member of its lanes is on one of them
+    whole = n == len(lanes.group.axes)
     if found:
-        batch = np.zeros(len(motion.s.busy), dtype=bool)
-        batch[idx] = True
+        batch: np.ndarray | None = None
+        if not whole:
+            batch = np.zeros(len(motion.s.busy), dtype=bool)
+            batch[idx] = True
         for lane in found:
-            if not batch[lane.idx].all():
+            if batch is not None and not batch[lane.idx].all():
                 return False
             if not _plain_and_active(lane.members):
                 return False
@@ -296,8 +306,7 @@ def _power_off_members(
     # is on its axes (no ramp still a row, nothing buffered, no cam preloaded)
     if (
         sum(map(len, map(_own_processes, axes))) != total
-        or list(map(_stop_rows, axes)).count(None) != n
-        or list(map(_buffered, axes)).count(None) != n
+        or list(map(_rows_and_buffered, axes)).count(_NEITHER) != n
         or any(map(_preloaded, axes))
     ):
         return False
@@ -336,7 +345,8 @@ def _power_off_members(
         switched()  # (once per drive switched off, as axis by axis)
     drive_on[idx] = False
     if total:
-        _retire_order(motion, lanes, _idle(lanes.group.axes))
+        # (the batch the whole group: none of its axes has a process or a row left)
+        _retire_order(motion, lanes, whole or _idle(lanes.group.axes))
     return True
 
 
@@ -365,7 +375,8 @@ def _released_with_ramp(
     order = np.full(n_all, -1, dtype=np.intp)
     order[idx] = np.arange(len(axes))
     ramped = np.zeros(n_all, dtype=bool)
-    index_of: np.ndarray | None = None
+    # axis number -> array index: the state's own table, read for the masters alone
+    index_of = s._index.get
     for lane in found:
         masters = list(map(_masters, lane.members))
         counts = list(map(len, masters))
@@ -373,15 +384,9 @@ def _released_with_ramp(
             continue
         if max(counts) > 1:
             return None  # a process reading two masters: released as a whole, one by one
-        if index_of is None:
-            numbers = np.fromiter(map(_number, motion.axes), dtype=np.intp, count=n_all)
-            index_of = np.full(int(numbers.max()) + 1, -1, dtype=np.intp)
-            index_of[numbers] = np.arange(n_all)
         reads = np.fromiter(map(bool, counts), dtype=bool, count=len(counts))
-        wanted = np.fromiter(map(_first, filter(None, masters)), dtype=np.intp)
-        if wanted.min() < 0 or wanted.max() >= index_of.size:
-            return None
-        m = index_of[wanted]
+        wanted = list(map(_first, filter(None, masters)))
+        m = np.fromiter(map(index_of, wanted, repeat(-1)), dtype=np.intp, count=len(wanted))
         slaves = lane.idx[reads]
         if (m < 0).any() or (m == slaves).any():
             return None
@@ -407,7 +412,17 @@ def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) ->
     """True if a ramp's constructor would refuse one of these (velocity, deceleration):
     ``Limits.validated`` (finite and positive limits) or ``judge_ramp`` (a ramp no plan
     could hold); or if one of the axes' maximum decelerations ``maximum`` (the ramps'
-    unless beyond the Maximum Speed) is not finite and positive."""
+    unless beyond the Maximum Speed) is not finite and positive.
+
+    First judged from a few extremes (:func:`_within`): enough to accept the usual
+    batch; element by element (:func:`_refused_exactly`) only when that is not."""
+    if v.size and _within(v, d, maximum):
+        return False
+    return _refused_exactly(v, d, maximum)
+
+
+def _refused_exactly(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
+    """:func:`_refused`, judged element by element."""
     with np.errstate(all="ignore"):
         big = np.maximum(np.abs(v), 1e-9) * 2.0
         duration = np.abs(v) / d
@@ -423,6 +438,28 @@ def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) ->
         if maximum is not None:
             ok &= np.isfinite(maximum) & (maximum > 0.0)
     return not bool(ok.all())
+
+
+def _within(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None) -> bool:
+    """A sufficient condition for :func:`_refused` to accept every (velocity,
+    deceleration) of a non-empty batch, from the largest speed, the smallest and largest
+    deceleration (and maximum): every ``|v| / d`` is at most ``max |v| / min d`` and every
+    ``duration * |v|`` at most that times ``max |v|``, as IEEE division and multiplication
+    are monotonic; a NaN anywhere makes an extreme NaN, which fails every comparison.
+    False says nothing (the caller checks element by element)."""
+    fastest = float(np.abs(v).max())
+    least = float(d.min())
+    most = float(d.max())
+    if not (least > 0.0 and math.isfinite(most) and math.isfinite(fastest)):
+        return False
+    if not math.isfinite(max(fastest, 1e-9) * 2.0):
+        return False
+    if maximum is not None:
+        low = float(maximum.min())
+        if not (low > 0.0 and math.isfinite(float(maximum.max()))):
+            return False
+    longest = fastest / least
+    return longest <= MAX_DURATION and math.isfinite(longest * fastest)
 
 
 def _plain_and_active(members: list[Process]) -> bool:
@@ -462,10 +499,15 @@ def _member_lanes(
             total += len(members)
     if total != len(axes) or lanes.stops.rows:
         return None
-    batch = np.zeros(len(motion.s.busy), dtype=bool)
-    batch[idx] = True
+    # the batch is every axis of the group (a group stop of a group without feedback-only
+    # axes, the usual one): every member of the group's lanes is on one of its axes
+    whole = len(axes) == len(lanes.group.axes)
+    batch: np.ndarray | None = None
+    if not whole:
+        batch = np.zeros(len(motion.s.busy), dtype=bool)
+        batch[idx] = True
     for lane in found:
-        if not batch[lane.idx].all():
+        if batch is not None and not batch[lane.idx].all():
             return None
         if not _plain_and_active(lane.members):
             return None
