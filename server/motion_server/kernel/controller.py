@@ -59,7 +59,7 @@ from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
 from .scurve import FALLBACKS
-from .state import AxisArrays, MasterArrays
+from .state import AxisArrays, Index, MasterArrays, compact
 from .stop_plan import power_off_axes, stop_axes
 
 #: a redefined position may be at most this many encoder counts from zero (float64 holds
@@ -165,6 +165,8 @@ class Controller:
         self._stop_limits: dict[int, tuple[list[AxisConfig], np.ndarray, np.ndarray]] = {}
         for g in self.groups:
             self._group_stop_limits(g.number)
+        #: per group: its motion axes' indices as a slice when consecutive (:meth:`_group_at`)
+        self._stop_at: dict[int, Index] = {}
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
         #: the groups whose processes may join fast lanes (the others' lanes stay empty)
@@ -718,7 +720,8 @@ class Controller:
             # the common case: every axis ramps
             axes = self._motion_axes[g.number]
             maxima = self._group_stop_limits(g.number)
-            if stop_axes(self.motion, axes, owner, idx=g.motion_idx, maxima=maxima):
+            at = self._group_at(g)
+            if stop_axes(self.motion, axes, owner, idx=g.motion_idx, maxima=maxima, at=at):
                 latch_stops(self.arrays, axes, g.motion_idx, actions, handle)
                 g.after_stops = True
             else:
@@ -782,6 +785,18 @@ class Controller:
             self._stop_limits[group] = kept
         return kept[1], kept[2]
 
+    def _group_at(self, g: MotionGroup) -> Index:
+        """The array indices of ``g``'s driven axes as :func:`.state.compact` gives them
+        (a slice when consecutive: views instead of copies), found once per group."""
+        kept: dict[int, Index] | None = getattr(self, "_stop_at", None)
+        if kept is None:
+            kept = {}  # (a controller restored from older state)
+            self._stop_at = kept
+        at = kept.get(g.number)
+        if at is None:
+            at = kept[g.number] = compact(g.motion_idx)
+        return at
+
     def _all_ramping(
         self, g: MotionGroup, forced: ProgrammedStopMode | None
     ) -> list[AfterStop] | None:
@@ -792,8 +807,7 @@ class Controller:
         forced_action = None if forced is None else _AFTER_RAMP.get(int(forced))
         if forced is not None and forced_action is None:
             return None  # (a forced Hard Disable or Hard Shutdown: no state to read)
-        idx = g.motion_idx
-        if not (self.arrays.axis_state[idx] == _SERVO_CONTROL_INT).all():
+        if not (self.arrays.axis_state[self._group_at(g)] == _SERVO_CONTROL_INT).all():
             return None
         axes = self._motion_axes[g.number]
         if forced_action is not None:

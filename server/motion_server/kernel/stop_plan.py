@@ -61,6 +61,7 @@ from .limits import Limits
 from .motion import Motion
 from .power import ABORT_REASON, PowerEvent
 from .processes import Process, StopRamp
+from .state import Index, compact
 from .trapezoid import MAX_DURATION, TrapezoidProfile
 
 _ACTIVE = ProcessState.ACTIVE
@@ -522,6 +523,7 @@ def _stop_members(
     member_lanes: list[Lane],
     axes: Sequence[Axis],
     idx: np.ndarray,
+    at: Index,
     owner: object,
     reason: AbortReason,
     maxima: tuple[np.ndarray, np.ndarray] | None,
@@ -540,17 +542,27 @@ def _stop_members(
     for lane in member_lanes:
         lane.evict_all()
     s = motion.s
-    v_arr = 0.0 + s.cmd_vel[idx]
-    a_arr = 0.0 + s.cmd_acc[idx]
+    # (``at``: a slice when the axes are consecutive, views instead of copies)
+    v_arr = 0.0 + s.cmd_vel[at]
+    a_arr = 0.0 + s.cmd_acc[at]
     if maxima is None:
         dec = _column(_max_deceleration, axes)
         vmax = _column(_max_velocity, axes)
     else:
         dec, vmax = maxima
-    with np.errstate(all="ignore"):
-        # group_stop_deceleration, element by element
-        d_arr = np.where(np.abs(v_arr) <= vmax, dec, dec * (np.abs(v_arr) / vmax))
-    if _refused(v_arr, d_arr, dec):
+    # group_stop_deceleration, element by element: the maximum deceleration within the
+    # Maximum Speed (every axis, usually: then nothing is divided)
+    speed = np.abs(v_arr)
+    within = speed <= vmax
+    if within.all():
+        d_arr = dec
+        # (the ramps' decelerations are the maxima: judging them judges the maxima)
+        refused = _refused(v_arr, dec)
+    else:
+        with np.errstate(all="ignore"):
+            d_arr = np.where(within, dec, dec * (speed / vmax))
+        refused = _refused(v_arr, d_arr, dec)
+    if refused:
         return False  # the lanes' write-back moved nothing
     for lane in member_lanes:
         for p in lane.members:
@@ -559,14 +571,25 @@ def _stop_members(
     # the emptied lanes empty now (their next rebuild has nothing to do); the processes
     # they held are freed a chunk per step, as a rebuild would have them freed
     _clear(lanes, member_lanes)
-    base = s.cmd_pos[idx]
-    rowed = s.drive_on[idx] & ((v_arr != 0.0) | (a_arr != 0.0))
+    base = s.cmd_pos[idx]  # (a copy: the rows keep it)
+    rowed = s.drive_on[at] & ((v_arr != 0.0) | (a_arr != 0.0))
     if not motion.offers(axes[0].group):
         rowed[:] = False
     rows: StopRows | None = None
-    if rowed.all():
+    every = bool(rowed.all())
+    if every:
         rows = StopRows(
-            lanes.stops, lanes, list(axes), idx, base, v_arr, d_arr, axes[0].period, owner, ramp
+            lanes.stops,
+            lanes,
+            list(axes),
+            idx,
+            base,
+            v_arr,
+            d_arr,
+            axes[0].period,
+            owner,
+            ramp,
+            at,
         )
         for ax, b in zip(axes, base.tolist(), strict=True):
             ax.base = b
@@ -574,9 +597,9 @@ def _stop_members(
             ax.stop_rows = rows
     else:
         rows = _some_rowed(motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr)
-    _retire_order(motion, lanes, _rows_hold(lanes, rows if rowed.all() else None))
+    _retire_order(motion, lanes, _rows_hold(lanes, rows if every else None))
     if rows is not None:
-        s.busy[rows.idx] = True
+        s.busy[rows.at] = True
         s.dirty.update(rows.idx.tolist())
         lanes.stops.add_rows(rows)
     return True
@@ -679,6 +702,7 @@ def stop_axes(
     reason: AbortReason = AbortReason.STOPPED,
     idx: np.ndarray | None = None,
     maxima: tuple[np.ndarray, np.ndarray] | None = None,
+    at: Index | None = None,
 ) -> bool:
     """Replace every process of each of ``axes`` (driven axes in Servo Control, in
     group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
@@ -688,7 +712,8 @@ def stop_axes(
     as one :class:`~.lanes.stop_rows.StopRows`: their objects are made when something
     reads the axis's processes. The others (a ramp from rest, done at once; no lanes)
     are built here. ``idx``: the axes' array indices, ``maxima``: their maximum
-    decelerations and velocities, if the caller has them.
+    decelerations and velocities, ``at`` the indices as :func:`.state.compact` gives
+    them, if the caller has them.
 
     Returns False without having changed anything if an axis's ramp would be refused (a
     non-finite velocity, a deceleration out of range, a ramp too long): the caller then
@@ -700,7 +725,9 @@ def stop_axes(
         idx = np.array([ax.index for ax in axes], dtype=np.intp)
     member_lanes = _member_lanes(motion, lanes, axes, idx)
     if member_lanes is not None:
-        return _stop_members(motion, lanes, member_lanes, axes, idx, owner, reason, maxima)
+        if at is None:
+            at = compact(idx)
+        return _stop_members(motion, lanes, member_lanes, axes, idx, at, owner, reason, maxima)
     lanes, emptied = _empty_lanes(motion, axes)
     n = len(axes)
     vs = [0.0] * n
