@@ -165,8 +165,9 @@ class Controller:
         self._stop_limits: dict[int, tuple[list[AxisConfig], np.ndarray, np.ndarray]] = {}
         for g in self.groups:
             self._group_stop_limits(g.number)
-        #: per group: its motion axes' indices as a slice when consecutive (:meth:`_group_at`)
-        self._stop_at: dict[int, Index] = {}
+        #: per group: its motion axes' indices as a slice when consecutive (:meth:`_group_at`),
+        #: found here rather than in the stop's cycle
+        self._stop_at: dict[int, Index] = {g.number: compact(g.motion_idx) for g in self.groups}
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
         #: the groups whose processes may join fast lanes (the others' lanes stay empty)
