@@ -53,6 +53,7 @@ from operator import attrgetter, itemgetter
 import numpy as np
 
 from .axis import Axis
+from .cams import CamProcess
 from .enums import AbortReason, AfterStop, AxisState, ProcessState
 from .lanes import GroupLanes
 from .lanes.base import Lane
@@ -69,6 +70,7 @@ _DONE = ProcessState.DONE
 _NO_ABORT = AbortReason.NONE
 _ABORTED = ProcessState.ABORTED
 _abort = Process.abort
+_cam_abort = CamProcess.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
 _state = attrgetter("state")
@@ -464,12 +466,18 @@ def _within(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None) -> bool:
 
 
 def _plain_and_active(members: list[Process]) -> bool:
-    """Every process of ``members`` is active and aborts as ``Process.abort`` does (its
-    class does not override it). Read without a Python call per process (the states
-    counted, not hashed: an enum member's hash is a Python call)."""
+    """Every process of ``members`` is active and aborts as ``Process.abort`` does: its
+    class does not override it, or it is a cam with no successor waiting
+    (``CamProcess.abort`` is then ``Process.abort``). Read without a Python call per
+    process (the states counted, not hashed: an enum member's hash is a Python call)."""
     kinds: set[type[Process]] = set(map(type, members))
-    if any(kind.abort is not _abort for kind in kinds):
-        return False
+    for kind in kinds:
+        if kind.abort is _abort:
+            continue
+        if kind.abort is not _cam_abort:
+            return False
+        if any(p.successor is not None for p in members if type(p) is kind):
+            return False
     return list(map(_state, members)).count(_ACTIVE) == len(members)
 
 
@@ -478,8 +486,9 @@ def _member_lanes(
 ) -> list[Lane] | None:
     """The lanes holding every process of ``axes``, if the batch is that simple: each
     axis's only process a member of one of the group's lanes, stepped there since the
-    last rebuild (no lane has a process joining or evicted, nor stop rows), a plain
-    process (``Process.abort``), active; no cam preloaded. Else None (then
+    last rebuild (no lane has a process joining or evicted, nor stop rows), a process
+    that aborts as ``Process.abort`` does (a cam too, with no successor waiting),
+    active; no cam preloaded. Else None (then
     :func:`stop_axes` settles and sums axis by axis).
 
     Found from the lanes: a lane's member is the only process of its axis, with nothing
