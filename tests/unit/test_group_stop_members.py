@@ -41,7 +41,7 @@ from .test_stop_plan import (
 
 N = 12
 #: what each axis runs before the stop: one process each (and now and then, on one axis,
-#: a MAS ramp or a cam, whose abort is its own, which keeps the batch off the arrays' path)
+#: a MAS ramp, which keeps the batch off the arrays' path, or a cam)
 KINDS = ("jog",) * 4 + ("move", "gear", "gear", "gear", "clutch")
 
 
@@ -332,3 +332,37 @@ def test_a_hard_shutdown_releases_followers_as_axis_by_axis() -> None:
         ref.step()
         assert_same_unread(fast, ref, [], [], f"cycle {k}")
     assert_same(fast, ref, fp, rp, [], [], "at the end")
+
+
+def test_a_group_with_cams_in_the_lanes_stops_on_the_arrays_path() -> None:
+    """Cams on half the axes (each reading a jogging master), the cams in their lane: a
+    cam with no successor waiting aborts as any process does, so the stop, in every
+    mode, takes the arrays' path and agrees with the reference after every cycle and
+    whenever the processes are read."""
+    for mode in MODES:
+        fast, ref = pair(False)
+        fp: list[Process] = []
+        rp: list[Process] = []
+        half = N // 2
+        commands = [("jog", k, 0, 40.0 + 7.0 * k) for k in range(half)] + [
+            ("cam", k, k - half, 0.0) for k in range(half, N)
+        ]
+        for cmd in commands:
+            assert apply(fast, cmd, fp, []) == apply(ref, cmd, rp, []), cmd
+        fast.run(40)
+        ref.run(40)
+        lanes = fast.motion.lanes[1].all
+        in_cam_lanes = [
+            p for lane in lanes if type(lane).__name__ == "CamLane" for p in lane.members
+        ]
+        assert len(in_cam_lanes) == N - half
+        fast.group_stop(1, mode)
+        ref.group_stop(1, mode)
+        arrays_path = not any(lane.members or lane.changed for lane in fast.motion.lanes[1].all)
+        assert arrays_path, mode.name
+        assert_same(fast, ref, fp, rp, [], [], f"{mode.name}: after the stop")
+        for k in range(150):
+            fast.step()
+            ref.step()
+            assert_same_unread(fast, ref, [], [], f"{mode.name}: cycle {k}")
+        assert_same(fast, ref, fp, rp, [], [], f"{mode.name}: at the end")

@@ -61,7 +61,7 @@ from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
 from .scurve import FALLBACKS
-from .state import AxisArrays, MasterArrays
+from .state import AxisArrays, Index, MasterArrays, compact
 from .stop_plan import power_off_axes, stop_axes
 
 #: a redefined position may be at most this many encoder counts from zero (float64 holds
@@ -167,6 +167,9 @@ class Controller:
         self._stop_limits: dict[int, tuple[list[AxisConfig], np.ndarray, np.ndarray]] = {}
         for g in self.groups:
             self._group_stop_limits(g.number)
+        #: per group: its motion axes' indices as a slice when consecutive (:meth:`_group_at`),
+        #: found here rather than in the stop's cycle
+        self._stop_at: dict[int, Index] = {g.number: compact(g.motion_idx) for g in self.groups}
         #: per group: compose one axis in Python now (and offer it to the lanes)
         self._composers = {g.number: self._composer(g) for g in self.groups}
         #: the groups whose processes may join fast lanes (the others' lanes stay empty)
@@ -370,12 +373,10 @@ class Controller:
         the order of the axes does not matter."""
         actions = list(map(_AFTER_STOP, due))
         first = actions[0]
+        idx = np.fromiter(map(_INDEX, due), np.intp, len(due))
         if (
             actions.count(first) == len(actions)
-            and (
-                self.arrays.axis_state[np.fromiter(map(_INDEX, due), np.intp, len(due))]
-                == _SERVO_CONTROL_INT
-            ).all()
+            and (self.arrays.axis_state[idx] == _SERVO_CONTROL_INT).all()
         ):
             # one action for all, every axis in Servo Control (a group come to rest):
             # the drives off in one batch, which drops the action as Power._enter does
@@ -386,6 +387,7 @@ class Controller:
                 AxisState.AXIS_READY if disabling else AxisState.AXIS_SHUTDOWN,
                 PowerEvent.STOPPED_DISABLE if disabling else PowerEvent.STOPPED_SHUTDOWN,
                 self.drive.switched,
+                idx=idx,
             )
             return
         disable: list[Axis] = []
@@ -736,7 +738,8 @@ class Controller:
             # the common case: every axis ramps
             axes = self._motion_axes[g.number]
             maxima = self._group_stop_limits(g.number)
-            if stop_axes(self.motion, axes, owner, idx=g.motion_idx, maxima=maxima):
+            at = self._group_at(g)
+            if stop_axes(self.motion, axes, owner, idx=g.motion_idx, maxima=maxima, at=at):
                 latch_stops(self.arrays, axes, g.motion_idx, actions, handle)
                 g.after_stops = True
             else:
@@ -800,6 +803,18 @@ class Controller:
             self._stop_limits[group] = kept
         return kept[1], kept[2]
 
+    def _group_at(self, g: MotionGroup) -> Index:
+        """The array indices of ``g``'s driven axes as :func:`.state.compact` gives them
+        (a slice when consecutive: views instead of copies), found once per group."""
+        kept: dict[int, Index] | None = getattr(self, "_stop_at", None)
+        if kept is None:
+            kept = {}  # (a controller restored from older state)
+            self._stop_at = kept
+        at = kept.get(g.number)
+        if at is None:
+            at = kept[g.number] = compact(g.motion_idx)
+        return at
+
     def _all_ramping(
         self, g: MotionGroup, forced: ProgrammedStopMode | None
     ) -> list[AfterStop] | None:
@@ -807,13 +822,14 @@ class Controller:
         (Fast Stop, Fast Disable, Fast Shutdown): the action after the stop of each
         (``_motion_axes`` order), found with array operations; else None (the axes are
         then sorted one by one)."""
-        idx = g.motion_idx
-        if not (self.arrays.axis_state[idx] == _SERVO_CONTROL_INT).all():
+        forced_action = None if forced is None else _AFTER_RAMP.get(int(forced))
+        if forced is not None and forced_action is None:
+            return None  # (a forced Hard Disable or Hard Shutdown: no state to read)
+        if not (self.arrays.axis_state[self._group_at(g)] == _SERVO_CONTROL_INT).all():
             return None
         axes = self._motion_axes[g.number]
-        if forced is not None:
-            action = _AFTER_RAMP.get(int(forced))
-            return None if action is None else [action] * len(axes)
+        if forced_action is not None:
+            return [forced_action] * len(axes)
         modes = list(map(_PROGRAMMED_STOP_MODE, axes))
         if modes and modes.count(modes[0]) == len(modes):
             # one programmed mode for all (the usual configuration): judged once
@@ -854,7 +870,12 @@ class Controller:
         motion = self.motion
         if mode == ProgrammedStopMode.HARD_DISABLE:
             power_off_axes(
-                motion, axes, AxisState.AXIS_READY, PowerEvent.SERVO_OFF, self.drive.switched
+                motion,
+                axes,
+                AxisState.AXIS_READY,
+                PowerEvent.SERVO_OFF,
+                self.drive.switched,
+                idx=g.motion_idx,
             )
             return
         # who reads each master, found (before any axis is shut down) only if the axes
@@ -877,6 +898,7 @@ class Controller:
             releasing=True,
             prepare=prepare,
             maxima=self._group_stop_limits(g.number),
+            idx=g.motion_idx,
         )
 
     def _group_stop_by_axis(

@@ -45,12 +45,15 @@ states, the same axis bases, status arrays and lane membership (tested side by s
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
+from itertools import repeat
 from operator import attrgetter, itemgetter
 
 import numpy as np
 
 from .axis import Axis
+from .cams import CamProcess
 from .enums import AbortReason, AfterStop, AxisState, ProcessState
 from .lanes import GroupLanes
 from .lanes.base import Lane
@@ -59,6 +62,7 @@ from .limits import Limits
 from .motion import Motion
 from .power import ABORT_REASON, PowerEvent
 from .processes import Process, StopRamp
+from .state import Index, compact
 from .trapezoid import MAX_DURATION, TrapezoidProfile
 
 _ACTIVE = ProcessState.ACTIVE
@@ -66,15 +70,17 @@ _DONE = ProcessState.DONE
 _NO_ABORT = AbortReason.NONE
 _ABORTED = ProcessState.ABORTED
 _abort = Process.abort
+_cam_abort = CamProcess.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
 _state = attrgetter("state")
 _index = attrgetter("index")
 _masters = attrgetter("masters")
-_number = attrgetter("number")
 _first = itemgetter(0)
 _own_processes = attrgetter("_processes")
 _buffered = attrgetter("buffered")
+_rows_and_buffered = attrgetter("stop_rows", "buffered")
+_NEITHER = (None, None)
 _stop_rows = attrgetter("stop_rows")
 _preloaded = attrgetter("preloaded_cams")
 _max_deceleration = attrgetter("config.max_deceleration")
@@ -160,6 +166,7 @@ def power_off_axes(
     releasing: bool = False,
     prepare: Callable[[], None] | None = None,
     maxima: tuple[np.ndarray, np.ndarray] | None = None,
+    idx: np.ndarray | None = None,
 ) -> None:
     """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
     Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
@@ -172,12 +179,12 @@ def power_off_axes(
     ``releasing``: that is all ``after`` does, ``Motion.release_followers``).
     ``prepare()`` runs before the first axis when they are taken one by one (what
     ``after`` needs, found before anything changes). ``maxima``: the axes' maximum
-    decelerations and velocities, if the caller has them."""
+    decelerations and velocities, ``idx`` their array indices, if the caller has them."""
     if not axes:
         return
     reason = ABORT_REASON[event]
     if (after is None or releasing) and _power_off_members(
-        motion, axes, state, event, reason, switched, releasing, maxima
+        motion, axes, state, event, reason, switched, releasing, maxima, idx
     ):
         return
     if prepare is not None:
@@ -250,6 +257,7 @@ def _power_off_members(
     switched: Callable[[], None],
     releasing: bool = False,
     maxima: tuple[np.ndarray, np.ndarray] | None = None,
+    idx: np.ndarray | None = None,
 ) -> bool:
     """:func:`power_off_axes` without ``after`` (or, ``releasing``, with the shutdown's
     release of each axis's followers), when every axis either has no motion at
@@ -283,12 +291,17 @@ def _power_off_members(
             total += len(members)
     # (another stop's rows may still ramp other axes: an axis of the batch with a row,
     # or with its ramp made from one, is refused below)
-    idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
+    if idx is None:
+        idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
+    # the batch is every axis of the group: every member of its lanes is on one of them
+    whole = n == len(lanes.group.axes)
     if found:
-        batch = np.zeros(len(motion.s.busy), dtype=bool)
-        batch[idx] = True
+        batch: np.ndarray | None = None
+        if not whole:
+            batch = np.zeros(len(motion.s.busy), dtype=bool)
+            batch[idx] = True
         for lane in found:
-            if not batch[lane.idx].all():
+            if batch is not None and not batch[lane.idx].all():
                 return False
             if not _plain_and_active(lane.members):
                 return False
@@ -296,8 +309,7 @@ def _power_off_members(
     # is on its axes (no ramp still a row, nothing buffered, no cam preloaded)
     if (
         sum(map(len, map(_own_processes, axes))) != total
-        or list(map(_stop_rows, axes)).count(None) != n
-        or list(map(_buffered, axes)).count(None) != n
+        or list(map(_rows_and_buffered, axes)).count(_NEITHER) != n
         or any(map(_preloaded, axes))
     ):
         return False
@@ -336,7 +348,8 @@ def _power_off_members(
         switched()  # (once per drive switched off, as axis by axis)
     drive_on[idx] = False
     if total:
-        _retire_order(motion, lanes, _idle(lanes.group.axes))
+        # (the batch the whole group: none of its axes has a process or a row left)
+        _retire_order(motion, lanes, whole or _idle(lanes.group.axes))
     return True
 
 
@@ -365,7 +378,8 @@ def _released_with_ramp(
     order = np.full(n_all, -1, dtype=np.intp)
     order[idx] = np.arange(len(axes))
     ramped = np.zeros(n_all, dtype=bool)
-    index_of: np.ndarray | None = None
+    # axis number -> array index: the state's own table, read for the masters alone
+    index_of = s._index.get
     for lane in found:
         masters = list(map(_masters, lane.members))
         counts = list(map(len, masters))
@@ -373,15 +387,9 @@ def _released_with_ramp(
             continue
         if max(counts) > 1:
             return None  # a process reading two masters: released as a whole, one by one
-        if index_of is None:
-            numbers = np.fromiter(map(_number, motion.axes), dtype=np.intp, count=n_all)
-            index_of = np.full(int(numbers.max()) + 1, -1, dtype=np.intp)
-            index_of[numbers] = np.arange(n_all)
         reads = np.fromiter(map(bool, counts), dtype=bool, count=len(counts))
-        wanted = np.fromiter(map(_first, filter(None, masters)), dtype=np.intp)
-        if wanted.min() < 0 or wanted.max() >= index_of.size:
-            return None
-        m = index_of[wanted]
+        wanted = list(map(_first, filter(None, masters)))
+        m = np.fromiter(map(index_of, wanted, repeat(-1)), dtype=np.intp, count=len(wanted))
         slaves = lane.idx[reads]
         if (m < 0).any() or (m == slaves).any():
             return None
@@ -407,7 +415,17 @@ def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) ->
     """True if a ramp's constructor would refuse one of these (velocity, deceleration):
     ``Limits.validated`` (finite and positive limits) or ``judge_ramp`` (a ramp no plan
     could hold); or if one of the axes' maximum decelerations ``maximum`` (the ramps'
-    unless beyond the Maximum Speed) is not finite and positive."""
+    unless beyond the Maximum Speed) is not finite and positive.
+
+    First judged from a few extremes (:func:`_within`): enough to accept the usual
+    batch; element by element (:func:`_refused_exactly`) only when that is not."""
+    if v.size and _within(v, d, maximum):
+        return False
+    return _refused_exactly(v, d, maximum)
+
+
+def _refused_exactly(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
+    """:func:`_refused`, judged element by element."""
     with np.errstate(all="ignore"):
         big = np.maximum(np.abs(v), 1e-9) * 2.0
         duration = np.abs(v) / d
@@ -425,13 +443,41 @@ def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) ->
     return not bool(ok.all())
 
 
-def _plain_and_active(members: list[Process]) -> bool:
-    """Every process of ``members`` is active and aborts as ``Process.abort`` does (its
-    class does not override it). Read without a Python call per process (the states
-    counted, not hashed: an enum member's hash is a Python call)."""
-    kinds: set[type[Process]] = set(map(type, members))
-    if any(kind.abort is not _abort for kind in kinds):
+def _within(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None) -> bool:
+    """A sufficient condition for :func:`_refused` to accept every (velocity,
+    deceleration) of a non-empty batch, from the largest speed, the smallest and largest
+    deceleration (and maximum): every ``|v| / d`` is at most ``max |v| / min d`` and every
+    ``duration * |v|`` at most that times ``max |v|``, as IEEE division and multiplication
+    are monotonic; a NaN anywhere makes an extreme NaN, which fails every comparison.
+    False says nothing (the caller checks element by element)."""
+    fastest = float(np.abs(v).max())
+    least = float(d.min())
+    most = float(d.max())
+    if not (least > 0.0 and math.isfinite(most) and math.isfinite(fastest)):
         return False
+    if not math.isfinite(max(fastest, 1e-9) * 2.0):
+        return False
+    if maximum is not None:
+        low = float(maximum.min())
+        if not (low > 0.0 and math.isfinite(float(maximum.max()))):
+            return False
+    longest = fastest / least
+    return longest <= MAX_DURATION and math.isfinite(longest * fastest)
+
+
+def _plain_and_active(members: list[Process]) -> bool:
+    """Every process of ``members`` is active and aborts as ``Process.abort`` does: its
+    class does not override it, or it is a cam with no successor waiting
+    (``CamProcess.abort`` is then ``Process.abort``). Read without a Python call per
+    process (the states counted, not hashed: an enum member's hash is a Python call)."""
+    kinds: set[type[Process]] = set(map(type, members))
+    for kind in kinds:
+        if kind.abort is _abort:
+            continue
+        if kind.abort is not _cam_abort:
+            return False
+        if any(p.successor is not None for p in members if type(p) is kind):
+            return False
     return list(map(_state, members)).count(_ACTIVE) == len(members)
 
 
@@ -440,8 +486,9 @@ def _member_lanes(
 ) -> list[Lane] | None:
     """The lanes holding every process of ``axes``, if the batch is that simple: each
     axis's only process a member of one of the group's lanes, stepped there since the
-    last rebuild (no lane has a process joining or evicted, nor stop rows), a plain
-    process (``Process.abort``), active; no cam preloaded. Else None (then
+    last rebuild (no lane has a process joining or evicted, nor stop rows), a process
+    that aborts as ``Process.abort`` does (a cam too, with no successor waiting),
+    active; no cam preloaded. Else None (then
     :func:`stop_axes` settles and sums axis by axis).
 
     Found from the lanes: a lane's member is the only process of its axis, with nothing
@@ -462,10 +509,15 @@ def _member_lanes(
             total += len(members)
     if total != len(axes) or lanes.stops.rows:
         return None
-    batch = np.zeros(len(motion.s.busy), dtype=bool)
-    batch[idx] = True
+    # the batch is every axis of the group (a group stop of a group without feedback-only
+    # axes, the usual one): every member of the group's lanes is on one of its axes
+    whole = len(axes) == len(lanes.group.axes)
+    batch: np.ndarray | None = None
+    if not whole:
+        batch = np.zeros(len(motion.s.busy), dtype=bool)
+        batch[idx] = True
     for lane in found:
-        if not batch[lane.idx].all():
+        if batch is not None and not batch[lane.idx].all():
             return None
         if not _plain_and_active(lane.members):
             return None
@@ -480,6 +532,7 @@ def _stop_members(
     member_lanes: list[Lane],
     axes: Sequence[Axis],
     idx: np.ndarray,
+    at: Index,
     owner: object,
     reason: AbortReason,
     maxima: tuple[np.ndarray, np.ndarray] | None,
@@ -498,17 +551,27 @@ def _stop_members(
     for lane in member_lanes:
         lane.evict_all()
     s = motion.s
-    v_arr = 0.0 + s.cmd_vel[idx]
-    a_arr = 0.0 + s.cmd_acc[idx]
+    # (``at``: a slice when the axes are consecutive, views instead of copies)
+    v_arr = 0.0 + s.cmd_vel[at]
+    a_arr = 0.0 + s.cmd_acc[at]
     if maxima is None:
         dec = _column(_max_deceleration, axes)
         vmax = _column(_max_velocity, axes)
     else:
         dec, vmax = maxima
-    with np.errstate(all="ignore"):
-        # group_stop_deceleration, element by element
-        d_arr = np.where(np.abs(v_arr) <= vmax, dec, dec * (np.abs(v_arr) / vmax))
-    if _refused(v_arr, d_arr, dec):
+    # group_stop_deceleration, element by element: the maximum deceleration within the
+    # Maximum Speed (every axis, usually: then nothing is divided)
+    speed = np.abs(v_arr)
+    within = speed <= vmax
+    if within.all():
+        d_arr = dec
+        # (the ramps' decelerations are the maxima: judging them judges the maxima)
+        refused = _refused(v_arr, dec)
+    else:
+        with np.errstate(all="ignore"):
+            d_arr = np.where(within, dec, dec * (speed / vmax))
+        refused = _refused(v_arr, d_arr, dec)
+    if refused:
         return False  # the lanes' write-back moved nothing
     for lane in member_lanes:
         for p in lane.members:
@@ -517,14 +580,25 @@ def _stop_members(
     # the emptied lanes empty now (their next rebuild has nothing to do); the processes
     # they held are freed a chunk per step, as a rebuild would have them freed
     _clear(lanes, member_lanes)
-    base = s.cmd_pos[idx]
-    rowed = s.drive_on[idx] & ((v_arr != 0.0) | (a_arr != 0.0))
+    base = s.cmd_pos[idx]  # (a copy: the rows keep it)
+    rowed = s.drive_on[at] & ((v_arr != 0.0) | (a_arr != 0.0))
     if not motion.offers(axes[0].group):
         rowed[:] = False
     rows: StopRows | None = None
-    if rowed.all():
+    every = bool(rowed.all())
+    if every:
         rows = StopRows(
-            lanes.stops, lanes, list(axes), idx, base, v_arr, d_arr, axes[0].period, owner, ramp
+            lanes.stops,
+            lanes,
+            list(axes),
+            idx,
+            base,
+            v_arr,
+            d_arr,
+            axes[0].period,
+            owner,
+            ramp,
+            at,
         )
         for ax, b in zip(axes, base.tolist(), strict=True):
             ax.base = b
@@ -532,9 +606,9 @@ def _stop_members(
             ax.stop_rows = rows
     else:
         rows = _some_rowed(motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr)
-    _retire_order(motion, lanes, _rows_hold(lanes, rows if rowed.all() else None))
+    _retire_order(motion, lanes, _rows_hold(lanes, rows if every else None))
     if rows is not None:
-        s.busy[rows.idx] = True
+        s.busy[rows.at] = True
         s.dirty.update(rows.idx.tolist())
         lanes.stops.add_rows(rows)
     return True
@@ -637,6 +711,7 @@ def stop_axes(
     reason: AbortReason = AbortReason.STOPPED,
     idx: np.ndarray | None = None,
     maxima: tuple[np.ndarray, np.ndarray] | None = None,
+    at: Index | None = None,
 ) -> bool:
     """Replace every process of each of ``axes`` (driven axes in Servo Control, in
     group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
@@ -646,7 +721,8 @@ def stop_axes(
     as one :class:`~.lanes.stop_rows.StopRows`: their objects are made when something
     reads the axis's processes. The others (a ramp from rest, done at once; no lanes)
     are built here. ``idx``: the axes' array indices, ``maxima``: their maximum
-    decelerations and velocities, if the caller has them.
+    decelerations and velocities, ``at`` the indices as :func:`.state.compact` gives
+    them, if the caller has them.
 
     Returns False without having changed anything if an axis's ramp would be refused (a
     non-finite velocity, a deceleration out of range, a ramp too long): the caller then
@@ -658,7 +734,9 @@ def stop_axes(
         idx = np.array([ax.index for ax in axes], dtype=np.intp)
     member_lanes = _member_lanes(motion, lanes, axes, idx)
     if member_lanes is not None:
-        return _stop_members(motion, lanes, member_lanes, axes, idx, owner, reason, maxima)
+        if at is None:
+            at = compact(idx)
+        return _stop_members(motion, lanes, member_lanes, axes, idx, at, owner, reason, maxima)
     lanes, emptied = _empty_lanes(motion, axes)
     n = len(axes)
     vs = [0.0] * n

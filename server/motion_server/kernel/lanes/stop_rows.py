@@ -47,7 +47,8 @@ MakeRamp = Callable[[float, float, float, object, Limits | None], StopRamp]
 class StopRows:
     """The ramps of one group stop on ``axes`` (in Servo Control, drive on, each with a
     velocity to ramp down): ``base`` the axes' bases once the stop folded in what it
-    replaced, ``velocity`` and ``deceleration`` the ramps'."""
+    replaced, ``velocity`` and ``deceleration`` the ramps' (neither written here: the
+    rows' own arrays are copies)."""
 
     def __init__(
         self,
@@ -61,12 +62,14 @@ class StopRows:
         dt: float,
         owner: object,
         make: MakeRamp,
+        at: Index | None = None,
     ) -> None:
         self.lane = lane
         self._lanes = owner_lanes
         self.axes = axes
         self.idx = idx  # the axes' array indices
-        self.at: Index = compact(self.idx)
+        #: the same as :func:`..state.compact` gives them (``at``, if the caller has it)
+        self.at: Index = compact(self.idx) if at is None else at
         n = len(axes)
         self.base = base
         self.pos = np.zeros(n)
