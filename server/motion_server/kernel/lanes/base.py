@@ -342,12 +342,39 @@ class LevelledLane(Lane):
         self.whole: list[bool] = []
         self.member_levels: list[int] = []
 
+    #: after :meth:`rebuild`: the masters' indices of the members, in member order
+    #: (those kept from ``midx``, those appended read from their processes), for
+    #: :meth:`order`; None when ``midx`` did not hold the members before it
+    new_midx: list[int] | None = None
+
     @staticmethod
     def master_index(p: Process) -> int:
         raise NotImplementedError
 
+    def rebuild(self) -> None:
+        if not self.changed:
+            return
+        old = self.midx
+        known = len(old) == len(self.members)
+        super().rebuild()
+        if known:
+            kept = self._kept
+            midx = old.tolist()
+            if len(kept) != len(midx):
+                midx = [midx[k] for k in kept]
+            master_index = self.master_index
+            midx += [master_index(p) for p in self.members[len(kept) :]]
+            self.new_midx = midx
+        else:
+            self.new_midx = None
+
     def order(self, levels: list[int]) -> None:
         """Sort the members by ``levels`` (one per member, in member order)."""
+        midx = self.new_midx
+        self.new_midx = None
+        if midx is None or len(midx) != len(self.members):
+            master_index = self.master_index
+            midx = [master_index(p) for p in self.members]
         if not self.members:
             if self.levels:
                 # emptied (a group stop): what the sort below leaves, without sorting
@@ -369,6 +396,7 @@ class LevelledLane(Lane):
                 self.arrays[f] = self.arrays[f][sel]
             self._set_members([self.members[k] for k in perm], [self.axes[k] for k in perm])
             ordered = [levels[k] for k in perm]
+            midx = [midx[k] for k in perm]
         self.member_levels = ordered
         depth = ordered[-1] + 1 if ordered else 0
         self.levels = []
@@ -377,7 +405,7 @@ class LevelledLane(Lane):
             stop = bisect_right(ordered, level, start)
             self.levels.append(slice(start, stop))
             start = stop
-        self.midx = np.array([self.master_index(p) for p in self.members], dtype=np.intp)
+        self.midx = np.array(midx, dtype=np.intp)
         at = self.at
         self.slaves = [
             at if sl.start == 0 and sl.stop == len(ordered) else compact(self.idx[sl])
@@ -385,7 +413,7 @@ class LevelledLane(Lane):
         ]
         #: the level is the whole lane (its results can replace the arrays, not fill them)
         self.whole = [sl.start == 0 and sl.stop == len(self.members) for sl in self.levels]
-        self.masters = [compact(self.midx[sl]) for sl in self.levels]
+        self.masters = [compact_list(midx[sl]) for sl in self.levels]
 
     def step(self, s: AxisArrays, level: int, dt: float, compose: Compose) -> None:
         """Step the members at ``level`` (moving out those that change state)."""

@@ -337,11 +337,35 @@ class GroupLanes:
             masters = read[0] if len(read) == 1 else np.concatenate(read)
             if np.isin(new_idx, masters).any():
                 return False
-        level_of = self._level_of
+        # the usual masters inline (another group, a stop row, at rest, a time-driven or
+        # actual-position lane: level 0); a command follower's through _level_of
+        group = self.group.number
         for lane, rows in admitted:
+            levels = levels_of[lane]
+            members = lane.members
+            midx = lane.new_midx
+            if midx is None or len(midx) != len(members):
+                master_index = lane.master_index
+                midx = [master_index(p) for p in members]
             for row in rows:
-                if level_of(lane, row, levels_of, axes, 0) is None:
-                    return False
+                if levels[row] >= 0:
+                    continue  # levelled already, as a master of another admitted
+                master = axes[midx[row]]
+                if master.group == group and master.stop_rows is None:
+                    procs = master._processes
+                    if procs:
+                        up = procs[0].lane
+                        if len(procs) != 1 or up is None:
+                            return False  # composed in Python
+                        if up in levels_of or (
+                            isinstance(up, LevelledLane) and up.source == MasterReference.COMMAND
+                        ):
+                            if self._level_of(lane, row, levels_of, axes, 0) is None:
+                                return False
+                            continue
+                    elif master.buffered is not None:
+                        return False
+                levels[row] = 0
         return True
 
     def _level_of(
@@ -364,7 +388,9 @@ class GroupLanes:
             return levels[row]
         if depth > len(axes):
             return None  # a loop (gearing refuses them): guarded anyway
-        master = axes[lane.master_index(lane.members[row])]
+        midx = lane.new_midx
+        p = lane.members[row]
+        master = axes[midx[row] if midx is not None else lane.master_index(p)]
         level = 0
         if master.group == self.group.number and master.stop_rows is None:
             procs = master._processes
