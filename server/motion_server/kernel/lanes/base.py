@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from collections.abc import Callable, Collection, Sequence
+from operator import attrgetter, itemgetter
 from typing import Any, ClassVar, Protocol, cast
 
 import numpy as np
@@ -23,6 +24,11 @@ from ..state import AxisArrays, Index, compact, compact_list
 
 #: composes one axis in Python now (its process changes state this step)
 Compose = Callable[[Axis], None]
+
+_LANE = attrgetter("lane")
+_INDEX = attrgetter("index")
+_FIRST = itemgetter(0)
+_SECOND = itemgetter(1)
 
 
 class LaneOwner(Protocol):
@@ -235,12 +241,24 @@ class Lane:
         if not self.changed:
             return
         slot = self._slot
-        # (a lane emptied at once, evict_all, has no slots left: nothing to look up)
-        keep = [k for k, p in enumerate(self.members) if slot.get(id(p)) == k] if slot else []
-        members = [self.members[k] for k in keep]
-        axes = [self.axes[k] for k in keep]
+        n = len(self.members)
+        if len(slot) == n:
+            # every member still has its slot (an eviction pops it): all kept
+            keep = list(range(n))
+            members = list(self.members)
+            axes = list(self.axes)
+        else:
+            # (a lane emptied at once, evict_all, has no slots left: nothing to look up)
+            keep = [k for k, p in enumerate(self.members) if slot.get(id(p)) == k] if slot else []
+            members = [self.members[k] for k in keep]
+            axes = [self.axes[k] for k in keep]
         admitted = len(self._joining)
-        joining = [(p, ax) for p, ax in self._joining if p.lane is self]
+        joining = self._joining
+        if joining:
+            # (C-level passes: a batch of many joins, usually all still joining)
+            lanes = list(map(_LANE, map(_FIRST, joining)))
+            if lanes.count(self) != admitted:
+                joining = [(p, ax) for p, ax in joining if p.lane is self]
         self._joining = []
         # a batch admitted alone and left whole: its columns are ready (no row by row)
         columns = self._batch_columns(joining) if len(joining) == admitted else None
@@ -270,15 +288,15 @@ class Lane:
             # members appended to those kept, in order: their slots and indices added to
             # the others' (what _set_members would compute again for every member)
             start = len(members)
-            added = [p for p, _ in joining]
+            added, new_axes = zip(*joining, strict=True)
             members += added
-            axes += [ax for _, ax in joining]
+            axes += new_axes
             self._slot.update(zip(map(id, added), range(start, len(members)), strict=True))
-            self._appended = [ax.index for _, ax in joining]
+            self._appended = list(map(_INDEX, new_axes))
             self._set_members(members, axes)
         else:
-            members += [p for p, _ in joining]
-            axes += [ax for _, ax in joining]
+            members += map(_FIRST, joining)
+            axes += map(_SECOND, joining)
             self._set_members(members, axes)
         self.changed = False
 
