@@ -281,7 +281,9 @@ class Lane:
                 self.arrays[f] = np.concatenate((old, columns[j]))
             elif rows:
                 new = np.array(loaded[j], dtype=self.DTYPES.get(f, float))
-                self.arrays[f] = np.concatenate((old, new.reshape((len(rows), *old.shape[1:]))))
+                new = new.reshape((len(rows), *old.shape[1:]))
+                # (nothing kept: the new rows alone, no concatenation with nothing)
+                self.arrays[f] = np.concatenate((old, new)) if keep else new
             else:
                 self.arrays[f] = old if sel is not None else old.copy()
         if whole and joining:

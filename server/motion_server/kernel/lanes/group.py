@@ -256,10 +256,10 @@ class GroupLanes:
                 before[lane] = lane.member_levels
             if len(lane.midx):
                 read.append(lane.midx)
-        dropped = [x.members for x in self.all if x.changed and x.members]
-        for x in self.all:
+        changed = [x for x in self.all if x.changed]
+        self._defer_release([x.members for x in changed if x.members])
+        for x in changed:
             x.rebuild()
-        self._defer_release(dropped)
         handed = self._handed
         levels_of: dict[LevelledLane, list[int]] = {}
         admitted: list[tuple[LevelledLane, list[int]]] = []  # (lane, rows) admitted
@@ -283,7 +283,8 @@ class GroupLanes:
             levels_of[lane] = levels
         self.cruise.place(s)
         for lane in self.followers[MasterReference.ACTUAL]:
-            lane.order([0] * len(lane.members))
+            if lane in changed:
+                lane.order([0] * len(lane.members))  # (the others are as they were)
         if admitted:
             self._admitted = (levels_of, admitted, read)
             self._order_command_followers(axes)
@@ -292,7 +293,15 @@ class GroupLanes:
         else:
             self._order_levelled(levels_of)
         self.schedule = self._schedule()
-        self.python_order = self._python_order()
+        if self.joined:
+            self.python_order = self._python_order()
+        else:
+            # only followers joined or passed between follower lanes: the axes left to
+            # Python are those that were, without the axes that joined a lane (no axis
+            # left one for Python: that marks the lanes dirty)
+            joined = {id(ax) for lane in changed for ax in lane.axes[len(lane._kept) :]}
+            if joined:
+                self.python_order = [ax for ax in self.python_order if id(ax) not in joined]
         for ax in self.python_order:
             for p in ax.processes:
                 p.offer_pending = True
@@ -334,8 +343,11 @@ class GroupLanes:
         ]
         new_idx = parts[0] if len(parts) == 1 else np.concatenate(parts)
         if read:
-            masters = read[0] if len(read) == 1 else np.concatenate(read)
-            if np.isin(new_idx, masters).any():
+            # (marked in an array by axis index: np.isin sorts, ten times dearer)
+            read_by = np.zeros(len(axes), dtype=bool)
+            for masters in read:
+                read_by[masters] = True
+            if read_by[new_idx].any():
                 return False
         # the usual masters inline (another group, a stop row, at rest, a time-driven or
         # actual-position lane: level 0); a command follower's through _level_of
