@@ -320,7 +320,7 @@ class Controller:
             if problem is not None:
                 self._numeric_fault(ax, "feedback", problem)
         lanes = motion.lanes[g.number]
-        if lanes.dirty or lanes.joined or lanes.handed:
+        if lanes.dirty or lanes.joined or lanes.handed or lanes.followed:
             lanes.rebuild(s, self.axes)
         compose = self._composers[g.number]
         if g.number in self._laned:

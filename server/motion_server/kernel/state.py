@@ -39,6 +39,17 @@ def compact(idx: np.ndarray) -> Index:
     return idx
 
 
+def compact_list(indices: list[int]) -> Index:
+    """:func:`compact` of the indices given as a Python list (as a lane's membership
+    has them): the run is recognised by comparing lists, without numpy's calls."""
+    n = len(indices)
+    if n:
+        first = indices[0]
+        if indices[-1] - first == n - 1 and indices == list(range(first, first + n)):
+            return slice(first, first + n)
+    return np.array(indices, dtype=np.intp)
+
+
 class StepContext(Protocol):
     """What a motion process reads while it steps or starts: the kinematic arrays (unwound
     positions) and where a master is read. :class:`AxisArrays` is the kernel's; the

@@ -10,8 +10,9 @@ composes the axis in Python, through the process's own code, in the same step.
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Callable, Collection, Sequence
-from itertools import pairwise
+from operator import attrgetter, itemgetter
 from typing import Any, ClassVar, Protocol, cast
 
 import numpy as np
@@ -19,21 +20,29 @@ import numpy as np
 from ..axis import Axis
 from ..enums import MasterReference
 from ..processes import Process
-from ..state import AxisArrays, Index, compact
+from ..state import AxisArrays, Index, compact, compact_list
 
 #: composes one axis in Python now (its process changes state this step)
 Compose = Callable[[Axis], None]
+
+_LANE = attrgetter("lane")
+_INDEX = attrgetter("index")
+_FIRST = itemgetter(0)
+_SECOND = itemgetter(1)
 
 
 class LaneOwner(Protocol):
     """The lanes of a group: a change of membership marks them for a rebuild, ``dirty``
     (the followers levelled again) or ``joined`` (only the time-driven lanes' members
     changed, without an axis leaving for Python: see :attr:`Lane.RELEVELS`) or ``handed``
-    (followers passed from one lane to another at the same level, ``Lane.hand_in``)."""
+    (followers passed from one lane to another at the same level, ``Lane.hand_in``) or
+    ``followed`` (followers admitted: only they are levelled, if no follower already in
+    a lane reads their axes)."""
 
     dirty: bool
     joined: bool
     handed: bool
+    followed: bool
 
 
 class Lane:
@@ -56,7 +65,9 @@ class Lane:
     #: lanes restored from state saved before batches existed)
     _batch: Any = None
     #: an admission to this lane can change the levels of the command followers (a
-    #: follower lane joins them). False for the time-driven lanes: an axis admitted to
+    #: follower lane joins them: the owner is marked ``followed``, and its rebuild
+    #: levels the new members alone when no member already in a lane reads their axes,
+    #: ``GroupLanes._hand_over``). False for the time-driven lanes: an axis admitted to
     #: one was without motion, in another time-driven lane or composed in Python, and
     #: in each case the followers that read it keep their level (0, or out of the
     #: lanes already), so the group's lanes are rebuilt without levelling them again
@@ -65,6 +76,9 @@ class Lane:
     RELEVELS: ClassVar[bool] = True
     #: the rows (before the last :meth:`rebuild`) of the members it kept, in order
     _kept: list[int] = []  # noqa: RUF012 (replaced per rebuild, never mutated)
+    #: the axis indices of the members :meth:`rebuild` appends to all those it kept,
+    #: for :meth:`_set_members` (None: every member's index is read)
+    _appended: list[int] | None = None
 
     def __init__(self, owner: LaneOwner) -> None:
         self._owner = owner
@@ -111,7 +125,7 @@ class Lane:
         self._joining.append((p, ax))
         self.changed = True
         if self.RELEVELS:
-            self._owner.dirty = True
+            self._owner.followed = True
         else:
             self._owner.joined = True
 
@@ -227,44 +241,84 @@ class Lane:
         if not self.changed:
             return
         slot = self._slot
-        # (a lane emptied at once, evict_all, has no slots left: nothing to look up)
-        keep = [k for k, p in enumerate(self.members) if slot.get(id(p)) == k] if slot else []
-        members = [self.members[k] for k in keep]
-        axes = [self.axes[k] for k in keep]
+        n = len(self.members)
+        if len(slot) == n:
+            # every member still has its slot (an eviction pops it): all kept
+            keep = list(range(n))
+            members = list(self.members)
+            axes = list(self.axes)
+        else:
+            # (a lane emptied at once, evict_all, has no slots left: nothing to look up)
+            keep = [k for k, p in enumerate(self.members) if slot.get(id(p)) == k] if slot else []
+            members = [self.members[k] for k in keep]
+            axes = [self.axes[k] for k in keep]
         admitted = len(self._joining)
-        joining = [(p, ax) for p, ax in self._joining if p.lane is self]
+        joining = self._joining
+        if joining:
+            # (C-level passes: a batch of many joins, usually all still joining)
+            lanes = list(map(_LANE, map(_FIRST, joining)))
+            if lanes.count(self) != admitted:
+                joining = [(p, ax) for p, ax in joining if p.lane is self]
         self._joining = []
         # a batch admitted alone and left whole: its columns are ready (no row by row)
         columns = self._batch_columns(joining) if len(joining) == admitted else None
         self._batch = None
         rows = [] if columns is not None else [self._load(p, ax) for p, ax in joining]
+        # (the rows as columns at once: one transposition instead of a pass per field)
+        loaded = list(zip(*rows, strict=True)) if rows else []
+        whole = len(keep) == len(self.members)
         self._kept = keep
-        sel = np.array(keep, dtype=np.intp)
+        sel = None if whole else np.array(keep, dtype=np.intp)
         for j, f in enumerate(self.FIELDS):
             if columns is not None and not keep:
                 # nothing kept: the batch's columns alone (a copy: two fields may share
                 # one column, and the lanes write their fields in place)
                 self.arrays[f] = np.array(columns[j], dtype=self.DTYPES.get(f, float))
                 continue
-            old = self.arrays[f][sel]
+            # (every member kept: the arrays as they are, no selection to copy them)
+            old = self.arrays[f] if sel is None else self.arrays[f][sel]
             if columns is not None:
                 self.arrays[f] = np.concatenate((old, columns[j]))
             elif rows:
-                new = np.array([r[j] for r in rows], dtype=self.DTYPES.get(f, float))
-                self.arrays[f] = np.concatenate((old, new.reshape((len(rows), *old.shape[1:]))))
+                new = np.array(loaded[j], dtype=self.DTYPES.get(f, float))
+                new = new.reshape((len(rows), *old.shape[1:]))
+                # (nothing kept: the new rows alone, no concatenation with nothing)
+                self.arrays[f] = np.concatenate((old, new)) if keep else new
             else:
-                self.arrays[f] = old
-        members += [p for p, _ in joining]
-        axes += [ax for _, ax in joining]
-        self._set_members(members, axes)
+                self.arrays[f] = old if sel is not None else old.copy()
+        if whole and joining:
+            # members appended to those kept, in order: their slots and indices added to
+            # the others' (what _set_members would compute again for every member)
+            start = len(members)
+            added, new_axes = zip(*joining, strict=True)
+            members += added
+            axes += new_axes
+            self._slot.update(zip(map(id, added), range(start, len(members)), strict=True))
+            self._appended = list(map(_INDEX, new_axes))
+            self._set_members(members, axes)
+        else:
+            members += map(_FIRST, joining)
+            axes += map(_SECOND, joining)
+            self._set_members(members, axes)
         self.changed = False
 
     def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
+        """Take ``members`` on ``axes`` (in row order). After :meth:`rebuild` appended
+        members to all those kept (``_appended``: their axis indices), their slots are
+        already in ``_slot`` and the kept members' indices are those of ``idx``: only
+        the new ones are read."""
         self.members = members
         self.axes = axes
-        self._slot = {id(p): k for k, p in enumerate(members)}
-        self.idx = np.array([ax.index for ax in axes], dtype=np.intp)
-        self.at = compact(self.idx)
+        added = self._appended
+        if added is not None:
+            self._appended = None
+            indices = [*self.idx.tolist(), *added]
+        else:
+            self._slot = {id(p): k for k, p in enumerate(members)}
+            indices = [ax.index for ax in axes]
+        at = compact_list(indices)
+        self.at = at
+        self.idx = np.arange(at.start, at.stop, dtype=np.intp) if isinstance(at, slice) else at
 
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         raise NotImplementedError
@@ -308,12 +362,39 @@ class LevelledLane(Lane):
         self.whole: list[bool] = []
         self.member_levels: list[int] = []
 
+    #: after :meth:`rebuild`: the masters' indices of the members, in member order
+    #: (those kept from ``midx``, those appended read from their processes), for
+    #: :meth:`order`; None when ``midx`` did not hold the members before it
+    new_midx: list[int] | None = None
+
     @staticmethod
     def master_index(p: Process) -> int:
         raise NotImplementedError
 
+    def rebuild(self) -> None:
+        if not self.changed:
+            return
+        old = self.midx
+        known = len(old) == len(self.members)
+        super().rebuild()
+        if known:
+            kept = self._kept
+            midx = old.tolist()
+            if len(kept) != len(midx):
+                midx = [midx[k] for k in kept]
+            master_index = self.master_index
+            midx += [master_index(p) for p in self.members[len(kept) :]]
+            self.new_midx = midx
+        else:
+            self.new_midx = None
+
     def order(self, levels: list[int]) -> None:
         """Sort the members by ``levels`` (one per member, in member order)."""
+        midx = self.new_midx
+        self.new_midx = None
+        if midx is None or len(midx) != len(self.members):
+            master_index = self.master_index
+            midx = [master_index(p) for p in self.members]
         if not self.members:
             if self.levels:
                 # emptied (a group stop): what the sort below leaves, without sorting
@@ -325,7 +406,7 @@ class LevelledLane(Lane):
                 self.midx = np.zeros(0, dtype=np.intp)
             self.member_levels = []
             return
-        if all(a <= b for a, b in pairwise(levels)):
+        if levels == sorted(levels):
             # in level order already (a lane of one level): what the sort would leave
             ordered = list(levels)
         else:
@@ -335,21 +416,24 @@ class LevelledLane(Lane):
                 self.arrays[f] = self.arrays[f][sel]
             self._set_members([self.members[k] for k in perm], [self.axes[k] for k in perm])
             ordered = [levels[k] for k in perm]
+            midx = [midx[k] for k in perm]
         self.member_levels = ordered
         depth = ordered[-1] + 1 if ordered else 0
         self.levels = []
         start = 0
         for level in range(depth):
-            stop = start
-            while stop < len(ordered) and ordered[stop] == level:
-                stop += 1
+            stop = bisect_right(ordered, level, start)
             self.levels.append(slice(start, stop))
             start = stop
-        self.midx = np.array([self.master_index(p) for p in self.members], dtype=np.intp)
-        self.slaves = [compact(self.idx[sl]) for sl in self.levels]
+        self.midx = np.array(midx, dtype=np.intp)
+        at = self.at
+        self.slaves = [
+            at if sl.start == 0 and sl.stop == len(ordered) else compact(self.idx[sl])
+            for sl in self.levels
+        ]
         #: the level is the whole lane (its results can replace the arrays, not fill them)
         self.whole = [sl.start == 0 and sl.stop == len(self.members) for sl in self.levels]
-        self.masters = [compact(self.midx[sl]) for sl in self.levels]
+        self.masters = [compact_list(midx[sl]) for sl in self.levels]
 
     def step(self, s: AxisArrays, level: int, dt: float, compose: Compose) -> None:
         """Step the members at ``level`` (moving out those that change state)."""

@@ -54,6 +54,20 @@ class GroupLanes:
     #: for lanes restored from older state)
     handed = False
     _handed: dict[int, int] = {}  # noqa: RUF012 (replaced per instance, see __init__)
+    #: followers admitted to a follower lane since the last rebuild (``Lane.admit``),
+    #: with nothing else marking the lanes ``dirty``: the rebuild levels only them
+    #: (:meth:`_hand_over`); a class default for lanes restored from older state
+    followed = False
+    #: the followers admitted that :meth:`_order_command_followers` levels alone (set
+    #: by :meth:`_hand_over` just before it calls it)
+    _admitted: (
+        tuple[
+            dict[LevelledLane, list[int]],
+            list[tuple[LevelledLane, list[int]]],
+            list[np.ndarray],
+        ]
+        | None
+    ) = None
 
     def __init__(self, group: MotionGroup) -> None:
         self.group = group
@@ -88,6 +102,7 @@ class GroupLanes:
         self.joined = False
         self.handed = False
         self._handed = {}
+        self.followed = False
         self._ordered = {}
         #: processes that left the lanes, freed a chunk per step (:meth:`_defer_release`)
         self._release: list[list[Process]] = []
@@ -188,8 +203,8 @@ class GroupLanes:
         only the time-driven lanes gained members or ended some themselves, ``joined``
         without ``dirty``: :meth:`_rejoin`, the followers as they are)."""
         if not self.dirty:
-            if self.handed:
-                self._hand_over(s)
+            if self.handed or self.followed:
+                self._hand_over(s, axes)
             else:
                 self._rejoin(s)
             if not self.dirty:
@@ -211,54 +226,204 @@ class GroupLanes:
         self.dirty = False  # evictions while levelling set it: they are rebuilt above
         self.joined = False
         self.handed = False
+        self.followed = False
         self._handed = {}
 
-    def _hand_over(self, s: AxisArrays) -> None:
+    def _hand_over(self, s: AxisArrays, axes: Sequence[Axis]) -> None:
         """The rebuild after followers passed from one lane to another at the same level
         (gears the catch-up lane locked, now in the lane of locked gears: the same
-        master, read the same way), besides what :meth:`_rejoin` handles: nobody's level
-        changed, so each command follower lane is ordered by the levels its members had
-        and the levels recorded for those handed in, without levelling every follower
-        again. When a level is not known (a lane restored from older state, a follower
-        that joined otherwise), ``dirty`` is set: the full rebuild follows."""
+        master, read the same way) or were admitted to a follower lane (``followed``),
+        besides what :meth:`_rejoin` handles. The followers already in a lane keep
+        their levels: what sets a level (the master's lane, its level, its motion) is
+        unchanged unless the lanes were marked ``dirty``, or a follower admitted now
+        is on an axis that one of them reads (that axis was at rest, level 0 for its
+        followers, and is now a follower). So each command follower lane is ordered by
+        the levels its members had, the levels recorded for those handed in and, for
+        those admitted, the level :meth:`_order_command_followers` would give them,
+        worked out from their masters alone (:meth:`_level_of`) instead of levelling
+        every follower again. When a level is not known (a lane restored from older
+        state, a master composed in Python, an axis read by a follower already in a
+        lane), ``dirty`` is set: the full rebuild follows."""
         cmd = self.followers[MasterReference.COMMAND]
         before: dict[LevelledLane, list[int]] = {}
+        read: list[np.ndarray] = []
         for lane in cmd:
             if lane.changed:
-                if len(lane.member_levels) != len(lane.members):
+                n = len(lane.members)
+                if len(lane.member_levels) != n or len(lane.midx) != n:
                     self.dirty = True
                     return
                 before[lane] = lane.member_levels
-        dropped = [x.members for x in self.all if x.changed and x.members]
-        for x in self.all:
+            if len(lane.midx):
+                read.append(lane.midx)
+        changed = [x for x in self.all if x.changed]
+        self._defer_release([x.members for x in changed if x.members])
+        for x in changed:
             x.rebuild()
-        self._defer_release(dropped)
+        handed = self._handed
+        levels_of: dict[LevelledLane, list[int]] = {}
+        admitted: list[tuple[LevelledLane, list[int]]] = []  # (lane, rows) admitted
+        for lane, old in before.items():
+            kept = lane._kept
+            levels = [old[k] for k in kept]
+            n = len(lane.members)
+            if not handed:
+                rows = list(range(len(levels), n))
+                levels += [-1] * len(rows)  # worked out from their masters
+            else:
+                rows = []
+                for row in range(len(levels), n):
+                    level = handed.get(id(lane.members[row]))
+                    if level is None:
+                        rows.append(row)
+                        level = -1
+                    levels.append(level)
+            if rows:
+                admitted.append((lane, rows))
+            levels_of[lane] = levels
         self.cruise.place(s)
         for lane in self.followers[MasterReference.ACTUAL]:
-            lane.order([0] * len(lane.members))
-        handed = self._handed
-        ordered = self._ordered
-        if ordered is None:
-            ordered = self._ordered = {}
-        for lane, old in before.items():
-            levels = [old[k] for k in lane._kept]
-            for p in lane.members[len(levels) :]:
-                level = handed.get(id(p))
-                if level is None:
-                    self.dirty = True
-                    return
-                levels.append(level)
-            lane.order(levels)
-            ordered[lane] = (lane.members, lane.member_levels)
-        self.depth = max((len(lane.levels) for lane in cmd), default=0)
+            if lane in changed:
+                lane.order([0] * len(lane.members))  # (the others are as they were)
+        if admitted:
+            self._admitted = (levels_of, admitted, read)
+            self._order_command_followers(axes)
+            if self.dirty:
+                return
+        else:
+            self._order_levelled(levels_of)
         self.schedule = self._schedule()
-        self.python_order = self._python_order()
+        if self.joined:
+            self.python_order = self._python_order()
+        else:
+            # only followers joined or passed between follower lanes: the axes left to
+            # Python are those that were, without the axes that joined a lane (no axis
+            # left one for Python: that marks the lanes dirty)
+            joined = {id(ax) for lane in changed for ax in lane.axes[len(lane._kept) :]}
+            if joined:
+                self.python_order = [ax for ax in self.python_order if id(ax) not in joined]
         for ax in self.python_order:
             for p in ax.processes:
                 p.offer_pending = True
         self.joined = False
         self.handed = False
+        self.followed = False
         self._handed = {}
+
+    def _order_levelled(self, levels_of: dict[LevelledLane, list[int]]) -> None:
+        """Order each command follower lane of ``levels_of`` by those levels (one per
+        member, in member order) and take the number of levels again."""
+        ordered = self._ordered
+        if ordered is None:
+            ordered = self._ordered = {}
+        for lane, levels in levels_of.items():
+            lane.order(levels)
+            ordered[lane] = (lane.members, lane.member_levels)
+        self.depth = max(
+            (len(lane.levels) for lane in self.followers[MasterReference.COMMAND]), default=0
+        )
+
+    def _level_admitted(
+        self,
+        levels_of: dict[LevelledLane, list[int]],
+        admitted: list[tuple[LevelledLane, list[int]]],
+        read: list[np.ndarray],
+        axes: Sequence[Axis],
+    ) -> bool:
+        """The levels of the followers ``admitted`` (lane, rows after its rebuild; -1 in
+        ``levels_of``) written into ``levels_of``, the others' left as they were
+        (:meth:`_hand_over`); False when that is not enough: an admitted axis is the
+        master of a follower that was in a lane before the rebuild (``read``, their
+        masters' indices: those that left count too, which only errs on the safe side;
+        that follower's master was at rest or composed in Python, and its level
+        changes), or an admitted follower's master is composed in Python."""
+        parts = [
+            lane.idx[rows[0] :] if len(rows) == len(lane.members) - rows[0] else lane.idx[rows]
+            for lane, rows in admitted
+        ]
+        new_idx = parts[0] if len(parts) == 1 else np.concatenate(parts)
+        if read:
+            # (marked in an array by axis index: np.isin sorts, ten times dearer)
+            read_by = np.zeros(len(axes), dtype=bool)
+            for masters in read:
+                read_by[masters] = True
+            if read_by[new_idx].any():
+                return False
+        # the usual masters inline (another group, a stop row, at rest, a time-driven or
+        # actual-position lane: level 0); a command follower's through _level_of
+        group = self.group.number
+        for lane, rows in admitted:
+            levels = levels_of[lane]
+            members = lane.members
+            midx = lane.new_midx
+            if midx is None or len(midx) != len(members):
+                master_index = lane.master_index
+                midx = [master_index(p) for p in members]
+            for row in rows:
+                if levels[row] >= 0:
+                    continue  # levelled already, as a master of another admitted
+                master = axes[midx[row]]
+                if master.group == group and master.stop_rows is None:
+                    procs = master._processes
+                    if procs:
+                        up = procs[0].lane
+                        if len(procs) != 1 or up is None:
+                            return False  # composed in Python
+                        if up in levels_of or (
+                            isinstance(up, LevelledLane) and up.source == MasterReference.COMMAND
+                        ):
+                            if self._level_of(lane, row, levels_of, axes, 0) is None:
+                                return False
+                            continue
+                    elif master.buffered is not None:
+                        return False
+                levels[row] = 0
+        return True
+
+    def _level_of(
+        self,
+        lane: LevelledLane,
+        row: int,
+        levels_of: dict[LevelledLane, list[int]],
+        axes: Sequence[Axis],
+        depth: int,
+    ) -> int | None:
+        """The level of the follower admitted at ``row`` of ``lane`` (after the lanes'
+        rebuild), as :meth:`_order_command_followers` levels it, written into
+        ``levels_of``: 0 when its master is in another group, in a time-driven or
+        actual-position lane or a stop row, or without motion; one more than its
+        master's when the master is a command follower (a follower kept, or one admitted
+        now, worked out first). None when the master is composed in Python (the
+        follower must leave its lane: the full rebuild does that)."""
+        levels = levels_of[lane]
+        if levels[row] >= 0:
+            return levels[row]
+        if depth > len(axes):
+            return None  # a loop (gearing refuses them): guarded anyway
+        midx = lane.new_midx
+        p = lane.members[row]
+        master = axes[midx[row] if midx is not None else lane.master_index(p)]
+        level = 0
+        if master.group == self.group.number and master.stop_rows is None:
+            procs = master._processes
+            if procs:
+                q = procs[0]
+                up = q.lane
+                if len(procs) != 1 or up is None:
+                    return None
+                if up in levels_of:
+                    assert isinstance(up, LevelledLane)
+                    above = self._level_of(up, up._slot[id(q)], levels_of, axes, depth + 1)
+                    if above is None:
+                        return None
+                    level = above + 1
+                elif isinstance(up, LevelledLane) and up.source == MasterReference.COMMAND:
+                    # a follower whose lane did not change: the level it was ordered at
+                    level = up.member_levels[up._slot[id(q)]] + 1
+            elif master.buffered is not None:
+                return None
+        levels[row] = level
+        return level
 
     def _rejoin(self, s: AxisArrays) -> None:
         """The rebuild after changes that leave the command followers' levels as they
@@ -338,6 +503,20 @@ class GroupLanes:
         return [order[k] for k in left.tolist()]
 
     def _order_command_followers(self, axes: Sequence[Axis]) -> None:
+        """Level the command followers (:mod:`.group`'s order) and order their lanes by
+        level; a follower whose master is composed in Python leaves its lane. After
+        followers were admitted to their lanes with nothing else changed
+        (``_admitted``, left by :meth:`_hand_over`), only they are levelled
+        (:meth:`_level_admitted`), or ``dirty`` is set when that is not enough."""
+        pending = self._admitted
+        if pending is not None:
+            self._admitted = None
+            levels_of = pending[0]
+            if self._level_admitted(*pending, axes):
+                self._order_levelled(levels_of)
+            else:
+                self.dirty = True
+            return
         lanes = self.followers[MasterReference.COMMAND]
         group = self.group.number
         by_axis: dict[int, tuple[LevelledLane, Process]] = {}
