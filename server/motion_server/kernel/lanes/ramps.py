@@ -13,7 +13,7 @@ import numpy as np
 
 from ..axis import Axis
 from ..enums import ProcessState
-from ..move_plan import velocity_plans
+from ..move_plan import velocity_plan_row, velocity_plans
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from ..trapezoid import SEGMENTS, TrapezoidProfile
@@ -21,6 +21,52 @@ from .base import Compose, Lane
 from .stop_rows import StopRows
 
 _DONE = ProcessState.DONE
+
+
+def admit_rows(lane: Lane, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
+    """``lane.admit`` of each of ``joining`` in order (a time-driven lane: the followers
+    keep their levels), with ``columns`` their ``FIELDS`` as arrays: kept for the next
+    rebuild (:func:`batch_of`) if nothing else is joining."""
+    mine = lane._joining
+    alone = not mine
+    for p, _ in joining:
+        p.lane = lane
+    mine.extend(joining)
+    lane.changed = True
+    lane._owner.joined = True
+    lane._batch = (joining[0][0], len(joining), columns) if alone and joining else None
+
+
+def spread(
+    lane: Lane, base: np.ndarray, rows: Sequence[tuple[Any, ...]], which: np.ndarray | None
+) -> list[np.ndarray]:
+    """The ``FIELDS`` columns of n members: ``base`` the first, the others from the rows
+    of their kinds (``rows[which[k]]`` for member k, the first row for all if ``which``
+    is None), each value as it is (a row of a per-segment field is a tuple)."""
+    n = len(base)
+    columns = [base]
+    dtypes = lane.DTYPES
+    widths = lane.WIDTHS
+    for j, f in enumerate(lane.FIELDS[1:]):
+        dtype = dtypes.get(f, float)
+        width = widths.get(f)
+        if which is None:
+            shape = (n,) if width is None else (n, width)
+            columns.append(np.full(shape, rows[0][j], dtype=dtype))
+        else:
+            columns.append(np.array([r[j] for r in rows], dtype=dtype)[which])
+    return columns
+
+
+def batch_of(lane: Lane, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+    """The columns :func:`admit_rows` kept, if ``joining`` (all that joined since the
+    last rebuild, none evicted) is that batch and nothing else."""
+    batch = lane._batch
+    if batch is None or not joining or joining[0][0] is not batch[0]:
+        return None
+    if len(joining) != batch[1]:
+        return None
+    return list(batch[2])
 
 
 class CruiseLane(Lane):
@@ -212,9 +258,13 @@ class ProfileLane(PlanLane):
         )
 
     def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        """The joining members' ``FIELDS`` as arrays: the velocity targets not planned
-        yet (jogs commanded since the last step) planned in one pass
+        """The joining members' ``FIELDS`` as arrays: those of a batch admitted alone
+        (:meth:`admit_batch`) as they are; else the velocity targets not planned yet
+        (jogs commanded since the last step) planned in one pass
         (:func:`..move_plan.velocity_plans`), the others loaded one by one."""
+        columns = batch_of(self, joining)
+        if columns is not None:
+            return columns
         requested: list[int] = []
         requests: list[float] = []
         add = requests.extend
@@ -231,17 +281,9 @@ class ProfileLane(PlanLane):
         if not requested:
             return None  # every plan built already: row by row, as before
         n = len(joining)
-        cols = np.array(requests, dtype=float).reshape(len(requested), 10).T
-        base, dt, x, v, acc = cols[0], cols[1], cols[2], cols[3], cols[4]
-        target = cols[7]
-        plans = velocity_plans(dt, cols[5], cols[6], target, cols[8], cols[9])
-        m = len(requested)
-        planned = (
-            base, np.zeros(m), dt, plans.done, plans.start, plans.pos, plans.vel, plans.acc,
-            plans.half, x, v, acc, plans.end, plans.end_pos, target, np.zeros(m, dtype=bool),
-        )  # fmt: skip
+        planned = self._planned(np.array(requests, dtype=float).reshape(len(requested), 10))
         if not rows:
-            return list(planned)
+            return planned
         # both kinds: place each column's rows where their members are
         at = np.array(requested, dtype=np.intp)
         others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
@@ -254,6 +296,47 @@ class ProfileLane(PlanLane):
             col[others] = np.array([r[j] for r in rows], dtype=dtype)
             columns.append(col)
         return columns
+
+    @staticmethod
+    def _planned(requests: np.ndarray) -> list[np.ndarray]:
+        """The ``FIELDS`` of m velocity targets not planned yet, from their rows
+        (base, dt, position, velocity, acceleration, then the profile's request), of
+        shape (m, 10): the plans built in one pass (:func:`..move_plan.velocity_plans`)."""
+        cols = requests.T
+        base, dt, x, v, acc = cols[0], cols[1], cols[2], cols[3], cols[4]
+        target = cols[7]
+        plans = velocity_plans(dt, cols[5], cols[6], target, cols[8], cols[9])
+        m = len(requests)
+        return [
+            base, np.zeros(m), dt, plans.done, plans.start, plans.pos, plans.vel, plans.acc,
+            plans.half, x, v, acc, plans.end, plans.end_pos, target, np.zeros(m, dtype=bool),
+        ]  # fmt: skip
+
+    def admit_batch(
+        self,
+        joining: Sequence[tuple[Process, Axis]],
+        base: np.ndarray,
+        kinds: Sequence[tuple[float, ...]],
+        which: np.ndarray | None,
+    ) -> None:
+        """Admit ``joining`` (velocity targets just commanded on axes at rest, their
+        profiles' plans still requests: :func:`..jog_batch.start_jogs`) in this order;
+        ``base`` their axes' bases; ``kinds`` the distinct rows of what
+        :meth:`_batch_columns` reads of each after the base (dt, position, velocity,
+        acceleration, the request), ``which`` the kind of each (None: all the first).
+        The plans, the same for every jog of a kind, are built once per kind
+        (:func:`..move_plan.velocity_plan_row`); if the batch is all that joins before
+        the next rebuild, the rebuild takes its columns as they are."""
+        rows = []
+        for dt, x, v, a, p0, v0, target, acc, dec in kinds:
+            start, pos, vel, seg_acc, half, (done, end, end_pos) = velocity_plan_row(
+                dt, p0, v0, target, acc, dec
+            )
+            rows.append(
+                (0.0, dt, done, start, pos, vel, seg_acc, half, x, v, a, end, end_pos,
+                 target, False)
+            )  # fmt: skip
+        admit_rows(self, joining, spread(self, base, rows, which))
 
     def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
         """A jog that reaches its velocity, its axis's only process with nothing

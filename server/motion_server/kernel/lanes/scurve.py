@@ -14,6 +14,7 @@ targets (ruckig's) and fallbacks stay in Python.
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -21,10 +22,10 @@ import numpy as np
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..scurve import SEGMENTS, SCurveProfile
-from ..scurve_plan import TARGET, jerk_plans
+from ..scurve_plan import TARGET, jerk_plan_row, jerk_plans
 from ..state import AxisArrays
 from .base import Compose
-from .ramps import PlanLane
+from .ramps import PlanLane, admit_rows, batch_of, spread
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
 PLAN_FIELDS = ("start", "seg_pos", "seg_vel", "seg_acc", "half", "jerk", "jhalf", "jsixth")
@@ -98,10 +99,50 @@ class SCurveLane(PlanLane):
             plan.end_velocity,
         )
 
+    @staticmethod
+    def _planned(cols: np.ndarray) -> list[np.ndarray]:
+        """The ``FIELDS`` of m ramps not planned yet, from their rows (base, cycles, dt,
+        position, velocity, acceleration, then the profile's request), of shape (m, 16):
+        the plans built in one pass (:func:`..scurve_plan.jerk_plans`)."""
+        dt = cols[:, 2]
+        plans = jerk_plans(dt, cols[:, 6:])
+        return [
+            cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
+            plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
+            cols[:, 4], cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
+        ]  # fmt: skip
+
+    def admit_batch(
+        self,
+        joining: Sequence[tuple[Process, Axis]],
+        base: np.ndarray,
+        kinds: Sequence[tuple[float, ...]],
+        which: np.ndarray | None,
+    ) -> None:
+        """Admit ``joining`` (jerk-limited velocity targets just commanded on axes at
+        rest, their plans still requests: :func:`..jog_batch.start_jogs`) in this order;
+        ``base`` their axes' bases; ``kinds`` the distinct rows of what
+        :meth:`_batch_columns` reads of each after the base (cycles, dt, position,
+        velocity, acceleration, the request), ``which`` the kind of each (None: all the
+        first). The plans, the same for every ramp of a kind, are built once per kind
+        (:func:`..scurve_plan.jerk_plan_row`); if the batch is all that joins before the
+        next rebuild, the rebuild takes its columns as they are."""
+        rows = []
+        for kind in kinds:
+            cycles, dt, x, v, a = kind[:5]
+            request = kind[5:]
+            *plan, (done, end, end_pos) = jerk_plan_row(dt, request)
+            rows.append((cycles, dt, done, *plan, x, v, a, end, end_pos, request[TARGET]))
+        admit_rows(self, joining, spread(self, base, rows, which))
+
     def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        """The joining members' ``FIELDS`` as arrays: the plans not built yet (ramps
-        commanded since the last step) built in one pass (:func:`..scurve_plan.jerk_plans`),
-        the others loaded one by one."""
+        """The joining members' ``FIELDS`` as arrays: those of a batch admitted alone
+        (:meth:`admit_batch`) as they are; else the plans not built yet (ramps commanded
+        since the last step) built in one pass (:func:`..scurve_plan.jerk_plans`), the
+        others loaded one by one."""
+        columns = batch_of(self, joining)
+        if columns is not None:
+            return columns
         requested: list[int] = []
         requests: list[float] = []
         add = requests.extend
@@ -120,16 +161,9 @@ class SCurveLane(PlanLane):
         m = len(requested)
         # (the floats packed as doubles, bit for bit: five times faster than numpy's
         # conversion of a list; read-only columns, which the rebuild concatenates)
-        cols = np.frombuffer(struct.pack(f"{16 * m}d", *requests)).reshape(m, 16)
-        dt = cols[:, 2]
-        plans = jerk_plans(dt, cols[:, 6:])
-        planned = (
-            cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
-            plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
-            cols[:, 4], cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
-        )  # fmt: skip
+        planned = self._planned(np.frombuffer(struct.pack(f"{16 * m}d", *requests)).reshape(m, 16))
         if not rows:
-            return list(planned)
+            return planned
         # both kinds: place each column's rows where their members are
         n = len(joining)
         at = np.array(requested, dtype=np.intp)
