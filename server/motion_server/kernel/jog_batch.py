@@ -38,9 +38,13 @@ from .errors import ErrorCode, MotionError
 from .lanes import GroupLanes
 from .limits import Limits
 from .motion import Motion
+from .override import NEUTRAL
 from .processes import JogProcess, Process, ProcessFactory
 from .scurve import SCurveProfile
 from .trapezoid import TrapezoidProfile, judge_velocity_plan
+
+#: a group whose lanes were not looked up yet
+_UNKNOWN: Any = object()
 
 #: what a jog replaces (Logix MAJ: another jog; the PLCopen aborting mode uses start)
 _REPLACE = (ProcessKind.JOG,)
@@ -199,7 +203,9 @@ def start_jogs(
     joining = _Joining(motion)
     pairs, kinds = joining.pairs, joining.protos
     protos = _Protos(limits)
-    lanes_for = motion.lanes_for
+    # Motion.lanes_for, its group's part looked up once per group
+    offered: dict[int, GroupLanes | None] = {}
+    drive_on = motion.s.drive_on
     # the jog last built or copied: the next axis with the same target (the same
     # object, as a batch of equal targets has) and period is a copy of it
     last: tuple[object, float, _Proto] | None = None
@@ -208,7 +214,11 @@ def start_jogs(
             target = targets[k]
             owner = None if owners is None else owners[k]
             procs = ax._processes if ax.stop_rows is None else ax.processes
-            if procs or ax.preloaded_cams or not ax.override.neutral:
+            if (
+                procs
+                or ax.preloaded_cams
+                or (ax.override is not NEUTRAL and not ax.override.neutral)
+            ):
                 joining.admit()
                 started.append(
                     motion.start(ax, _factory(ax.period, target, limits, owner), _REPLACE)
@@ -222,8 +232,11 @@ def start_jogs(
                 last = (target, ax.period, proto) if proto.copyable else None
             kind = proto.lane_kind
             if kind is not None and ax.buffered is None:
-                lanes = lanes_for(ax)
-                if lanes is not None:
+                group = ax.group
+                lanes = offered.get(group, _UNKNOWN)
+                if lanes is _UNKNOWN:
+                    lanes = offered[group] = motion.lanes[group] if motion.offers(group) else None
+                if lanes is not None and drive_on.item(ax.index):
                     # Motion.start_from_rest of a jog just built, with its admission
                     # (to its lane: planned, not finished) and its axis's busy flag
                     # deferred to the batch
