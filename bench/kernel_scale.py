@@ -29,7 +29,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   judged, status written, the kernel command), as a scan runs it.
 
 The commands go to the kernel directly (the processes the instructions build; through
-the instructions in ``maj`` and ``mag``); the
+the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
+the jogs of ``accel``, ``s-curve`` and the set-ups in one ``Controller.start_jogs`` call
+(the MAJ instances executed in one scan), the gears and cams axis by axis; the
 benchmark prints, per step of ``Controller.step``, the CPU time of the stepping thread
 (the cost on one core, which other processes on a shared machine do not inflate): mean,
 p99 and max over the case's steps, and the CPU share of the 1 ms period (target: 256
