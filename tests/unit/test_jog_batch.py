@@ -205,6 +205,7 @@ FEW = (100.0, -40.0, 3, -0.0, 250.5)
     moving=st.lists(st.integers(1, N), max_size=4, unique=True),
     jerk=st.sampled_from([0.0, 20_000.0, 5_000.0]),
     reads=st.lists(st.tuples(st.integers(0, 60), st.integers(1, N), st.booleans()), max_size=6),
+    same=st.booleans(),
 )
 def test_jogs_read_at_any_moment_are_those_the_loop_leaves(
     picks: list[int],
@@ -212,13 +213,20 @@ def test_jogs_read_at_any_moment_are_those_the_loop_leaves(
     moving: list[int],
     jerk: float,
     reads: list[tuple[int, int, bool]],
+    same: bool,
 ) -> None:
     """Axes at rest and moving, targets repeated (copies of one jog) or not, trapezoidal
     or jerk-limited; at random cycles an axis's processes are read (and, at some, taken
     out of the lanes, ``Motion.settle``) on the batch and the loop alike: the same
-    objects' state, and after every step the reference's motion."""
+    objects' state, and after every step the reference's motion. ``same``: one target
+    for all (an int given as int and float in turn), on masters only (at rest unless
+    jogging already)."""
     limits = Limits(300.0, 1000.0, 2000.0, jerk)
     targets = [FEW[k] for k in picks]
+    if same:
+        t = FEW[picks[0]]
+        targets = [float(t) if k % 2 else t for k in range(N)]
+        axes = [n for n in axes if n <= N // 2] or [1, 2]
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
                                                          ("ref", False))}  # fmt: skip
     for ctl in ctls.values():
