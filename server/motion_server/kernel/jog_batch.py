@@ -14,9 +14,14 @@ work that does not depend on the axis:
   constructor judges it: :func:`.trapezoid.judge_velocity_plan`, the same errors);
 - the jogs from rest bound for a profile lane (trapezoidal) or the S-curve lane
   (jerk-limited, closed form) join it as one batch: their lane columns, plans included,
-  are computed here as arrays (:meth:`.lanes.ramps.ProfileLane.admit_batch`,
+  are computed here, one plan per prototype spread over the batch's rows
+  (:meth:`.lanes.ramps.ProfileLane.admit_batch`,
   :meth:`.lanes.scurve.SCurveLane.admit_batch`), so the first step takes them as they
   are instead of reading every jog's request and planning it.
+
+The jogs are still one object each (a copy costs about a microsecond): the rows of a
+lane whose objects are made only when read, as a group stop's (:mod:`.lanes.stop_rows`),
+are not done for jogs.
 
 Other axes (moving, overridden, with a preloaded cam, buffered, a jog whose plan the
 constructor had to build or hand to ruckig) are started through ``Motion.start`` or
