@@ -321,3 +321,49 @@ def test_a_snapshot_taken_before_the_batch_joins_runs_on_bit_for_bit() -> None:
             assert fast.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), (jerk, c)
             assert copy.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), (jerk, c)
             assert copy.cmd_vel.tobytes() == ref.cmd_vel.tobytes(), (jerk, c)
+
+
+def two_groups(lanes: bool) -> Controller:
+    """Eight virtual axes in two groups of different periods, interleaved in number."""
+    cfg = [
+        AxisConfig(n, f"A{n}", AxisType.VIRTUAL, max_acceleration=5000.0,
+                   max_deceleration=5000.0)
+        for n in range(1, 9)
+    ]  # fmt: skip
+    groups = [GroupConfig(1, "G1", (1, 3, 5, 7), 0.002), GroupConfig(2, "G2", (2, 4, 6, 8), 0.001)]
+    ctl = Controller(cfg, groups, lanes=lanes)
+    for ax in ctl.axes:
+        ctl.servo_on(ax)
+    ctl.run(2)
+    return ctl
+
+
+def test_a_batch_over_two_groups_joins_each_group_in_order() -> None:
+    """Jogs on axes of two groups in turn (each period its own prototype, each group's
+    lane its own batches), trapezoidal then jerk-limited on the same axes: the loop's
+    processes and motion, lanes on and off."""
+    order = [1, 2, 3, 4, 6, 8, 5, 7]
+    targets = [50.0, 50.0, -20.0, 50.0, 50.0, -20.0, 50.0, 80.0]
+    for jerk in (0.0, 20_000.0):
+        limits = Limits(300.0, 1000.0, 2000.0, jerk)
+        batch, loop, ref = two_groups(True), two_groups(True), two_groups(False)
+        batch.start_jogs([batch.axis(n) for n in order], targets, limits)
+        for ctl in (loop, ref):
+            for n, t in zip(order, targets, strict=True):
+                ax = ctl.axis(n)
+                ctl.start(
+                    ax,
+                    lambda v, a, t=t, dt=ax.period, lim=limits: JogProcess(dt, t, lim, v, a),
+                    replace=(ProcessKind.JOG,),
+                )
+        for n in order:
+            assert list(map(described, batch.axis(n).processes)) == list(
+                map(described, loop.axis(n).processes)
+            ), (jerk, n)
+        for c in range(200):
+            for ctl in (batch, loop, ref):
+                ctl.step()
+            for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
+                x = getattr(batch, arr).tobytes()
+                assert x == getattr(loop, arr).tobytes(), (jerk, arr, c)
+                assert x == getattr(ref, arr).tobytes(), (jerk, arr, c)
