@@ -7,6 +7,7 @@ None of them reads another axis, so they step first, before any follower.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from operator import attrgetter, is_, itemgetter
 from typing import Any, ClassVar
 
 import numpy as np
@@ -21,6 +22,11 @@ from .base import Compose, Lane
 from .stop_rows import StopRows
 
 _DONE = ProcessState.DONE
+_STOP_ROWS = attrgetter("stop_rows")
+_BUFFERED = attrgetter("buffered")
+_PROCESSES = attrgetter("_processes")
+_FIRST = itemgetter(0)
+_BASE = attrgetter("base")
 
 
 def admit_rows(lane: Lane, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
@@ -342,11 +348,16 @@ class ProfileLane(PlanLane):
         """A jog that reaches its velocity, its axis's only process with nothing
         buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
         the others (moves, which land, and the rest) by their process's own step."""
+        members, axes = self.members, self.axes
+        n = len(rows)
+        if n == len(members) and self._all_jogs_alone(s):
+            # every plan ends in this step (a batch of jogs reaching their speed
+            # together), each a jog alone on its axis: all ended, in row order
+            return rows.tolist(), []
         ended, odd = [], []
         # (read as lists once: a numpy scalar per row costs more than the test)
         landing = self.arrays["landing"][rows].tolist()
         drive_on = s.drive_on[self.idx[rows]].tolist()
-        members, axes = self.members, self.axes
         for j, k in enumerate(rows.tolist()):
             p, ax = members[k], axes[k]
             # (the property's call saved: no stop row here unless its ramp is to be made)
@@ -364,6 +375,23 @@ class ProfileLane(PlanLane):
                 odd.append(k)
         return ended, odd
 
+    def _all_jogs_alone(self, s: AxisArrays) -> bool:
+        """The test of :meth:`_ending` for every member at once, as whole-list passes:
+        each a jog (not landing), its axis's only process (no stop row), nothing
+        buffered, the drive on."""
+        members, axes = self.members, self.axes
+        n = len(members)
+        if (
+            self.arrays["landing"].any()
+            or list(map(type, members)).count(JogProcess) != n
+            or list(map(_STOP_ROWS, axes)).count(None) != n
+            or list(map(_BUFFERED, axes)).count(None) != n
+            or not s.drive_on[self.idx].all()
+        ):
+            return False
+        procs = list(map(_PROCESSES, axes))
+        return list(map(len, procs)).count(1) == n and all(map(is_, map(_FIRST, procs), members))
+
     def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
         """The jogs at ``rows`` reach their velocity at the sample ``t``: what composing
         their axes does (``TrapezoidProfile.finish_plan``, ``JogProcess._after_step``,
@@ -379,31 +407,40 @@ class ProfileLane(PlanLane):
         x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
         cmd = a["base"][r] + x
         positions, velocities = x.tolist(), end_vel.tolist()
-        cycles = (a["cycles"][r]).tolist()  # already counted this sample
+        # already counted this sample; whole numbers (int() of each, as integers)
+        cycles = a["cycles"][r].astype(np.int64).tolist()
         idx = self.idx[r]
         s.cmd_pos[idx] = cmd
         s.cmd_vel[idx] = end_vel
         s.cmd_acc[idx] = 0.0
         slot = self._slot
-        at_speed: list[tuple[Process, Axis]] = []
-        bases: list[float] = []
         members, axes = self.members, self.axes
-        for j, k in enumerate(rows):
-            p, ax = members[k], axes[k]
+        if len(rows) == len(members):
+            # every member (a batch of jogs at speed together): no slot is left
+            ended, their_axes = members, axes
+            slot.clear()
+        else:
+            ended = [members[k] for k in rows]
+            their_axes = [axes[k] for k in rows]
+            for p in ended:
+                slot.pop(id(p), None)
+        bases = list(map(_BASE, their_axes))
+        for p, x_k, v_k, c in zip(ended, positions, velocities, cycles, strict=True):
             # (a JogProcess on a TrapezoidProfile: _ending, accepts)
-            slot.pop(id(p), None)
             prof = p.profile  # type: ignore[attr-defined]
-            bases.append(ax.base)
-            x_k, v_k = positions[j], velocities[j]
-            prof.cycles = int(cycles[j])
+            prof.cycles = c
             prof.finished = True
-            prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
-            p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
+            prof.position = x_k
+            prof.velocity = v_k
+            prof.acceleration = 0.0
+            p.position = x_k
+            p.velocity = v_k
+            p.acceleration = 0.0
             p.at_speed = True  # type: ignore[attr-defined]
             # leaves this lane and is offered at once (Motion.offer): to the cruise lane
             p.lane = None
             p.offer_pending = False
-            at_speed.append((p, ax))
+        at_speed: list[tuple[Process, Axis]] = list(zip(ended, their_axes, strict=True))
         self.reached = at_speed
         # what CruiseLane._load reads of each (the profile's dt: the lane's column)
         dt = a["dt"][r]
