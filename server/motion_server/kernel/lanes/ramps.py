@@ -195,6 +195,23 @@ class PlanLane(Lane):
         for ax in movers:
             compose(ax)
 
+    def _all_jogs_alone(self, s: AxisArrays) -> bool:
+        """The test of :meth:`_ending` for every member at once, as whole-list passes:
+        each a jog (not landing, in a lane with landings), its axis's only process (no
+        stop row), nothing buffered, the drive on."""
+        members, axes = self.members, self.axes
+        n = len(members)
+        if (
+            ("landing" in self.arrays and self.arrays["landing"].any())
+            or list(map(type, members)).count(JogProcess) != n
+            or list(map(_STOP_ROWS, axes)).count(None) != n
+            or list(map(_BUFFERED, axes)).count(None) != n
+            or not s.drive_on[self.idx].all()
+        ):
+            return False
+        procs = list(map(_PROCESSES, axes))
+        return list(map(len, procs)).count(1) == n and all(map(is_, map(_FIRST, procs), members))
+
     def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
         """The rows whose plan ends this step, split into those the lane ends itself
         (:meth:`_end`) and those moved out to their process's own step."""
@@ -374,23 +391,6 @@ class ProfileLane(PlanLane):
             else:
                 odd.append(k)
         return ended, odd
-
-    def _all_jogs_alone(self, s: AxisArrays) -> bool:
-        """The test of :meth:`_ending` for every member at once, as whole-list passes:
-        each a jog (not landing), its axis's only process (no stop row), nothing
-        buffered, the drive on."""
-        members, axes = self.members, self.axes
-        n = len(members)
-        if (
-            self.arrays["landing"].any()
-            or list(map(type, members)).count(JogProcess) != n
-            or list(map(_STOP_ROWS, axes)).count(None) != n
-            or list(map(_BUFFERED, axes)).count(None) != n
-            or not s.drive_on[self.idx].all()
-        ):
-            return False
-        procs = list(map(_PROCESSES, axes))
-        return list(map(len, procs)).count(1) == n and all(map(is_, map(_FIRST, procs), members))
 
     def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
         """The jogs at ``rows`` reach their velocity at the sample ``t``: what composing

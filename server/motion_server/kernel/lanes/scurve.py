@@ -181,6 +181,10 @@ class SCurveLane(PlanLane):
         """A jog that reaches its velocity, its axis's only process with nothing
         buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
         the others (paused moves, stops and the rest) by their process's own step."""
+        if len(rows) == len(self.members) and self._all_jogs_alone(s):
+            # every plan ends in this step (a batch of jogs reaching their speed
+            # together), each a jog alone on its axis: all ended, in row order
+            return rows.tolist(), []
         ended, odd = [], []
         drive_on = s.drive_on
         for k in rows.tolist():
@@ -219,25 +223,42 @@ class SCurveLane(PlanLane):
         s.cmd_vel[idx] = end_vel
         s.cmd_acc[idx] = 0.0
         slot = self._slot
-        cruise = self._owner.cruise  # type: ignore[attr-defined]
-        for j, k in enumerate(rows):
-            p, ax = self.members[k], self.axes[k]
-            assert isinstance(p, JogProcess)
-            slot.pop(id(p), None)
-            prof = p.profile
-            assert isinstance(prof, SCurveProfile)
-            x_k, v_k = positions[j], velocities[j]
-            prof.cycles = int(cycles[j])
+        members, axes = self.members, self.axes
+        if len(rows) == len(members):
+            # every member (a batch of jogs at speed together): no slot is left
+            ended, their_axes = members, axes
+            slot.clear()
+        else:
+            ended = [members[k] for k in rows]
+            their_axes = [axes[k] for k in rows]
+            for p in ended:
+                slot.pop(id(p), None)
+        for p, x_k, v_k, c in zip(ended, positions, velocities, cycles, strict=True):
+            # (a JogProcess on an SCurveProfile: _ending, accepts)
+            prof = p.profile  # type: ignore[attr-defined]
+            prof.cycles = int(c)
             prof.finished = True
-            prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
-            p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
-            p.at_speed = True
+            prof.position = x_k
+            prof.velocity = v_k
+            prof.acceleration = 0.0
+            p.position = x_k
+            p.velocity = v_k
+            p.acceleration = 0.0
+            p.at_speed = True  # type: ignore[attr-defined]
             # leaves this lane and is offered at once (Motion.offer): to the cruise lane
             p.lane = None
             p.offer_pending = False
-            cruise.admit(p, ax)
+        # admitted to the cruise lane in row order (``Lane.admit`` of each), with the
+        # columns its rebuild would read of them (``CruiseLane._load``)
+        at_speed = list(zip(ended, their_axes, strict=True))
+        cruise = self._owner.cruise  # type: ignore[attr-defined]
+        cruise.hand_in_all(at_speed)
+        dt = a["dt"][r]
+        cruise.take_batch(at_speed, [[ax.base for ax in their_axes], x, end_vel, dt, end_vel * dt])
         self.changed = True
-        self._owner.dirty = True
+        # from this lane to the cruise lane, both time-driven: the followers keep their
+        # levels (``Lane.RELEVELS``), as for the jogs the profile lane hands over
+        self._owner.joined = True
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
