@@ -204,7 +204,7 @@ FEW = (100.0, -40.0, 3, -0.0, 250.5)
     axes=st.lists(st.integers(1, N), min_size=1, max_size=N, unique=True),
     moving=st.lists(st.integers(1, N), max_size=4, unique=True),
     jerk=st.sampled_from([0.0, 20_000.0, 5_000.0]),
-    reads=st.lists(st.tuples(st.integers(0, 60), st.integers(1, N), st.booleans()), max_size=6),
+    reads=st.lists(st.tuples(st.integers(0, 100), st.integers(1, N), st.booleans()), max_size=6),
     same=st.booleans(),
 )
 def test_jogs_read_at_any_moment_are_those_the_loop_leaves(
@@ -249,7 +249,7 @@ def test_jogs_read_at_any_moment_are_those_the_loop_leaves(
                     replace=(ProcessKind.JOG,),
                 )
     batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
-    for c in range(61):
+    for c in range(101):
         for cycle, n, settle in reads:
             if cycle != c:
                 continue
