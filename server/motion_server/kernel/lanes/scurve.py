@@ -25,7 +25,8 @@ from ..scurve import SEGMENTS, SCurveProfile
 from ..scurve_plan import TARGET, jerk_plan_row, jerk_plans
 from ..state import AxisArrays
 from .base import Compose
-from .ramps import PlanLane, admit_rows, batch_of, spread
+from .batches import admit_rows, batch_of, spread
+from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
 PLAN_FIELDS = ("start", "seg_pos", "seg_vel", "seg_acc", "half", "jerk", "jhalf", "jsixth")
