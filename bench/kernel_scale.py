@@ -29,7 +29,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   judged, status written, the kernel command), as a scan runs it.
 
 The commands go to the kernel directly (the processes the instructions build; through
-the instructions in ``maj`` and ``mag``); the
+the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
+the jogs of ``accel``, ``s-curve`` and the set-ups in one ``Controller.start_jogs`` call
+(the MAJ instances executed in one scan), the gears and cams axis by axis; the
 benchmark prints, per step of ``Controller.step``, the CPU time of the stepping thread
 (the cost on one core, which other processes on a shared machine do not inflate): mean,
 p99 and max over the case's steps, and the CPU share of the 1 ms period (target: 256
@@ -73,7 +75,6 @@ from motion_server.kernel import (
     AxisType,
     Controller,
     GroupConfig,
-    JogProcess,
     Limits,
     ProcessKind,
     ProgrammedStopMode,
@@ -114,13 +115,10 @@ def controller(n_axes: int, lanes: bool) -> Controller:
 
 
 def jog(ctl: Controller, jerk: float = 0.0) -> None:
-    """MAJ at 100 mm/s on every master (from wherever it is)."""
-    for ax in ctl.axes[: len(ctl.axes) // 2]:
-        ctl.start(
-            ax,
-            lambda v, a: JogProcess(PERIOD, SPEED, Limits(SPEED, RATE, RATE, jerk), v, a),
-            replace=(ProcessKind.JOG,),
-        )
+    """MAJ at 100 mm/s on every master (from wherever it is), in one call: the jogs of
+    the MAJ instances executed in one scan, as the instructions' batch commands them."""
+    masters = ctl.axes[: len(ctl.axes) // 2]
+    ctl.start_jogs(masters, [SPEED] * len(masters), Limits(SPEED, RATE, RATE, jerk))
 
 
 def gear(ctl: Controller, clutch: bool) -> None:

@@ -1,7 +1,10 @@
 """Jogs started on many axes in one call (``Controller.start_jogs``): the same state as
 ``Controller.start`` with the jog's factory on each axis in order, attribute by
 attribute, and the same motion after every step, lanes on and off; an error stops at
-the same axis."""
+the same axis. The jogs from rest are built by the constructors once per target and
+join their lane (profile or S-curve) as one batch planned in the call: the objects read
+(or taken out of the lanes) at any moment are those the loop leaves, and a snapshot taken
+before the first step runs on bit for bit."""
 
 from __future__ import annotations
 
@@ -23,7 +26,9 @@ from motion_server.kernel import (
 )
 from motion_server.kernel.errors import MotionError
 from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference
+from motion_server.kernel.lanes import ramps, scurve
 from motion_server.kernel.override import Override
+from motion_server.scan import statecodec
 
 N = 12
 PERIOD = 0.002
@@ -180,3 +185,185 @@ def check_same(
             assert x.tobytes() == getattr(ref, arr).tobytes(), (arr, c)
     assert np.array_equal(batch.cmd_pos, ref.cmd_pos)
     assert all(same(float(x), float(y)) for x, y in zip(batch.cmd_vel, ref.cmd_vel, strict=True))
+
+
+def described(p: object) -> str:
+    """A process's state as text (a gear's: its kind; it refers to its controller)."""
+    if isinstance(p, GearProcess):
+        return type(p).__name__
+    return repr(sorted(state(p).items()))
+
+
+#: a few targets, each one object (a batch of equal targets passes the same object)
+FEW = (100.0, -40.0, 3, -0.0, 250.5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    picks=st.lists(st.integers(0, len(FEW) - 1), min_size=N, max_size=N),
+    axes=st.lists(st.integers(1, N), min_size=1, max_size=N, unique=True),
+    moving=st.lists(st.integers(1, N), max_size=4, unique=True),
+    jerk=st.sampled_from([0.0, 20_000.0, 5_000.0]),
+    reads=st.lists(st.tuples(st.integers(0, 100), st.integers(1, N), st.booleans()), max_size=6),
+    same=st.booleans(),
+)
+def test_jogs_read_at_any_moment_are_those_the_loop_leaves(
+    picks: list[int],
+    axes: list[int],
+    moving: list[int],
+    jerk: float,
+    reads: list[tuple[int, int, bool]],
+    same: bool,
+) -> None:
+    """Axes at rest and moving, targets repeated (copies of one jog) or not, trapezoidal
+    or jerk-limited; at random cycles an axis's processes are read (and, at some, taken
+    out of the lanes, ``Motion.settle``) on the batch and the loop alike: the same
+    objects' state, and after every step the reference's motion. ``same``: one target
+    for all (an int given as int and float in turn), on masters only (at rest unless
+    jogging already)."""
+    limits = Limits(300.0, 1000.0, 2000.0, jerk)
+    targets = [FEW[k] for k in picks]
+    if same:
+        t = FEW[picks[0]]
+        targets = [float(t) if k % 2 else t for k in range(N)]
+        axes = [n for n in axes if n <= N // 2] or [1, 2]
+    ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
+                                                         ("ref", False))}  # fmt: skip
+    for ctl in ctls.values():
+        for n in moving:
+            ctl.start(
+                ctl.axis(n),
+                lambda v, a: JogProcess(PERIOD, 40.0, Limits(40.0, 800.0, 800.0), v, a),
+                replace=(ProcessKind.JOG,),
+            )
+        ctl.run(3)
+    for name, ctl in ctls.items():
+        chosen = [ctl.axis(n) for n in axes]
+        if name == "batch":
+            ctl.start_jogs(chosen, targets[: len(axes)], limits)
+        else:
+            for ax, target in zip(chosen, targets, strict=False):
+                ctl.start(
+                    ax,
+                    lambda v, a, t=target: JogProcess(PERIOD, t, limits, v, a),
+                    replace=(ProcessKind.JOG,),
+                )
+    batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
+    for c in range(101):
+        for cycle, n, settle in reads:
+            if cycle != c:
+                continue
+            if settle:
+                batch.motion.settle(batch.axis(n))
+                loop.motion.settle(loop.axis(n))
+            ps, qs = batch.axis(n).processes, loop.axis(n).processes
+            assert list(map(described, ps)) == list(map(described, qs)), (c, n)
+        for ctl in ctls.values():
+            ctl.step()
+        for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
+            x = getattr(batch, arr)
+            assert x.tobytes() == getattr(loop, arr).tobytes(), (arr, c)
+            assert x.tobytes() == getattr(ref, arr).tobytes(), (arr, c)
+
+
+def test_jogs_from_rest_are_built_once_per_target_and_planned_in_the_call(
+    monkeypatch: Any,
+) -> None:
+    """Six masters at rest, three to one target and three to another, jerk-limited: the
+    constructor runs twice (once per target), and the first step plans nothing (the
+    lane takes the columns the call planned); the motion is the loop's."""
+    built: list[float] = []
+    init = JogProcess.__init__
+
+    def counting(self: JogProcess, *args: Any, **kwargs: Any) -> None:
+        built.append(args[1])
+        init(self, *args, **kwargs)
+
+    limits = Limits(300.0, 1000.0, 2000.0, 20_000.0)
+    a, b = 100.0, -60.0
+    targets = [a, a, b, a, b, b]
+    batch, ref = controller(True), controller(False)
+    monkeypatch.setattr(JogProcess, "__init__", counting)
+    batch.start_jogs(batch.axes[: N // 2], targets, limits)
+    assert sorted(built) == [b, a]
+
+    def refuse(*args: Any) -> None:
+        raise AssertionError("planned at the step")
+
+    monkeypatch.setattr(scurve, "jerk_plans", refuse)
+    monkeypatch.setattr(ramps, "velocity_plans", refuse)
+    batch.step()
+    monkeypatch.undo()
+    for ax, t in zip(ref.axes, targets, strict=False):
+        ref.start(ax, lambda v, acc, t=t: JogProcess(PERIOD, t, limits, v, acc))
+    ref.step()
+    for _ in range(200):
+        assert batch.cmd_pos.tobytes() == ref.cmd_pos.tobytes()
+        assert batch.cmd_vel.tobytes() == ref.cmd_vel.tobytes()
+        batch.step()
+        ref.step()
+
+
+def test_a_snapshot_taken_before_the_batch_joins_runs_on_bit_for_bit() -> None:
+    """The batch's columns wait in the lanes for the first step: a copy of the
+    controller through the snapshot codec taken then runs on as the original does."""
+    for jerk in (0.0, 20_000.0):
+        limits = Limits(300.0, 1000.0, 2000.0, jerk)
+        fast, ref = controller(True), controller(False)
+        targets = [100.0, 100.0, -30.0, 7.5, 100.0, -30.0]
+        fast.start_jogs(fast.axes[: N // 2], targets, limits)
+        for ax, t in zip(ref.axes, targets, strict=False):
+            ref.start(ax, lambda v, acc, t=t, lim=limits: JogProcess(PERIOD, t, lim, v, acc))
+        copy = statecodec.loads(statecodec.dumps(fast))
+        for c in range(150):
+            for ctl in (fast, ref, copy):
+                ctl.step()
+            assert fast.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), (jerk, c)
+            assert copy.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), (jerk, c)
+            assert copy.cmd_vel.tobytes() == ref.cmd_vel.tobytes(), (jerk, c)
+
+
+def two_groups(lanes: bool) -> Controller:
+    """Eight virtual axes in two groups of different periods, interleaved in number."""
+    cfg = [
+        AxisConfig(n, f"A{n}", AxisType.VIRTUAL, max_acceleration=5000.0,
+                   max_deceleration=5000.0)
+        for n in range(1, 9)
+    ]  # fmt: skip
+    groups = [GroupConfig(1, "G1", (1, 3, 5, 7), 0.002), GroupConfig(2, "G2", (2, 4, 6, 8), 0.001)]
+    ctl = Controller(cfg, groups, lanes=lanes)
+    for ax in ctl.axes:
+        ctl.servo_on(ax)
+    ctl.run(2)
+    return ctl
+
+
+def test_a_batch_over_two_groups_joins_each_group_in_order() -> None:
+    """Jogs on axes of two groups in turn (each period its own prototype, each group's
+    lane its own batches), trapezoidal then jerk-limited on the same axes: the loop's
+    processes and motion, lanes on and off."""
+    order = [1, 2, 3, 4, 6, 8, 5, 7]
+    targets = [50.0, 50.0, -20.0, 50.0, 50.0, -20.0, 50.0, 80.0]
+    for jerk in (0.0, 20_000.0):
+        limits = Limits(300.0, 1000.0, 2000.0, jerk)
+        batch, loop, ref = two_groups(True), two_groups(True), two_groups(False)
+        batch.start_jogs([batch.axis(n) for n in order], targets, limits)
+        for ctl in (loop, ref):
+            for n, t in zip(order, targets, strict=True):
+                ax = ctl.axis(n)
+                ctl.start(
+                    ax,
+                    lambda v, a, t=t, dt=ax.period, lim=limits: JogProcess(dt, t, lim, v, a),
+                    replace=(ProcessKind.JOG,),
+                )
+        for n in order:
+            assert list(map(described, batch.axis(n).processes)) == list(
+                map(described, loop.axis(n).processes)
+            ), (jerk, n)
+        for c in range(200):
+            for ctl in (batch, loop, ref):
+                ctl.step()
+            for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
+                x = getattr(batch, arr).tobytes()
+                assert x == getattr(loop, arr).tobytes(), (jerk, arr, c)
+                assert x == getattr(ref, arr).tobytes(), (jerk, arr, c)

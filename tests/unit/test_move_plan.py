@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from motion_server.kernel import Limits, MotionError
-from motion_server.kernel.move_plan import velocity_plans
+from motion_server.kernel.move_plan import velocity_plan_row, velocity_plans
 from motion_server.kernel.trapezoid import (
     MAX_DURATION,
     TrapezoidProfile,
@@ -57,6 +57,32 @@ def test_plans_built_together_are_the_plans_built_one_by_one(requests: list[Requ
         for field in ("start", "pos", "vel", "acc", "half"):
             assert bits(getattr(plans, field)[k]) == bits(getattr(one, field)), (k, field)
         assert bits(plans.done[k]) == bits(one.done), k
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(dts, st.floats(-1e3, 1e3), velocities, velocities, rates, rates),
+                min_size=1, max_size=8))  # fmt: skip
+def test_a_plan_built_alone_in_python_floats_is_the_arrays_row(requests: list[Request]) -> None:
+    """``velocity_plan_row`` (the plan of a batch of jogs from rest to one target)
+    gives, bit for bit, the row ``velocity_plans`` gives for the same request."""
+    judged = []
+    for r in requests:
+        with contextlib.suppress(MotionError):
+            judge_velocity_plan(*r[1:])
+            judged.append(r)
+    if not judged:
+        return
+    plans = velocity_plans(*(np.array(c, dtype=float) for c in zip(*judged, strict=True)))
+    for k, r in enumerate(judged):
+        start, pos, vel, acc, half, (done, end, end_pos) = velocity_plan_row(*r)
+        assert bits(start) == bits(plans.start[k]), k
+        assert bits(pos) == bits(plans.pos[k]), k
+        assert bits(vel) == bits(plans.vel[k]), k
+        assert bits(acc) == bits(plans.acc[k]), k
+        assert bits(half) == bits(plans.half[k]), k
+        assert bits((done, end, end_pos)) == bits(
+            (plans.done[k], plans.end[k], plans.end_pos[k])
+        ), k
 
 
 def test_a_ramp_of_a_whole_number_of_periods_ends_on_its_last_period() -> None:

@@ -37,7 +37,7 @@ from motion_server.kernel.scurve import (
     limit_pair,
     plan_jerk_velocity,
 )
-from motion_server.kernel.scurve_plan import jerk_plans
+from motion_server.kernel.scurve_plan import jerk_plan_row, jerk_plans
 from motion_server.scan import statecodec
 
 FIELDS = ("start", "pos", "vel", "acc", "half", "jerk", "jhalf", "jsixth")
@@ -366,3 +366,23 @@ def test_the_phases_kept_for_the_same_inputs_are_the_phases_computed_for_them(
         for inputs in (args, other, args):
             got = scurve._phases(*inputs)
             assert bits(got or ()) == bits(scurve._solve_phases(*inputs) or ()), inputs
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(cases, min_size=1, max_size=8))
+def test_a_plan_built_alone_in_python_floats_is_the_arrays_row(batch: list[Case]) -> None:
+    """``jerk_plan_row`` (the plan of a batch of jogs from rest to one target) gives,
+    bit for bit, the row ``jerk_plans`` gives for the same request."""
+    built = [(case[0], r) for case in batch if (r := scalar(case)[0]) is not None]
+    if not built:
+        return
+    plans = jerk_plans(
+        np.array([dt for dt, _ in built]), np.array([r for _, r in built], dtype=float)
+    )
+    for k, (dt, request) in enumerate(built):
+        *row, (done, end, end_pos) = jerk_plan_row(dt, request)
+        for field, values in zip(FIELDS, row, strict=True):
+            assert bits(values) == bits(getattr(plans, field)[k]), (k, field)
+        assert bits((done, end, end_pos)) == bits(
+            (plans.done[k], plans.end[k], plans.end_pos[k])
+        ), k

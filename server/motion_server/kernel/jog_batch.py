@@ -1,16 +1,31 @@
 """Jogs started on many axes in one call: MAJ or MC_MoveVelocity executed on N axes in
-the same scan, each trapezoidal, from the same limits.
+the same scan, from the same limits (trapezoidal or jerk-limited).
 
 :func:`start_jogs` does what ``Controller.start`` does for each axis in order, with the
 factory ``lambda v, a: JogProcess(axis period, target, limits, v, a, owner)`` and
 ``replace=(ProcessKind.JOG,)``, and leaves the very same state (the tests compare the
 two attribute by attribute and step them side by side). What it saves is the per-axis
-work that does not depend on the axis: the limits are judged once, and on an axis
-without motion, override or preloaded cam the process and its profile are copied from
-the first one built by the constructors, then given their target, judged as the
-constructor judges it (:func:`.trapezoid.judge_velocity_plan`, the same errors), and
-admitted to their profile lanes together. Other axes are started through
-``Motion.start`` with the factory. As with the loop, a
+work that does not depend on the axis:
+
+- the limits are judged once; on an axis without motion, override or preloaded cam a
+  jog from rest is a function of the period and the target only, so it is built by the
+  constructors once per (period, target) (:class:`_Protos`) and copied for every other
+  axis (a trapezoidal jog's profile is also copied to a new target, judged as the
+  constructor judges it: :func:`.trapezoid.judge_velocity_plan`, the same errors);
+- the jogs from rest bound for a profile lane (trapezoidal) or the S-curve lane
+  (jerk-limited, closed form) join it as one batch: their lane columns, plans included,
+  are computed here, one plan per prototype spread over the batch's rows
+  (:meth:`.lanes.ramps.ProfileLane.admit_batch`,
+  :meth:`.lanes.scurve.SCurveLane.admit_batch`), so the first step takes them as they
+  are instead of reading every jog's request and planning it.
+
+The jogs are still one object each (a copy costs about a microsecond): the rows of a
+lane whose objects are made only when read, as a group stop's (:mod:`.lanes.stop_rows`),
+are not done for jogs.
+
+Other axes (moving, overridden, with a preloaded cam, buffered, a jog whose plan the
+constructor had to build or hand to ruckig) are started through ``Motion.start`` or
+``Motion.start_from_rest`` as the loop starts them. As with the loop, a
 :class:`.errors.MotionError` on an axis leaves the axes before it started.
 """
 
@@ -18,6 +33,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
 
 from .axis import Axis
 from .enums import ProcessKind
@@ -25,11 +43,153 @@ from .errors import ErrorCode, MotionError
 from .lanes import GroupLanes
 from .limits import Limits
 from .motion import Motion
+from .override import NEUTRAL
 from .processes import JogProcess, Process, ProcessFactory
+from .scurve import SCurveProfile
 from .trapezoid import TrapezoidProfile, judge_velocity_plan
+
+#: a group whose lanes were not looked up yet
+_UNKNOWN: Any = object()
 
 #: what a jog replaces (Logix MAJ: another jog; the PLCopen aborting mode uses start)
 _REPLACE = (ProcessKind.JOG,)
+
+
+class _Proto:
+    """A jog from rest built by the constructors: its state and its profile's right
+    after construction, and whether copies of it join a lane as a batch (``lane_kind``:
+    "profiles", "scurves" or None: admitted one by one, or not copied at all)."""
+
+    __slots__ = ("copyable", "lane_kind", "period", "prof_state", "request", "row", "state")
+
+    def __init__(self, p: JogProcess, period: float) -> None:
+        prof = p.profile
+        self.period = period
+        self.state = dict(vars(p))
+        self.prof_state = dict(vars(prof))
+        self.request: tuple[float, ...] | None = getattr(prof, "request", None)
+        # a profile whose plan is still a request holds nothing mutable: copies share it
+        self.copyable = False
+        self.lane_kind: str | None = None
+        #: the lane row after the base (what the lane's batch reads of every copy)
+        self.row: tuple[float, ...] = ()
+        kinematics = (p.position, p.velocity, p.acceleration)
+        if isinstance(prof, TrapezoidProfile) and prof.request is not None:
+            self.copyable = True
+            self.lane_kind = "profiles"
+            self.row = (prof.dt, *kinematics, *prof.request)
+        elif isinstance(prof, SCurveProfile) and prof.request is not None and prof.ruckig is None:
+            self.copyable = True
+            self.lane_kind = "scurves"
+            self.row = (float(prof.cycles), prof.dt, *kinematics, *prof.request)
+
+
+class _Protos:
+    """The jogs from rest built so far, by (period, target's bits), and the trapezoidal
+    one of each period that copies take a new target from."""
+
+    def __init__(self, limits: Limits) -> None:
+        self.limits = limits
+        self.by_target: dict[tuple[float, str], _Proto] = {}
+        self.trapezoid: dict[float, _Proto] = {}
+
+    def make(self, period: float, target: float, owner: object) -> tuple[JogProcess, _Proto]:
+        """``JogProcess(period, target, limits, 0.0, 0.0, owner)`` and its prototype."""
+        if not math.isfinite(target):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
+        velocity = float(target)
+        key = (period, velocity.hex())
+        proto = self.by_target.get(key)
+        if proto is not None and proto.copyable:
+            return _copy(proto, target, owner), proto
+        if proto is None:
+            base = self.trapezoid.get(period)
+            if base is not None:
+                # a trapezoidal jog from rest to another target: the constructor's
+                # judgement and request, the rest copied
+                req = (base.request[0], base.request[1], velocity, *base.request[3:])  # type: ignore[index]
+                judge_velocity_plan(*req)
+                p = _copy(base, target, owner, req)
+                proto = self._keep(key, p, period)
+                return p, proto
+        p = JogProcess(period, target, self.limits, 0.0, 0.0, owner)
+        proto = self._keep(key, p, period)
+        return p, proto
+
+    def _keep(self, key: tuple[float, str], p: JogProcess, period: float) -> _Proto:
+        proto = _Proto(p, period)
+        self.by_target[key] = proto
+        if proto.lane_kind == "profiles":
+            self.trapezoid.setdefault(period, proto)
+        return proto
+
+
+def _copy(
+    proto: _Proto, target: float, owner: object, request: tuple[float, ...] | None = None
+) -> JogProcess:
+    """A copy of ``proto``'s jog with its own owner, target (as given: an int stays an
+    int) and profile (``request``: a new trapezoidal request to another target)."""
+    prof = object.__new__(type(proto.state["profile"]))
+    prof.__dict__.update(proto.prof_state)
+    if request is not None:
+        prof.request = request
+        prof._target_velocity = request[2]
+    p = object.__new__(JogProcess)
+    p.__dict__.update(proto.state)
+    p.owner = owner
+    p.target_velocity = target
+    p.profile = prof
+    return p
+
+
+class _Joining:
+    """Jogs from rest whose admission to their group's lanes is deferred, so that those
+    bound for the same lane join as one batch (in the loop's order: the batch is closed,
+    :meth:`admit`, before anything else is started)."""
+
+    def __init__(self, motion: Motion) -> None:
+        self._s = motion.s
+        self.lanes: GroupLanes | None = None
+        self.kind: str | None = None
+        self.pairs: list[tuple[Process, Axis]] = []
+        self.protos: list[_Proto] = []
+
+    def open(self, lanes: GroupLanes, kind: str) -> None:
+        """Close the batch held (:meth:`admit`) and start one for ``lanes``' ``kind``."""
+        self.admit()
+        self.lanes, self.kind = lanes, kind
+
+    def admit(self) -> None:
+        """Admit the batch held: its axes busy (``Axis.motion_changed``), the jogs'
+        columns computed once per prototype; empty it."""
+        pairs, lanes = self.pairs, self.lanes
+        if not pairs or lanes is None:
+            return
+        protos = self.protos
+        axes = [ax for _, ax in pairs]
+        idx = [ax.index for ax in axes]
+        self._s.busy[idx] = True
+        self._s.dirty.update(idx)
+        first = protos[0]
+        which: np.ndarray | None = None
+        kinds: list[tuple[float, ...]] = [first.row]
+        if protos.count(first) != len(protos):
+            seen: dict[int, int] = {}
+            order = []
+            for q in protos:
+                j = seen.get(id(q))
+                if j is None:
+                    j = seen[id(q)] = len(seen)
+                    if j:
+                        kinds.append(q.row)
+                order.append(j)
+            which = np.array(order, dtype=np.intp)
+        base = np.array([ax.base for ax in axes], dtype=float)
+        lane: Any = lanes.profiles if self.kind == "profiles" else lanes.scurves
+        lane.admit_batch(pairs, base, kinds, which)
+        self.pairs = []
+        self.protos = []
+        self.lanes = self.kind = None
 
 
 def start_jogs(
@@ -45,87 +205,62 @@ def start_jogs(
         raise ValueError("one target (and one owner, if any) per axis")
     limits = limits.validated()
     started: list[Process] = []
-    # jogs from rest bound for a profile lane, admitted together (before anything else
-    # is started, so that every lane's members join in the loop's order)
-    joining: list[tuple[GroupLanes, Process, Axis]] = []
-    # the first jog built by the constructors on an axis at rest: its state, and its
-    # profile's, right after construction (before it starts: nothing else set yet)
-    proto: tuple[float, dict[str, object], dict[str, object], tuple[float, ...]] | None = None
+    joining = _Joining(motion)
+    pairs, kinds = joining.pairs, joining.protos
+    protos = _Protos(limits)
+    # Motion.lanes_for, its group's part looked up once per group
+    offered: dict[int, GroupLanes | None] = {}
+    drive_on = motion.s.drive_on
+    # the jog last built or copied: the next axis with the same target (the same
+    # object, as a batch of equal targets has) and period is a copy of it
+    last: tuple[object, float, _Proto] | None = None
     try:
         for k, ax in enumerate(axes):
             target = targets[k]
             owner = None if owners is None else owners[k]
             procs = ax._processes if ax.stop_rows is None else ax.processes
-            at_rest = (
-                not procs and not ax.preloaded_cams and ax.override.neutral and limits.trapezoidal
-            )
-            if not at_rest:
-                _admit(joining)
+            if (
+                procs
+                or ax.preloaded_cams
+                or (ax.override is not NEUTRAL and not ax.override.neutral)
+            ):
+                joining.admit()
                 started.append(
                     motion.start(ax, _factory(ax.period, target, limits, owner), _REPLACE)
                 )
                 continue
-            if proto is None or proto[0] != ax.period:
-                p = JogProcess(ax.period, target, limits, 0.0, 0.0, owner)
-                prof = p.profile
-                assert isinstance(prof, TrapezoidProfile) and prof.request is not None
-                proto = (ax.period, dict(vars(p)), dict(vars(prof)), prof.request)
+            if last is not None and last[0] is target and last[1] == ax.period:
+                proto = last[2]
+                p = _copy(proto, target, owner)
             else:
-                p = _copy(proto, target, limits, owner)
-                lanes = motion.lanes_for(ax)
-                if lanes is not None and ax.buffered is None:
-                    # Motion.start_from_rest of a trapezoidal jog just built, with its
-                    # admission (to the profile lane: planned, not finished) deferred
+                p, proto = protos.make(ax.period, target, owner)
+                last = (target, ax.period, proto) if proto.copyable else None
+            kind = proto.lane_kind
+            if kind is not None and ax.buffered is None:
+                group = ax.group
+                lanes = offered.get(group, _UNKNOWN)
+                if lanes is _UNKNOWN:
+                    lanes = offered[group] = motion.lanes[group] if motion.offers(group) else None
+                if lanes is not None and drive_on.item(ax.index):
+                    # Motion.start_from_rest of a jog just built, with its admission
+                    # (to its lane: planned, not finished) and its axis's busy flag
+                    # deferred to the batch
                     procs.append(p)
-                    i = ax.index
-                    motion.s.scalars.busy[i] = True
-                    motion.s.dirty.add(i)
                     p.offer_pending = False
-                    joining.append((lanes, p, ax))
+                    if lanes is not joining.lanes or kind != joining.kind:
+                        joining.open(lanes, kind)
+                        pairs, kinds = joining.pairs, joining.protos
+                    pairs.append((p, ax))
+                    kinds.append(proto)
                     started.append(p)
                     continue
-            _admit(joining)
+            joining.admit()
             motion.start_from_rest(ax, procs, p, _REPLACE)
             started.append(p)
     finally:
         # (also when a jog is refused: those before it started, as in the loop)
-        _admit(joining)
+        joining.admit()
     return started
-
-
-def _admit(joining: list[tuple[GroupLanes, Process, Axis]]) -> None:
-    """Admit the deferred jogs to their groups' profile lanes, in order; empty the list."""
-    for lanes, p, ax in joining:
-        lanes.profiles.admit(p, ax)
-    joining.clear()
-
-
-def _copy(
-    proto: tuple[float, dict[str, object], dict[str, object], tuple[float, ...]],
-    target: float,
-    limits: Limits,
-    owner: object,
-) -> JogProcess:
-    """``JogProcess(dt, target, limits, 0.0, 0.0, owner)`` from the state of another
-    built from rest with the same dt and limits: the attributes that depend on the
-    target (and owner) set as the constructors set them, the target judged as
-    ``TrapezoidProfile.to_velocity`` judges it."""
-    if not math.isfinite(target):
-        raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
-    _, state, prof_state, request = proto
-    velocity = float(target)
-    req = (request[0], request[1], velocity, limits.acceleration, limits.deceleration)
-    judge_velocity_plan(*req)
-    prof = object.__new__(TrapezoidProfile)
-    prof.__dict__.update(prof_state)
-    prof.request = req
-    prof._target_velocity = velocity
-    p = object.__new__(JogProcess)
-    p.__dict__.update(state)
-    p.owner = owner
-    p.target_velocity = target
-    p.profile = prof
-    return p
 
 
 def _factory(dt: float, target: float, limits: Limits, owner: object) -> ProcessFactory:

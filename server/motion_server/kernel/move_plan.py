@@ -86,3 +86,45 @@ def velocity_plans(
         start[:, k], pos[:, k], vel[:, k] = t, p, v
     done = t - END_TOLERANCE * dt
     return VelocityPlans(start, pos, vel, acc, half, done, t, p)
+
+
+def velocity_plan_row(
+    dt: float, p0: float, v0: float, target: float, acceleration: float, deceleration: float
+) -> tuple[tuple[float, ...], ...]:
+    """:func:`velocity_plans` of one row, in Python floats (the same IEEE operations in
+    the same order, each rounded as numpy rounds it): ``(start, pos, vel, acc, half)``
+    as tuples of ``SEGMENTS`` values, then ``((done, end, end_pos),)``. Cheaper than the
+    arrays for the few distinct plans of a batch of jogs from rest, whose plans depend
+    only on their target (:func:`..jog_batch.start_jogs`)."""
+    direction = target if target != 0.0 else v0
+    if direction >= 0.0:
+        a_max, a_min = acceleration, -deceleration
+    else:
+        a_max, a_min = deceleration, -acceleration
+    gap = target - v0
+    a = a_max if gap > 0.0 else a_min
+    q = gap / a
+    duration = 0.0 if q < 0.0 else q
+    t = 0.0
+    p = float(p0)
+    v = float(v0)
+    h = 0.5 * a
+    start = [t]
+    pos = [p]
+    vel = [v]
+    p = p + duration * (v + duration * h)
+    v = v + duration * a
+    t = t + duration
+    start.append(t)
+    pos.append(p)
+    vel.append(v)
+    t = t + 0.0
+    p = p + 0.0 * (v + 0.0)
+    v = v + 0.0
+    for _ in range(2, SEGMENTS):
+        start.append(t)
+        pos.append(p)
+        vel.append(v)
+    zeros = (0.0,) * (SEGMENTS - 1)
+    done = t - END_TOLERANCE * dt
+    return (tuple(start), tuple(pos), tuple(vel), (a, *zeros), (h, *zeros), (done, t, p))

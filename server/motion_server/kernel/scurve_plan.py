@@ -90,3 +90,34 @@ def jerk_plans(dt: np.ndarray, requests: np.ndarray) -> JerkPlans:
     return JerkPlans(
         start.T, pos.T, vel.T, acc.T, acc.T / 2, jerk.T, jerk.T / 2, jerk.T / 6, done, t, p
     )
+
+
+def jerk_plan_row(dt: float, request: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
+    """:func:`jerk_plans` of one row, in Python floats (the same IEEE operations in the
+    same order, each rounded as numpy rounds it): ``(start, pos, vel, acc, half, jerk,
+    jhalf, jsixth)`` as tuples of ``SEGMENTS`` values, then ``((done, end, end_pos),)``.
+    Cheaper than the arrays for the few distinct plans of a batch of jogs from rest,
+    whose plans depend only on their target (:func:`..jog_batch.start_jogs`)."""
+    r = request
+    j = r[J]
+    durations = (r[TB], r[T0], r[T1], r[T2])
+    jerk = (r[JB], j, 0.0, -j)
+    start, pos, vel, acc = [], [], [], []
+    t = 0.0
+    p, v, a = r[P0], r[V0], r[A0]
+    for s in range(SEGMENTS):
+        d = durations[s]
+        start.append(t)
+        pos.append(p)
+        vel.append(v)
+        acc.append(a)
+        dj = d * jerk[s]
+        p = p + d * (v + d * (a / 2 + dj / 6))
+        v = v + d * (a + dj / 2)
+        a = a + dj
+        t = t + d
+    done = t - END_TOLERANCE * dt
+    return (
+        tuple(start), tuple(pos), tuple(vel), tuple(acc), tuple(x / 2 for x in acc), jerk,
+        tuple(x / 2 for x in jerk), tuple(x / 6 for x in jerk), (done, t, p),
+    )  # fmt: skip

@@ -7,20 +7,27 @@ None of them reads another axis, so they step first, before any follower.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from operator import attrgetter, is_, itemgetter
 from typing import Any, ClassVar
 
 import numpy as np
 
 from ..axis import Axis
 from ..enums import ProcessState
-from ..move_plan import velocity_plans
+from ..move_plan import velocity_plan_row, velocity_plans
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..state import AxisArrays
 from ..trapezoid import SEGMENTS, TrapezoidProfile
 from .base import Compose, Lane
+from .batches import admit_rows, batch_of, spread
 from .stop_rows import StopRows
 
 _DONE = ProcessState.DONE
+_STOP_ROWS = attrgetter("stop_rows")
+_BUFFERED = attrgetter("buffered")
+_PROCESSES = attrgetter("_processes")
+_FIRST = itemgetter(0)
+_BASE = attrgetter("base")
 
 
 class CruiseLane(Lane):
@@ -143,6 +150,23 @@ class PlanLane(Lane):
         for ax in movers:
             compose(ax)
 
+    def _all_jogs_alone(self, s: AxisArrays) -> bool:
+        """The test of :meth:`_ending` for every member at once, as whole-list passes:
+        each a jog (not landing, in a lane with landings), its axis's only process (no
+        stop row), nothing buffered, the drive on."""
+        members, axes = self.members, self.axes
+        n = len(members)
+        if (
+            ("landing" in self.arrays and self.arrays["landing"].any())
+            or list(map(type, members)).count(JogProcess) != n
+            or list(map(_STOP_ROWS, axes)).count(None) != n
+            or list(map(_BUFFERED, axes)).count(None) != n
+            or not s.drive_on[self.idx].all()
+        ):
+            return False
+        procs = list(map(_PROCESSES, axes))
+        return list(map(len, procs)).count(1) == n and all(map(is_, map(_FIRST, procs), members))
+
     def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
         """The rows whose plan ends this step, split into those the lane ends itself
         (:meth:`_end`) and those moved out to their process's own step."""
@@ -212,9 +236,13 @@ class ProfileLane(PlanLane):
         )
 
     def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        """The joining members' ``FIELDS`` as arrays: the velocity targets not planned
-        yet (jogs commanded since the last step) planned in one pass
+        """The joining members' ``FIELDS`` as arrays: those of a batch admitted alone
+        (:meth:`admit_batch`) as they are; else the velocity targets not planned yet
+        (jogs commanded since the last step) planned in one pass
         (:func:`..move_plan.velocity_plans`), the others loaded one by one."""
+        columns = batch_of(self, joining)
+        if columns is not None:
+            return columns
         requested: list[int] = []
         requests: list[float] = []
         add = requests.extend
@@ -231,17 +259,9 @@ class ProfileLane(PlanLane):
         if not requested:
             return None  # every plan built already: row by row, as before
         n = len(joining)
-        cols = np.array(requests, dtype=float).reshape(len(requested), 10).T
-        base, dt, x, v, acc = cols[0], cols[1], cols[2], cols[3], cols[4]
-        target = cols[7]
-        plans = velocity_plans(dt, cols[5], cols[6], target, cols[8], cols[9])
-        m = len(requested)
-        planned = (
-            base, np.zeros(m), dt, plans.done, plans.start, plans.pos, plans.vel, plans.acc,
-            plans.half, x, v, acc, plans.end, plans.end_pos, target, np.zeros(m, dtype=bool),
-        )  # fmt: skip
+        planned = self._planned(np.array(requests, dtype=float).reshape(len(requested), 10))
         if not rows:
-            return list(planned)
+            return planned
         # both kinds: place each column's rows where their members are
         at = np.array(requested, dtype=np.intp)
         others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
@@ -255,15 +275,61 @@ class ProfileLane(PlanLane):
             columns.append(col)
         return columns
 
+    @staticmethod
+    def _planned(requests: np.ndarray) -> list[np.ndarray]:
+        """The ``FIELDS`` of m velocity targets not planned yet, from their rows
+        (base, dt, position, velocity, acceleration, then the profile's request), of
+        shape (m, 10): the plans built in one pass (:func:`..move_plan.velocity_plans`)."""
+        cols = requests.T
+        base, dt, x, v, acc = cols[0], cols[1], cols[2], cols[3], cols[4]
+        target = cols[7]
+        plans = velocity_plans(dt, cols[5], cols[6], target, cols[8], cols[9])
+        m = len(requests)
+        return [
+            base, np.zeros(m), dt, plans.done, plans.start, plans.pos, plans.vel, plans.acc,
+            plans.half, x, v, acc, plans.end, plans.end_pos, target, np.zeros(m, dtype=bool),
+        ]  # fmt: skip
+
+    def admit_batch(
+        self,
+        joining: Sequence[tuple[Process, Axis]],
+        base: np.ndarray,
+        kinds: Sequence[tuple[float, ...]],
+        which: np.ndarray | None,
+    ) -> None:
+        """Admit ``joining`` (velocity targets just commanded on axes at rest, their
+        profiles' plans still requests: :func:`..jog_batch.start_jogs`) in this order;
+        ``base`` their axes' bases; ``kinds`` the distinct rows of what
+        :meth:`_batch_columns` reads of each after the base (dt, position, velocity,
+        acceleration, the request), ``which`` the kind of each (None: all the first).
+        The plans, the same for every jog of a kind, are built once per kind
+        (:func:`..move_plan.velocity_plan_row`); if the batch is all that joins before
+        the next rebuild, the rebuild takes its columns as they are."""
+        rows = []
+        for dt, x, v, a, p0, v0, target, acc, dec in kinds:
+            start, pos, vel, seg_acc, half, (done, end, end_pos) = velocity_plan_row(
+                dt, p0, v0, target, acc, dec
+            )
+            rows.append(
+                (0.0, dt, done, start, pos, vel, seg_acc, half, x, v, a, end, end_pos,
+                 target, False)
+            )  # fmt: skip
+        admit_rows(self, joining, spread(self, base, rows, which))
+
     def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
         """A jog that reaches its velocity, its axis's only process with nothing
         buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
         the others (moves, which land, and the rest) by their process's own step."""
+        members, axes = self.members, self.axes
+        n = len(rows)
+        if n == len(members) and self._all_jogs_alone(s):
+            # every plan ends in this step (a batch of jogs reaching their speed
+            # together), each a jog alone on its axis: all ended, in row order
+            return rows.tolist(), []
         ended, odd = [], []
         # (read as lists once: a numpy scalar per row costs more than the test)
         landing = self.arrays["landing"][rows].tolist()
         drive_on = s.drive_on[self.idx[rows]].tolist()
-        members, axes = self.members, self.axes
         for j, k in enumerate(rows.tolist()):
             p, ax = members[k], axes[k]
             # (the property's call saved: no stop row here unless its ramp is to be made)
@@ -296,31 +362,40 @@ class ProfileLane(PlanLane):
         x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
         cmd = a["base"][r] + x
         positions, velocities = x.tolist(), end_vel.tolist()
-        cycles = (a["cycles"][r]).tolist()  # already counted this sample
+        # already counted this sample; whole numbers (int() of each, as integers)
+        cycles = a["cycles"][r].astype(np.int64).tolist()
         idx = self.idx[r]
         s.cmd_pos[idx] = cmd
         s.cmd_vel[idx] = end_vel
         s.cmd_acc[idx] = 0.0
         slot = self._slot
-        at_speed: list[tuple[Process, Axis]] = []
-        bases: list[float] = []
         members, axes = self.members, self.axes
-        for j, k in enumerate(rows):
-            p, ax = members[k], axes[k]
+        if len(rows) == len(members):
+            # every member (a batch of jogs at speed together): no slot is left
+            ended, their_axes = members, axes
+            slot.clear()
+        else:
+            ended = [members[k] for k in rows]
+            their_axes = [axes[k] for k in rows]
+            for p in ended:
+                slot.pop(id(p), None)
+        bases = list(map(_BASE, their_axes))
+        for p, x_k, v_k, c in zip(ended, positions, velocities, cycles, strict=True):
             # (a JogProcess on a TrapezoidProfile: _ending, accepts)
-            slot.pop(id(p), None)
             prof = p.profile  # type: ignore[attr-defined]
-            bases.append(ax.base)
-            x_k, v_k = positions[j], velocities[j]
-            prof.cycles = int(cycles[j])
+            prof.cycles = c
             prof.finished = True
-            prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
-            p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
+            prof.position = x_k
+            prof.velocity = v_k
+            prof.acceleration = 0.0
+            p.position = x_k
+            p.velocity = v_k
+            p.acceleration = 0.0
             p.at_speed = True  # type: ignore[attr-defined]
             # leaves this lane and is offered at once (Motion.offer): to the cruise lane
             p.lane = None
             p.offer_pending = False
-            at_speed.append((p, ax))
+        at_speed: list[tuple[Process, Axis]] = list(zip(ended, their_axes, strict=True))
         self.reached = at_speed
         # what CruiseLane._load reads of each (the profile's dt: the lane's column)
         dt = a["dt"][r]

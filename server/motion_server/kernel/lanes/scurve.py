@@ -14,6 +14,7 @@ targets (ruckig's) and fallbacks stay in Python.
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -21,9 +22,10 @@ import numpy as np
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
 from ..scurve import SEGMENTS, SCurveProfile
-from ..scurve_plan import TARGET, jerk_plans
+from ..scurve_plan import TARGET, jerk_plan_row, jerk_plans
 from ..state import AxisArrays
 from .base import Compose
+from .batches import admit_rows, batch_of, spread
 from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
@@ -98,10 +100,50 @@ class SCurveLane(PlanLane):
             plan.end_velocity,
         )
 
+    @staticmethod
+    def _planned(cols: np.ndarray) -> list[np.ndarray]:
+        """The ``FIELDS`` of m ramps not planned yet, from their rows (base, cycles, dt,
+        position, velocity, acceleration, then the profile's request), of shape (m, 16):
+        the plans built in one pass (:func:`..scurve_plan.jerk_plans`)."""
+        dt = cols[:, 2]
+        plans = jerk_plans(dt, cols[:, 6:])
+        return [
+            cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
+            plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
+            cols[:, 4], cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
+        ]  # fmt: skip
+
+    def admit_batch(
+        self,
+        joining: Sequence[tuple[Process, Axis]],
+        base: np.ndarray,
+        kinds: Sequence[tuple[float, ...]],
+        which: np.ndarray | None,
+    ) -> None:
+        """Admit ``joining`` (jerk-limited velocity targets just commanded on axes at
+        rest, their plans still requests: :func:`..jog_batch.start_jogs`) in this order;
+        ``base`` their axes' bases; ``kinds`` the distinct rows of what
+        :meth:`_batch_columns` reads of each after the base (cycles, dt, position,
+        velocity, acceleration, the request), ``which`` the kind of each (None: all the
+        first). The plans, the same for every ramp of a kind, are built once per kind
+        (:func:`..scurve_plan.jerk_plan_row`); if the batch is all that joins before the
+        next rebuild, the rebuild takes its columns as they are."""
+        rows = []
+        for kind in kinds:
+            cycles, dt, x, v, a = kind[:5]
+            request = kind[5:]
+            *plan, (done, end, end_pos) = jerk_plan_row(dt, request)
+            rows.append((cycles, dt, done, *plan, x, v, a, end, end_pos, request[TARGET]))
+        admit_rows(self, joining, spread(self, base, rows, which))
+
     def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        """The joining members' ``FIELDS`` as arrays: the plans not built yet (ramps
-        commanded since the last step) built in one pass (:func:`..scurve_plan.jerk_plans`),
-        the others loaded one by one."""
+        """The joining members' ``FIELDS`` as arrays: those of a batch admitted alone
+        (:meth:`admit_batch`) as they are; else the plans not built yet (ramps commanded
+        since the last step) built in one pass (:func:`..scurve_plan.jerk_plans`), the
+        others loaded one by one."""
+        columns = batch_of(self, joining)
+        if columns is not None:
+            return columns
         requested: list[int] = []
         requests: list[float] = []
         add = requests.extend
@@ -120,16 +162,9 @@ class SCurveLane(PlanLane):
         m = len(requested)
         # (the floats packed as doubles, bit for bit: five times faster than numpy's
         # conversion of a list; read-only columns, which the rebuild concatenates)
-        cols = np.frombuffer(struct.pack(f"{16 * m}d", *requests)).reshape(m, 16)
-        dt = cols[:, 2]
-        plans = jerk_plans(dt, cols[:, 6:])
-        planned = (
-            cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
-            plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
-            cols[:, 4], cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
-        )  # fmt: skip
+        planned = self._planned(np.frombuffer(struct.pack(f"{16 * m}d", *requests)).reshape(m, 16))
         if not rows:
-            return list(planned)
+            return planned
         # both kinds: place each column's rows where their members are
         n = len(joining)
         at = np.array(requested, dtype=np.intp)
@@ -147,6 +182,10 @@ class SCurveLane(PlanLane):
         """A jog that reaches its velocity, its axis's only process with nothing
         buffered and the drive on, is ended by the lane (:meth:`_end`): the usual case;
         the others (paused moves, stops and the rest) by their process's own step."""
+        if len(rows) == len(self.members) and self._all_jogs_alone(s):
+            # every plan ends in this step (a batch of jogs reaching their speed
+            # together), each a jog alone on its axis: all ended, in row order
+            return rows.tolist(), []
         ended, odd = [], []
         drive_on = s.drive_on
         for k in rows.tolist():
@@ -185,25 +224,42 @@ class SCurveLane(PlanLane):
         s.cmd_vel[idx] = end_vel
         s.cmd_acc[idx] = 0.0
         slot = self._slot
-        cruise = self._owner.cruise  # type: ignore[attr-defined]
-        for j, k in enumerate(rows):
-            p, ax = self.members[k], self.axes[k]
-            assert isinstance(p, JogProcess)
-            slot.pop(id(p), None)
-            prof = p.profile
-            assert isinstance(prof, SCurveProfile)
-            x_k, v_k = positions[j], velocities[j]
-            prof.cycles = int(cycles[j])
+        members, axes = self.members, self.axes
+        if len(rows) == len(members):
+            # every member (a batch of jogs at speed together): no slot is left
+            ended, their_axes = members, axes
+            slot.clear()
+        else:
+            ended = [members[k] for k in rows]
+            their_axes = [axes[k] for k in rows]
+            for p in ended:
+                slot.pop(id(p), None)
+        for p, x_k, v_k, c in zip(ended, positions, velocities, cycles, strict=True):
+            # (a JogProcess on an SCurveProfile: _ending, accepts)
+            prof = p.profile  # type: ignore[attr-defined]
+            prof.cycles = int(c)
             prof.finished = True
-            prof.position, prof.velocity, prof.acceleration = x_k, v_k, 0.0
-            p.position, p.velocity, p.acceleration = x_k, v_k, 0.0
-            p.at_speed = True
+            prof.position = x_k
+            prof.velocity = v_k
+            prof.acceleration = 0.0
+            p.position = x_k
+            p.velocity = v_k
+            p.acceleration = 0.0
+            p.at_speed = True  # type: ignore[attr-defined]
             # leaves this lane and is offered at once (Motion.offer): to the cruise lane
             p.lane = None
             p.offer_pending = False
-            cruise.admit(p, ax)
+        # admitted to the cruise lane in row order (``Lane.admit`` of each), with the
+        # columns its rebuild would read of them (``CruiseLane._load``)
+        at_speed = list(zip(ended, their_axes, strict=True))
+        cruise = self._owner.cruise  # type: ignore[attr-defined]
+        cruise.hand_in_all(at_speed)
+        dt = a["dt"][r]
+        cruise.take_batch(at_speed, [[ax.base for ax in their_axes], x, end_vel, dt, end_vel * dt])
         self.changed = True
-        self._owner.dirty = True
+        # from this lane to the cruise lane, both time-driven: the followers keep their
+        # levels (``Lane.RELEVELS``), as for the jogs the profile lane hands over
+        self._owner.joined = True
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
