@@ -28,9 +28,9 @@ Decisions the seed leaves open (DESIGN.md):
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar
 
-from ...kernel import ProcessKind
+from ...kernel import Axis, Controller, MotionError, ProcessKind
 from ...kernel.gearing import (
     GearProcess,
     GearTerm,
@@ -46,6 +46,7 @@ from ..dynamics import AccelUnits
 from ..logix_common import ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
+from ..scan_pass import Batch, BatchKind
 from ..schema import Operand, Quantity, TagType
 
 
@@ -179,7 +180,12 @@ class MAG(ProcessInstruction):
         ),
     )
 
-    def execute(self) -> None:
+    #: rising edges in one scan start their gears with one ``Controller.start_gears``
+    BATCH = BatchKind.GEAR
+
+    def _gear(self) -> tuple[Axis, GearTerm, float | None, int]:
+        """The checks and the plan: slave, gear term, clutch rate (None: no clutch) and
+        the resolved direction."""
         op = self.op
         ctl = self.ctl
         slave = ctl.axis(int(op["SlaveAxis"]))
@@ -210,14 +216,65 @@ class MAG(ProcessInstruction):
                 raise self.out_of_range("Ratio", f"|Ratio| must be 0.00001..9.99999, got {ratio}")
             sign = -direction if ratio < 0 else direction
             term = GearTerm(master.number, source, sign * steps, RATIO_SCALE)
-        ramp = None
+        rate = None
         if int(op["Clutch"]) == _CLUTCH_ENABLED:
             rate = dynamics.rate(
                 self, slave, "AccelRate", "AccelUnits", slave.config.max_acceleration
             )
-            ramp = RateRamp(rate)
+        return slave, term, rate, direction
+
+    def batch_job(self, batch: Batch) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the gear returned as (slave, term,
+        clutch rate) for ``Controller.start_gears``; None for a gear that starts alone
+        (its direction is not its ratio's sign: a negative real Ratio)."""
+        op = self.op
+        ctl = self.ctl
+        s = int(op["SlaveAxis"])
+        m = int(op["MasterAxis"])
+        if batch.jobs and (s in batch.axes or m in batch.slaves or _reaches(ctl, m, batch.slaves)):
+            batch.flush()  # its checks see the gears queued before it
+        slave, term, rate, direction = self._gear()
+        if rate is not None:
+            RateRamp(rate)  # judged now, as execute builds it: a bad rate moves nothing
+        if (term.numerator < 0) != (direction < 0):
+            return None
+        return (slave, term, rate), (s, m)
+
+    def batch_started(self, process: Process) -> None:
+        self.started(process)
+
+    def batch_refused(self) -> None:
+        """Nothing to undo: a refused gear changes no output of its own."""
+
+    def execute(self) -> None:
+        ctl = self.ctl
+        slave, term, rate, direction = self._gear()
+        ramp = None if rate is None else RateRamp(rate)
 
         def make(v: float, a: float) -> Process:
             return GearProcess(ctl, slave, (term,), ramp, v, a, owner=self, direction=direction)
 
         self.started(ctl.start(slave, make, replace=_REPLACE))
+
+
+def _reaches(ctl: Controller, master: int, slaves: set[int]) -> bool:
+    """True if ``master`` is one of ``slaves`` or follows one of them through the active
+    processes' masters (the walk of ``Controller.would_cycle``): a gear queued on such a
+    slave changes what the master/slave-loop check of a new gear to ``master`` sees."""
+    frontier = [master]
+    seen: set[int] = set()
+    while frontier:
+        n = frontier.pop()
+        if n in slaves:
+            return True
+        if n in seen:
+            continue
+        seen.add(n)
+        try:
+            ax = ctl.axis(n)
+        except MotionError:
+            continue
+        for p in ax.processes:
+            if p.active:
+                frontier.extend(p.masters)
+    return False

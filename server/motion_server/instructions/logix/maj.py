@@ -10,16 +10,18 @@ its MDAC master's travel (see :mod:`.mdsc`).
 from __future__ import annotations
 
 from enum import IntEnum
+from typing import Any
 
 from ...kernel import Axis, JogProcess, Limits, ProcessKind
 from ...kernel.master_driven import MasterDrivenJog
 from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
-from ..dynamics import DriveMode, MergeSpeed
+from ..dynamics import DriveMode, MergeMode, MergeSpeed
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
+from ..scan_pass import Batch, BatchKind
 from ..schema import Operand, TagType
-from .mdsc import SpeedControlledMotion
+from .mdsc import SpeedControlledMotion, tracking_status
 
 
 class JogDirection(IntEnum):
@@ -29,6 +31,8 @@ class JogDirection(IntEnum):
 
 _REVERSE = int(JogDirection.REVERSE)
 _AT_CURRENT = int(MergeSpeed.CURRENT)
+_MERGE = int(MergeMode.ENABLED)
+_TIME_DRIVEN = DriveMode.TIME_DRIVEN
 #: the processes a jog without Merge supersedes
 _REPLACE = (ProcessKind.JOG,)
 
@@ -44,8 +48,11 @@ class MAJ(SpeedControlledMotion):
         *logix_dynamics(),
     )
 
-    def execute(self) -> None:
-        ax = self.axis()
+    #: rising edges in one scan start their jogs with one ``Controller.start_jogs``
+    BATCH = BatchKind.JOG
+
+    def _plan_jog(self, ax: Axis) -> tuple[DriveMode, float, Limits, float]:
+        """The checks and the plan: drive mode, speed, validated limits, direction sign."""
         self.check_axis(ax)
         mode, speed, limits = self.plan(ax)
         if speed <= 0.0:
@@ -54,6 +61,35 @@ class MAJ(SpeedControlledMotion):
             limits = Limits(top, limits.acceleration, limits.deceleration, limits.jerk)
         limits = limits.validated()
         sign = -1.0 if int(self.op["Direction"]) == _REVERSE else 1.0
+        return mode, speed, limits, sign
+
+    def batch_job(self, batch: Batch) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the jog returned as (axis, signed
+        target, limits) for ``Controller.start_jogs``; None for a jog that starts alone
+        (Merge ends every other process, a master-driven jog, a pending MDAC switch)."""
+        op = self.op
+        if int(op["Merge"]) == _MERGE:
+            return None
+        ax = self.ctl.axis(int(op["Axis"]))
+        number = ax.number
+        if number in batch.axes:
+            batch.flush()  # a second jog on the axis: its checks see the first one
+        if self.ctl.mdsc.pending(number) is not None:
+            return None
+        mode, speed, limits, sign = self._plan_jog(ax)
+        if mode != _TIME_DRIVEN:
+            return None
+        return (ax, sign * speed, limits), (number,)
+
+    def batch_started(self, process: Process) -> None:
+        self.started(process, tracking_status(process))
+
+    def batch_refused(self) -> None:
+        self.outputs["TrackingMaster"] = False  # a refused start tracks nothing
+
+    def execute(self) -> None:
+        ax = self.axis()
+        mode, speed, limits, sign = self._plan_jog(ax)
         dt = self.ctl.dt(ax)
         merging = self.merging
         merge_current = merging and int(self.op["MergeSpeed"]) == _AT_CURRENT
