@@ -35,7 +35,7 @@ AXES = [1, 2, 3, 4, 5, 6, 1, 2, 3, 7, 8, 9]
 #: the kernel when it plans it: inside the batch call)
 RATES = [100.0, 250.0, 100.0, 1e-30, 0.0]
 DYNAMICS: dict[str, list[Any]] = {
-    "Speed": [5.0, 50.0, 50.0, 5000.0, 0.0],
+    "Speed": [5.0, 50.0, 50.0, 5000.0, 0.0, -0.0],
     "SpeedUnits": [0, 0, 1, 4],
     "AccelRate": RATES,
     "AccelUnits": [0, 0, 1],
@@ -252,3 +252,15 @@ def test_a_gear_whose_master_follows_a_slave_geared_in_the_same_scan_sees_that_g
     for name in ("MAG1", "MAG2"):
         out = systems[0][name].outputs
         assert out["DN"] and out["IP"] and not out["ER"], name
+
+
+def test_jogs_at_speeds_of_zero_and_minus_zero_keep_their_signs() -> None:
+    """MAJ1 at Speed 0.0 and MAJ2 at -0.0, otherwise alike, in one batch: the two values
+    are equal (one judge key) but one by one the jogs' targets are +0.0 and -0.0; the
+    batch keeps them apart."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {"MAJ1": {"Axis": 1, "Speed": 0.0}, "MAJ2": {"Axis": 2, "Speed": -0.0}})
+    same(systems[0], systems[1], "zeros")
+    targets = [p.target_velocity for p in systems[0].ctl.axis(2).processes]
+    assert [bits(t) for t in targets] == [bits(-0.0)]

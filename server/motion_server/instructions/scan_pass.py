@@ -43,6 +43,7 @@ from ..kernel import Axis, ErrorCode, Limits, MotionError, ProcessKind
 from ..kernel.gearing import GearProcess, GearTerm, RateRamp
 from ..kernel.processes import Process
 from .base import Instruction, LogixInstruction, OperandError
+from .judging import judge_of
 
 if TYPE_CHECKING:
     from ..kernel import Controller
@@ -76,7 +77,7 @@ class Batch:
     axis number a queued command touches, ``slaves`` the axes it starts a process on.
     """
 
-    __slots__ = ("axes", "contain", "ctl", "jobs", "kind", "owners", "slaves")
+    __slots__ = ("axes", "contain", "ctl", "jobs", "kind", "owners", "plans", "slaves")
 
     def __init__(self, ctl: Controller, contain: Contain | None) -> None:
         self.ctl = ctl
@@ -86,6 +87,10 @@ class Batch:
         self.owners: list[BatchInstruction] = []
         self.axes: set[int] = set()
         self.slaves: set[int] = set()
+        #: what the instances of this scan pass planned from their values alone, by the
+        #: judge's key and what else the plan reads (the axis's limits): equal operands
+        #: on equal axes are planned once
+        self.plans: dict[tuple[Any, ...], Any] = {}
 
     def add(
         self, kind: BatchKind, owner: BatchInstruction, job: tuple[Any, ...], axes: Iterable[int]
@@ -226,7 +231,10 @@ class BatchInstruction(LogixInstruction):
     BATCH: BatchKind
     process: Process | None
 
-    def batch_job(self, batch: Batch) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """The queued command and the axis numbers it touches, or None; ``key`` is the
+        judge's key of the latched values (None: no key), by which ``batch.plans`` may
+        keep what depends only on them."""
         raise NotImplementedError
 
     def batch_started(self, process: Process) -> None:
@@ -277,7 +285,11 @@ def _kind_of(cls: type[Instruction]) -> BatchKind | None:
     ``batch_job`` it has stands for the ``execute`` it has (a subclass that changes
     either is scanned alone)."""
     kind = getattr(cls, "BATCH", None)
-    if kind is None or cls.scan is not LogixInstruction.scan:
+    if (
+        kind is None
+        or cls.scan is not LogixInstruction.scan
+        or cls.validate is not Instruction.validate
+    ):
         return None
     owners = {name: _defined_by(cls, name) for name in ("batch_job", "execute")}
     return kind if owners["batch_job"] is owners["execute"] else None
@@ -296,8 +308,8 @@ def _rise(inst: BatchInstruction, kind: BatchKind, queue: Batch) -> None:
     inst._rising = True
     inst.latch()
     try:
-        inst.validate()
-        planned = inst.batch_job(queue)
+        key = judge_of(type(inst)).judge(inst)  # (Instruction.validate, keeping the key)
+        planned = inst.batch_job(queue, key)
         if planned is not None:
             job, axes = planned
             queue.add(kind, inst, job, axes)

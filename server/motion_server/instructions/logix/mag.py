@@ -43,7 +43,7 @@ from ...kernel.processes import Process
 from .. import dynamics
 from ..base import Gate, gate
 from ..dynamics import AccelUnits
-from ..logix_common import ProcessInstruction
+from ..logix_common import STARTED_ACTIVE, ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
 from ..scan_pass import Batch, BatchKind
@@ -223,7 +223,7 @@ class MAG(ProcessInstruction):
             )
         return slave, term, rate, direction
 
-    def batch_job(self, batch: Batch) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
         """``execute`` up to the kernel command, the gear returned as (slave, term,
         clutch rate) for ``Controller.start_gears``; None for a gear that starts alone
         (its direction is not its ratio's sign: a negative real Ratio)."""
@@ -241,7 +241,7 @@ class MAG(ProcessInstruction):
         return (slave, term, rate), (s, m)
 
     def batch_started(self, process: Process) -> None:
-        self.started(process)
+        self.started_active(process, STARTED_ACTIVE)
 
     def batch_refused(self) -> None:
         """Nothing to undo: a refused gear changes no output of its own."""

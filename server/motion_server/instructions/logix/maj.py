@@ -17,6 +17,7 @@ from ...kernel.master_driven import MasterDrivenJog
 from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
 from ..dynamics import DriveMode, MergeMode, MergeSpeed
+from ..logix_common import STARTED_ACTIVE
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
 from ..scan_pass import Batch, BatchKind
@@ -33,6 +34,8 @@ _REVERSE = int(JogDirection.REVERSE)
 _AT_CURRENT = int(MergeSpeed.CURRENT)
 _MERGE = int(MergeMode.ENABLED)
 _TIME_DRIVEN = DriveMode.TIME_DRIVEN
+#: the status of a MAJ whose jog started (see ``started_active``)
+_JOG_STARTED = {**STARTED_ACTIVE, "TrackingMaster": False}
 #: the processes a jog without Merge supersedes
 _REPLACE = (ProcessKind.JOG,)
 
@@ -54,6 +57,9 @@ class MAJ(SpeedControlledMotion):
     def _plan_jog(self, ax: Axis) -> tuple[DriveMode, float, Limits, float]:
         """The checks and the plan: drive mode, speed, validated limits, direction sign."""
         self.check_axis(ax)
+        return self._planned(ax)
+
+    def _planned(self, ax: Axis) -> tuple[DriveMode, float, Limits, float]:
         mode, speed, limits = self.plan(ax)
         if speed <= 0.0:
             # a jog at speed 0: the velocity limit is only a placeholder
@@ -63,10 +69,12 @@ class MAJ(SpeedControlledMotion):
         sign = -1.0 if int(self.op["Direction"]) == _REVERSE else 1.0
         return mode, speed, limits, sign
 
-    def batch_job(self, batch: Batch) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
         """``execute`` up to the kernel command, the jog returned as (axis, signed
         target, limits) for ``Controller.start_jogs``; None for a jog that starts alone
-        (Merge ends every other process, a master-driven jog, a pending MDAC switch)."""
+        (Merge ends every other process, a master-driven jog, a pending MDAC switch).
+        Without Merge the plan depends on the operands' values and the axis's limits
+        only: MAJ with the same values on axes with the same limits plan once."""
         op = self.op
         if int(op["Merge"]) == _MERGE:
             return None
@@ -76,13 +84,29 @@ class MAJ(SpeedControlledMotion):
             batch.flush()  # a second jog on the axis: its checks see the first one
         if self.ctl.mdsc.pending(number) is not None:
             return None
-        mode, speed, limits, sign = self._plan_jog(ax)
+        self.check_axis(ax)
+        cfg = ax.config
+        memo = None
+        if key is not None:
+            memo = (MAJ, key, cfg.max_velocity, cfg.max_acceleration, cfg.max_deceleration,
+                    cfg.max_jerk)  # fmt: skip
+            planned = batch.plans.get(memo)
+            if planned is not None:
+                return (ax, planned[0], planned[1]), (number,)
+        mode, speed, limits, sign = self._planned(ax)
         if mode != _TIME_DRIVEN:
             return None
-        return (ax, sign * speed, limits), (number,)
+        target = sign * speed
+        if memo is not None and speed > 0.0:
+            # (not a speed of zero: 0.0 and -0.0 are one key but give targets of two signs)
+            batch.plans[memo] = (target, limits)
+        return (ax, target, limits), (number,)
 
     def batch_started(self, process: Process) -> None:
-        self.started(process, tracking_status(process))
+        if isinstance(process, JogProcess):  # time-driven: tracks no master
+            self.started_active(process, _JOG_STARTED)
+        else:
+            self.started(process, tracking_status(process))
 
     def batch_refused(self) -> None:
         self.outputs["TrackingMaster"] = False  # a refused start tracks nothing
