@@ -27,6 +27,7 @@ Decisions the seed leaves open (DESIGN.md):
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 from typing import Any, ClassVar, TypeVar
 
@@ -234,8 +235,8 @@ class MAG(ProcessInstruction):
         if batch.jobs and (s in batch.axes or m in batch.slaves or _reaches(ctl, m, batch.slaves)):
             batch.flush()  # its checks see the gears queued before it
         slave, term, rate, direction = self._gear()
-        if rate is not None:
-            RateRamp(rate)  # judged now, as execute builds it: a bad rate moves nothing
+        if rate is not None and not (0.0 < rate < math.inf):
+            RateRamp(rate)  # refused now (with its error), as execute builds it at once
         if (term.numerator < 0) != (direction < 0):
             return None
         return (slave, term, rate), (s, m)
