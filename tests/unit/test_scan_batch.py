@@ -3,7 +3,7 @@
 
 Two systems get the same writes: one scans with batches (the default), the other with
 ``batch=False`` (every instance alone, as before the batches). MAJ and MAG instances are
-mixed with MAM and MAS (which always execute alone, so they cut a batch) in one fixed
+mixed with MAM, MAS and MGS (which always execute alone, so they cut a batch) in one fixed
 order; random scans fire random subsets with random, partly invalid operands: two
 instances on one axis, a MAG whose master is a slave geared in the same scan, loops of
 gears, Merge, S-curve and master units (executed alone), a negative ratio, axes that do
@@ -65,12 +65,14 @@ POOLS: dict[str, dict[str, list[Any]]] = {
         "AccelUnits": [0, 1],
     },
     "MAS": {"Axis": AXES, "StopType": [0, 1, 2]},
+    "MGS": {"Group": [1, 1, 2], "StopMode": [0, 1]},
 }
 #: the instances in scan order: runs of one type, cut by the others
 ORDER = [
     ("MAJ1", "MAJ"), ("MAJ2", "MAJ"), ("MAJ3", "MAJ"), ("MAG1", "MAG"), ("MAG2", "MAG"),
     ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAJ5", "MAJ"), ("MAG4", "MAG"),
-    ("MAM1", "MAM"), ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MAJ7", "MAJ"),
+    ("MAM1", "MAM"), ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MAJ7", "MAJ"),
+    ("MAJ8", "MAJ"),
 ]  # fmt: skip
 TYPES = dict(ORDER)
 
@@ -264,3 +266,20 @@ def test_jogs_at_speeds_of_zero_and_minus_zero_keep_their_signs() -> None:
     same(systems[0], systems[1], "zeros")
     targets = [p.target_velocity for p in systems[0].ctl.axis(2).processes]
     assert [bits(t) for t in targets] == [bits(-0.0)]
+
+
+def test_a_jog_after_a_group_stop_in_the_same_scan_is_refused() -> None:
+    """MAJ1 jogs axis 1, MGS1 then stops group 1, MAJ7 asks axis 2 for a jog in the same
+    scan: the group is stopping, so MAJ7 is refused with ERR 78 (not allowed while
+    stopping), as one by one; MAJ1's jog had started before the stop."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {
+            "MAJ1": {"Axis": 1, "Speed": 50.0},
+            "MGS1": {"Group": 1, "StopMode": 1},
+            "MAJ7": {"Axis": 2, "Speed": 50.0},
+        })  # fmt: skip
+    same(systems[0], systems[1], "group stop")
+    out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ7")}
+    assert out["MAJ1"]["DN"] and not out["MAJ1"]["ER"]
+    assert out["MAJ7"]["ER"] and out["MAJ7"]["ERR"] == ErrorCode.NOT_ALLOWED_WHILE_STOPPING

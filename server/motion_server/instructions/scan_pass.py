@@ -77,7 +77,9 @@ class Batch:
     axis number a queued command touches, ``slaves`` the axes it starts a process on.
     """
 
-    __slots__ = ("axes", "contain", "ctl", "jobs", "kind", "owners", "plans", "slaves")
+    __slots__ = (
+        "axes", "contain", "ctl", "jobs", "kind", "owners", "plans", "slaves", "stopping",
+    )  # fmt: skip
 
     def __init__(self, ctl: Controller, contain: Contain | None) -> None:
         self.ctl = ctl
@@ -91,6 +93,10 @@ class Batch:
         #: judge's key and what else the plan reads (the axis's limits): equal operands
         #: on equal axes are planned once
         self.plans: dict[tuple[Any, ...], Any] = {}
+        #: group number -> a group stop is in progress (``Controller.group_stopping``),
+        #: known until the queue is handed over (only commands outside a batch stop
+        #: groups, and they hand it over first)
+        self.stopping: dict[int, bool] = {}
 
     def add(
         self, kind: BatchKind, owner: BatchInstruction, job: tuple[Any, ...], axes: Iterable[int]
@@ -111,6 +117,7 @@ class Batch:
         self.jobs, self.owners = [], []
         self.axes.clear()
         self.slaves.clear()
+        self.stopping.clear()
         if kind is BatchKind.JOG:
             # one call per run of equal limits, in order
             start = 0

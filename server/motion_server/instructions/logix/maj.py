@@ -12,9 +12,10 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import Any
 
-from ...kernel import Axis, JogProcess, Limits, ProcessKind
+from ...kernel import Axis, AxisState, AxisType, JogProcess, Limits, PowerEvent, ProcessKind
 from ...kernel.master_driven import MasterDrivenJog
 from ...kernel.mdac_links import MasterLink
+from ...kernel.power import TRANSITIONS
 from ...kernel.processes import Process
 from ..dynamics import DriveMode, MergeMode, MergeSpeed
 from ..logix_common import STARTED_ACTIVE
@@ -34,6 +35,12 @@ _REVERSE = int(JogDirection.REVERSE)
 _AT_CURRENT = int(MergeSpeed.CURRENT)
 _MERGE = int(MergeMode.ENABLED)
 _TIME_DRIVEN = DriveMode.TIME_DRIVEN
+#: the power states in which the kernel takes a motion command (``require_motion``),
+#: read from its table
+_MOVABLE = tuple(
+    s for s in AxisState if isinstance(TRANSITIONS.get((s, PowerEvent.MOTION)), AxisState)
+)
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
 #: the status of a MAJ whose jog started (see ``started_active``)
 _JOG_STARTED = {**STARTED_ACTIVE, "TrackingMaster": False}
 #: the processes a jog without Merge supersedes
@@ -74,7 +81,10 @@ class MAJ(SpeedControlledMotion):
         target, limits) for ``Controller.start_jogs``; None for a jog that starts alone
         (Merge ends every other process, a master-driven jog, a pending MDAC switch).
         Without Merge the plan depends on the operands' values and the axis's limits
-        only: MAJ with the same values on axes with the same limits plan once."""
+        only: MAJ with the same values on axes with the same limits plan once. The axis
+        checks of ``check_axis`` run in full only where they refuse (the kernel's error):
+        an axis in a state that takes motion, not faulted, in a group not stopping (known
+        once per group until the batch is handed over) passes them."""
         op = self.op
         if int(op["Merge"]) == _MERGE:
             return None
@@ -84,7 +94,14 @@ class MAJ(SpeedControlledMotion):
             batch.flush()  # a second jog on the axis: its checks see the first one
         if self.ctl.mdsc.pending(number) is not None:
             return None
-        self.check_axis(ax)
+        if ax.type is _FEEDBACK_ONLY or ax.state not in _MOVABLE or ax.fault:
+            self.check_axis(ax)  # the kernel's refusal, with its error
+        else:
+            stopping = batch.stopping.get(ax.group)
+            if stopping is None:
+                stopping = batch.stopping[ax.group] = self.ctl.group_stopping(ax)
+            if stopping:
+                self.check_axis(ax)
         cfg = ax.config
         memo = None
         if key is not None:
