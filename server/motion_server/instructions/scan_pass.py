@@ -24,8 +24,7 @@ over:
 - the jogs of one call share one :class:`~..kernel.Limits`: the queue is split where the
   limits change, keeping the order;
 - an instance that decides to execute alone (a MAJ with Merge, master-driven or under a
-  pending MDAC reassignment; a MAG whose direction differs from its ratio's sign) hands
-  the queue over first and runs its own ``execute``.
+  pending MDAC reassignment) hands the queue over first and runs its own ``execute``.
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
@@ -73,7 +72,7 @@ class Batch:
     """The queued kernel commands of one kind, in the instances' order.
 
     ``jobs[k]`` is the command of ``owners[k]``: for jogs ``(axis, signed target,
-    limits)``, for gears ``(slave, term, clutch rate or None)``. ``axes`` holds every
+    limits)``, for gears ``(slave, term, clutch rate or None, direction)``. ``axes`` holds every
     axis number a queued command touches, ``slaves`` the axes it starts a process on.
     """
 
@@ -145,7 +144,12 @@ class Batch:
                     started = ctl.start_jogs(axes, [job[1] for job in jobs], limits, owners)
                 else:
                     started = start_gears(
-                        ctl, axes, [job[1] for job in jobs], [job[2] for job in jobs], owners
+                        ctl,
+                        axes,
+                        [job[1] for job in jobs],
+                        [job[2] for job in jobs],
+                        owners,
+                        [job[3] for job in jobs],
                     )
             except Exception as exc:
                 # the axes before the refused one started, as in the loop
@@ -198,27 +202,32 @@ def start_gears(
     terms: Sequence[GearTerm],
     clutch_rates: Sequence[float | None],
     owners: Sequence[object] | None = None,
+    directions: Sequence[int] | None = None,
 ) -> list[Process]:
     """``Controller.start_gears`` when the kernel has it; otherwise the loop it stands
     for: on each slave in order, ``ctl.start`` of the gear MAG builds (one term, a clutch
-    :class:`RateRamp` at ``clutch_rates[k]`` or None to lock at once, the direction the
-    sign of the term's ratio) replacing the slave's gear."""
+    :class:`RateRamp` at ``clutch_rates[k]`` or None to lock at once, the direction
+    ``directions[k]`` kept on the slave, +1 when None) replacing the slave's gear."""
     batch = getattr(ctl, "start_gears", None)
     if batch is not None:
-        return batch(slaves, terms, clutch_rates, owners)
+        return batch(slaves, terms, clutch_rates, owners, directions)
     out: list[Process] = []
     for k, slave in enumerate(slaves):
-        term = terms[k]
-        rate = clutch_rates[k]
         owner = None if owners is None else owners[k]
-        out.append(ctl.start(slave, _gear_factory(ctl, slave, term, rate, owner), _REPLACE_GEAR))
+        direction = 1 if directions is None else directions[k]
+        make = _gear_factory(ctl, slave, terms[k], clutch_rates[k], owner, direction)
+        out.append(ctl.start(slave, make, _REPLACE_GEAR))
     return out
 
 
 def _gear_factory(
-    ctl: Controller, slave: Axis, term: GearTerm, rate: float | None, owner: object
+    ctl: Controller,
+    slave: Axis,
+    term: GearTerm,
+    rate: float | None,
+    owner: object,
+    direction: int,
 ) -> Callable[[float, float], Process]:
-    direction = -1 if term.numerator < 0 else 1
     ramp = None if rate is None else RateRamp(rate)
 
     def make(v: float, a: float) -> Process:

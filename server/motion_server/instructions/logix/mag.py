@@ -226,8 +226,7 @@ class MAG(ProcessInstruction):
 
     def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
         """``execute`` up to the kernel command, the gear returned as (slave, term,
-        clutch rate) for ``Controller.start_gears``; None for a gear that starts alone
-        (its direction is not its ratio's sign: a negative real Ratio)."""
+        clutch rate, direction) for ``Controller.start_gears``."""
         op = self.op
         ctl = self.ctl
         s = int(op["SlaveAxis"])
@@ -237,9 +236,7 @@ class MAG(ProcessInstruction):
         slave, term, rate, direction = self._gear()
         if rate is not None and not (0.0 < rate < math.inf):
             RateRamp(rate)  # refused now (with its error), as execute builds it at once
-        if (term.numerator < 0) != (direction < 0):
-            return None
-        return (slave, term, rate), (s, m)
+        return (slave, term, rate, direction), (s, m)
 
     def batch_started(self, process: Process) -> None:
         self.started_active(process, STARTED_ACTIVE)
