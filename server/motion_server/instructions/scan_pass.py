@@ -38,8 +38,18 @@ from collections.abc import Callable, Iterable, Sequence
 from enum import IntEnum
 from typing import TYPE_CHECKING, Any
 
-from ..kernel import Axis, ErrorCode, Limits, MotionError, ProcessKind
+from ..kernel import (
+    Axis,
+    AxisState,
+    AxisType,
+    ErrorCode,
+    Limits,
+    MotionError,
+    PowerEvent,
+    ProcessKind,
+)
 from ..kernel.gearing import GearProcess, GearTerm, RateRamp
+from ..kernel.power import TRANSITIONS
 from ..kernel.processes import Process
 from .base import Instruction, LogixInstruction, OperandError
 from .judging import judge_of
@@ -49,6 +59,21 @@ if TYPE_CHECKING:
 
 #: what a scan pass calls when an instance raised an unexpected exception (None: raise)
 Contain = Callable[[Instruction, Exception], None]
+
+
+#: the power states in which the kernel takes a motion command (``require_motion``),
+#: read from its table
+_MOVABLE = tuple(
+    s for s in AxisState if isinstance(TRANSITIONS.get((s, PowerEvent.MOTION)), AxisState)
+)
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
+
+
+def takes_motion(ax: Axis) -> bool:
+    """True if ``Controller.require_motion(ax)`` passes (a state that takes motion, not
+    feedback only, not faulted), without its walk of the power table with enum keys
+    (about 1 µs). False: call it, for the kernel's own error."""
+    return ax.type is not _FEEDBACK_ONLY and ax.state in _MOVABLE and not ax.fault
 
 
 class BatchKind(IntEnum):

@@ -12,16 +12,15 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import Any
 
-from ...kernel import Axis, AxisState, AxisType, JogProcess, Limits, PowerEvent, ProcessKind
+from ...kernel import Axis, JogProcess, Limits, ProcessKind
 from ...kernel.master_driven import MasterDrivenJog
 from ...kernel.mdac_links import MasterLink
-from ...kernel.power import TRANSITIONS
 from ...kernel.processes import Process
 from ..dynamics import DriveMode, MergeMode, MergeSpeed
 from ..logix_common import STARTED_ACTIVE
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
-from ..scan_pass import Batch, BatchKind
+from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Operand, TagType
 from .mdsc import SpeedControlledMotion, tracking_status
 
@@ -35,12 +34,6 @@ _REVERSE = int(JogDirection.REVERSE)
 _AT_CURRENT = int(MergeSpeed.CURRENT)
 _MERGE = int(MergeMode.ENABLED)
 _TIME_DRIVEN = DriveMode.TIME_DRIVEN
-#: the power states in which the kernel takes a motion command (``require_motion``),
-#: read from its table
-_MOVABLE = tuple(
-    s for s in AxisState if isinstance(TRANSITIONS.get((s, PowerEvent.MOTION)), AxisState)
-)
-_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
 #: the status of a MAJ whose jog started (see ``started_active``)
 _JOG_STARTED = {**STARTED_ACTIVE, "TrackingMaster": False}
 #: the processes a jog without Merge supersedes
@@ -94,7 +87,7 @@ class MAJ(SpeedControlledMotion):
             batch.flush()  # a second jog on the axis: its checks see the first one
         if self.ctl.mdsc.pending(number) is not None:
             return None
-        if ax.type is _FEEDBACK_ONLY or ax.state not in _MOVABLE or ax.fault:
+        if not takes_motion(ax):
             self.check_axis(ax)  # the kernel's refusal, with its error
         else:
             stopping = batch.stopping.get(ax.group)
