@@ -283,3 +283,22 @@ def test_a_jog_after_a_group_stop_in_the_same_scan_is_refused() -> None:
     out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ7")}
     assert out["MAJ1"]["DN"] and not out["MAJ1"]["ER"]
     assert out["MAJ7"]["ER"] and out["MAJ7"]["ERR"] == ErrorCode.NOT_ALLOWED_WHILE_STOPPING
+
+
+def test_a_group_stop_after_a_refused_jog_is_seen_by_the_next_jog() -> None:
+    """MAJ1 gives its speed in master units and its rates per second: refused with ERR
+    105 (MDSC invalid mode) when planned, after its axis checks found the group not
+    stopping; MGS1 stops the group; MAJ7 in the same scan is refused with ERR 78, as one
+    by one (what MAJ1 learnt about the group is not kept past the stop)."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {
+            "MAJ1": {"Axis": 1, "Speed": 50.0, "SpeedUnits": 4, "AccelUnits": 0},
+            "MGS1": {"Group": 1, "StopMode": 1},
+            "MAJ7": {"Axis": 2, "Speed": 50.0},
+        })  # fmt: skip
+    same(systems[0], systems[1], "group stop")
+    out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ7")}
+    assert out["MAJ1"]["ER"]
+    assert out["MAJ1"]["ERR"] == ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE
+    assert out["MAJ7"]["ER"] and out["MAJ7"]["ERR"] == ErrorCode.NOT_ALLOWED_WHILE_STOPPING

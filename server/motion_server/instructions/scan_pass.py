@@ -135,13 +135,13 @@ class Batch:
 
     def flush(self) -> None:
         """Hand the queued commands over to the kernel and write every owner's status."""
+        self.stopping.clear()  # (also with nothing queued: an instance may have asked)
         if not self.jobs:
             return
         kind, jobs, owners = self.kind, self.jobs, self.owners
         self.jobs, self.owners = [], []
         self.axes.clear()
         self.slaves.clear()
-        self.stopping.clear()
         if kind is BatchKind.JOG:
             # one call per run of equal limits, in order
             start = 0
@@ -311,6 +311,8 @@ def scan_pass(
             continue
         if queue is None:
             queue = Batch(inst.ctl, contain)
+        elif queue.kind is not kind:
+            queue.flush()  # the other kind's commands first, before this one's checks
         _rise(inst, kind, queue)  # type: ignore[arg-type]
     if queue is not None:
         queue.flush()
