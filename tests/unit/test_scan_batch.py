@@ -23,7 +23,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from motion_server.instructions import MotionSystem
+from motion_server.instructions import MotionSystem, instruction_type
 from motion_server.kernel import AxisConfig, AxisType, Controller, ErrorCode, GroupConfig
 from motion_server.kernel.processes import Process
 
@@ -302,3 +302,35 @@ def test_a_group_stop_after_a_refused_jog_is_seen_by_the_next_jog() -> None:
     assert out["MAJ1"]["ER"]
     assert out["MAJ1"]["ERR"] == ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE
     assert out["MAJ7"]["ER"] and out["MAJ7"]["ERR"] == ErrorCode.NOT_ALLOWED_WHILE_STOPPING
+
+
+class _Broken(Exception):
+    """An unexpected exception (a bug), raised by the instance below."""
+
+
+def test_an_instance_that_raises_while_writing_its_status_is_contained() -> None:
+    """MAJ2 raises as it follows the jog it started (a bug in its status code): it shows
+    ERR 1005 (internal error) and its axis is stopped; MAJ1 and MAJ3, batched with it,
+    show their jogs; everything as one by one, where the same instance is contained."""
+    maj = instruction_type("MAJ")
+
+    def raising(self: Any, *args: Any, **kwargs: Any) -> None:
+        raise _Broken(self.name)
+
+    broken = type("BrokenMAJ", (maj,), {"started": raising, "started_active": raising})
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        old = system.instances["MAJ2"]
+        inst = broken("MAJ2", system.ctl)
+        inst.inputs.woken = old.inputs.woken
+        inst.outputs.changed = old.outputs.changed
+        system.instances["MAJ2"] = inst
+        fire(system, {f"MAJ{k}": {"Axis": k, "Speed": 50.0} for k in (1, 2, 3)})
+        assert [name for name, _ in system.internal_errors] == ["MAJ2"]
+        for _ in range(5):
+            system.cycle()
+    same(systems[0], systems[1], "contained")
+    out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ2", "MAJ3")}
+    assert out["MAJ2"]["ER"] and out["MAJ2"]["ERR"] == ErrorCode.INTERNAL_ERROR
+    for name in ("MAJ1", "MAJ3"):
+        assert out[name]["DN"] and out[name]["IP"] and not out[name]["ER"], name

@@ -180,7 +180,7 @@ class Batch:
                 # the axes before the refused one started, as in the loop
                 k = _started_count(axes, owners, before, _PROCESS_KIND[kind])
                 for i in range(k):
-                    owners[i].batch_started(_new_process(axes[i], owners[i], before[i], kind))
+                    self._started(owners[i], _new_process(axes[i], owners[i], before[i], kind))
                 refused = owners[k]
                 refused.batch_refused()
                 if isinstance(exc, MotionError):
@@ -194,8 +194,20 @@ class Batch:
                 jobs, owners = jobs[k + 1 :], owners[k + 1 :]
                 continue
             for owner, p in zip(owners, started, strict=True):
-                owner.batch_started(p)
+                self._started(owner, p)
             return
+
+    def _started(self, owner: BatchInstruction, process: Process) -> None:
+        """``owner.batch_started(process)``, an unexpected exception in it contained as
+        the one-by-one scan contains it (the others' status is still written)."""
+        try:
+            owner.batch_started(process)
+        except Exception as exc:
+            if owner._rising:
+                owner._write_status(_NO_STATUS)
+            if self.contain is None:
+                raise
+            self.contain(owner, exc)
 
 
 def _new_process(ax: Axis, owner: object, before: Process | None, kind: BatchKind) -> Process:
