@@ -37,6 +37,10 @@ class MotionSystem:
     reference the batches are tested against).
     """
 
+    #: rising edges handed to the kernel in batches (a class default, so that a system
+    #: from a snapshot taken before the batches has it too)
+    batch: bool = True
+
     def __init__(self, ctl: Controller, sleep: bool = True, batch: bool = True) -> None:
         self.ctl = ctl
         self.sleep = sleep
