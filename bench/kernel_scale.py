@@ -214,9 +214,14 @@ def instructions(
         SYSTEMS[id(ctl)] = insts
 
     def command(ctl: Controller) -> None:
-        for inst in SYSTEMS[id(ctl)]:
+        # the scan pass of MotionSystem.cycle (rising edges of one type handed to the
+        # kernel in one call per kind); imported here to keep this case self-contained
+        from motion_server.instructions.scan_pass import scan_pass
+
+        insts = SYSTEMS[id(ctl)]
+        for inst in insts:
             inst.inputs[inst.TRIGGER] = True
-            inst.scan()
+        scan_pass(insts)
 
     return setup, command
 

@@ -359,6 +359,19 @@ class LogixInstruction(Instruction):
         if get("FLAGS") != flags:
             out["FLAGS"] = flags
 
+    def _write_started(self, values: dict[str, Any], flags: int) -> None:
+        """:meth:`_write_status` of ``values`` that set DN, ER, PC and IP (as in ``flags``,
+        the FLAGS word without AC) on a rising rung (EN set): the same writes, without
+        reading the bits back."""
+        out = self.outputs
+        if self._rising:
+            self._rising = False
+            out.write(_RISING_STATUS)
+        out.write(values)
+        flags = flags | _EN | (_AC if out.get("AC") else 0)
+        if out.get("FLAGS") != flags:
+            out["FLAGS"] = flags
+
     def fail(self, code: int, exerr: int = 0) -> None:
         self._write_status(
             {"ERR": int(code), "EXERR": int(exerr), "ER": True, "DN": False, "IP": False,

@@ -106,9 +106,11 @@ class OperandJudge:
                 return tuple(refs), (i, op)
         return tuple(refs), None
 
-    def judge(self, inst: Instruction) -> None:
+    def judge(self, inst: Instruction) -> Any:
         """Raise the :class:`~.base.OperandError` of the first operand at fault, exactly
-        as :func:`judge_reference` does."""
+        as :func:`judge_reference` does. Returns the key the verdict was looked up by:
+        the values of the value operands and selectors (None when they cannot be a key),
+        for callers that keep more by the same values (see ``scan_pass``)."""
         try:
             key = self.key(inst.op)
             verdict = self.table.get(key)
@@ -140,6 +142,7 @@ class OperandJudge:
             from .base import OperandError
 
             raise OperandError(ErrorCode.PARAMETER_OUT_OF_RANGE, failure[0], failure[1])
+        return key
 
 
 _JUDGES: dict[type[Instruction], OperandJudge] = {}

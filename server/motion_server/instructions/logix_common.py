@@ -9,11 +9,16 @@ from ..kernel.processes import Process
 from .base import LogixInstruction
 from .operands import AXIS
 from .schema import Operand
+from .status import LogixBit
 
 # read every cycle by poll(), as module constants (see motion_server.kernel.enums)
 _ACTIVE = ProcessState.ACTIVE
 _DONE = ProcessState.DONE
 _ERROR = ProcessState.ERROR
+#: FLAGS of a process just started and active: DN and IP (EN and AC added by the write)
+_STARTED_FLAGS = (1 << LogixBit.DN.value) | (1 << LogixBit.IP.value)
+#: the status an active process starts with (see :meth:`ProcessInstruction.started_active`)
+STARTED_ACTIVE: dict[str, Any] = {"DN": True, "IP": True, "PC": False}
 
 
 class AxisCommand(LogixInstruction):
@@ -53,6 +58,16 @@ class ProcessInstruction(LogixInstruction):
         if extra:
             status.update(extra)
         self._write_status(status)
+
+    def started_active(self, process: Process, status: dict[str, Any]) -> None:
+        """:meth:`started` on a rising rung for a ``process`` known to be active, with
+        ``status`` = {DN: True, IP: True, PC: False} and the extra outputs: one write."""
+        self.process = process
+        if self._rising and process.state == _ACTIVE:
+            self._write_started(status, _STARTED_FLAGS)
+        else:
+            extra = {k: v for k, v in status.items() if k not in ("DN", "IP", "PC")}
+            self.started(process, extra)
 
     def poll(self) -> None:
         p = self.process

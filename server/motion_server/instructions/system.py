@@ -14,6 +14,7 @@ from typing import Any
 from ..kernel import Controller, MotionError
 from .base import Instruction
 from .registry import instruction_type
+from .scan_pass import scan_pass
 
 
 class MotionSystem:
@@ -29,11 +30,21 @@ class MotionSystem:
     to its operands, or for those that follow the axis state any change of it, wakes it.
     The awake ones keep the instances' order. ``sleep=False`` calls every instance every
     cycle (the reference the sleeping is tested against).
+
+    The instances that fire in one scan hand their axis commands to the kernel together
+    where their types allow it (:mod:`.scan_pass`: MAJ's jogs, MAG's gears), with the
+    result of scanning them one by one; ``batch=False`` scans every instance alone (the
+    reference the batches are tested against).
     """
 
-    def __init__(self, ctl: Controller, sleep: bool = True) -> None:
+    #: rising edges handed to the kernel in batches (a class default, so that a system
+    #: from a snapshot taken before the batches has it too)
+    batch: bool = True
+
+    def __init__(self, ctl: Controller, sleep: bool = True, batch: bool = True) -> None:
         self.ctl = ctl
         self.sleep = sleep
+        self.batch = batch
         self.instances: dict[str, Instruction] = {}
         #: the instances called this cycle, in the instances' order
         self._awake: list[Instruction] = []
@@ -76,12 +87,7 @@ class MotionSystem:
     def cycle(self, count: int = 1) -> None:
         ctl = self.ctl
         for _ in range(count):
-            if ctl.run_mode:
-                for inst in self._wake():
-                    try:
-                        inst.scan()
-                    except Exception as exc:
-                        self._contain(inst, exc)
+            self.scan_instructions()
             ctl.step()
             awake = self._wake()
             for inst in awake:
@@ -93,6 +99,13 @@ class MotionSystem:
                 keep = [inst for inst in awake if not inst.asleep()]
                 if len(keep) != len(awake):
                     self._awake = keep
+
+    def scan_instructions(self) -> None:
+        """The first half of :meth:`cycle`, before the kernel steps: in run mode, every
+        awake instance scanned (trigger edges, operands latched and judged, commands),
+        the commands of a batch handed to the kernel together."""
+        if self.ctl.run_mode:
+            scan_pass(self._wake(), self._contain, self.batch)
 
     def awake(self) -> list[Instruction]:
         """The instances the next cycle calls (all of them with ``sleep=False``)."""

@@ -27,10 +27,12 @@ Decisions the seed leaves open (DESIGN.md):
 
 from __future__ import annotations
 
+import math
+from collections.abc import Set
 from enum import IntEnum
-from typing import ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar
 
-from ...kernel import ProcessKind
+from ...kernel import Axis, AxisType, Controller, MotionError, ProcessKind
 from ...kernel.gearing import (
     GearProcess,
     GearTerm,
@@ -43,9 +45,10 @@ from ...kernel.processes import Process
 from .. import dynamics
 from ..base import Gate, gate
 from ..dynamics import AccelUnits
-from ..logix_common import ProcessInstruction
+from ..logix_common import STARTED_ACTIVE, ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
+from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Operand, Quantity, TagType
 
 
@@ -179,7 +182,12 @@ class MAG(ProcessInstruction):
         ),
     )
 
-    def execute(self) -> None:
+    #: rising edges in one scan start their gears with one ``Controller.start_gears``
+    BATCH = BatchKind.GEAR
+
+    def _gear(self) -> tuple[Axis, GearTerm, float | None, int]:
+        """The checks and the plan: slave, gear term, clutch rate (None: no clutch) and
+        the resolved direction."""
         op = self.op
         ctl = self.ctl
         slave = ctl.axis(int(op["SlaveAxis"]))
@@ -190,34 +198,125 @@ class MAG(ProcessInstruction):
         direction = resolve_direction(
             _member(GearDirection, _DIRECTIONS, op["Direction"]), gearing_direction(slave)
         )
+        numerator, denominator, counts, rate = self._coupling(slave, direction)
+        term = GearTerm(master.number, source, numerator, denominator, counts=counts)
+        return slave, term, rate, direction
+
+    def _coupling(self, slave: Axis, direction: int) -> tuple[int, int, bool, float | None]:
+        """The ratio (signed numerator, denominator, in feedback counts or not) and the
+        clutch rate (None: no clutch), from the values and the slave's limits: the ratio
+        and rate operands judged, in this order."""
+        op = self.op
         if int(op["RatioFormat"]) == _FRACTION:
             counts = {}
             for name in ("SlaveCounts", "MasterCounts"):
                 counts[name] = int(self.op[name])
                 if counts[name] < 1:
                     raise self.out_of_range(name, f"{name} must be >= 1")
-            term = GearTerm(
-                master.number,
-                source,
-                direction * counts["SlaveCounts"],
-                counts["MasterCounts"],
-                counts=True,
-            )
+            ratio = (direction * counts["SlaveCounts"], counts["MasterCounts"], True)
         else:
-            ratio = float(self.op["Ratio"])
-            steps = round(abs(ratio) * RATIO_SCALE)
+            real = float(self.op["Ratio"])
+            steps = round(abs(real) * RATIO_SCALE)
             if not RATIO_STEPS[0] <= steps <= RATIO_STEPS[1]:
-                raise self.out_of_range("Ratio", f"|Ratio| must be 0.00001..9.99999, got {ratio}")
-            sign = -direction if ratio < 0 else direction
-            term = GearTerm(master.number, source, sign * steps, RATIO_SCALE)
-        ramp = None
+                raise self.out_of_range("Ratio", f"|Ratio| must be 0.00001..9.99999, got {real}")
+            sign = -direction if real < 0 else direction
+            ratio = (sign * steps, RATIO_SCALE, False)
+        rate = None
         if int(op["Clutch"]) == _CLUTCH_ENABLED:
             rate = dynamics.rate(
                 self, slave, "AccelRate", "AccelUnits", slave.config.max_acceleration
             )
-            ramp = RateRamp(rate)
+        return (*ratio, rate)
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the gear returned as (slave, term,
+        clutch rate, direction) for ``Controller.start_gears``. The checks run in
+        ``_gear``'s order but in full only where they refuse (the kernel's errors): one
+        walk over the master/slave links tells whether the gear closes a loop and
+        whether it reaches a queued slave (then the queue is handed over first, and the
+        gear planned as ``execute`` plans it); the ratio and clutch rate depend on the
+        values, the direction and the slave's limits only, and are worked out once per
+        set of them in a scan pass."""
+        op = self.op
+        ctl = self.ctl
+        s = int(op["SlaveAxis"])
+        m = int(op["MasterAxis"])
+        queued = batch.slaves if batch.jobs else _NONE
+        loops, reaches = _walk(ctl, m, s, queued)
+        if reaches or s in batch.axes:
+            batch.flush()  # its checks see the gears queued before it
+            slave, term, rate, direction = self._gear()
+        else:
+            slave = ctl.axis(s)
+            master = ctl.axis(m)
+            if not takes_motion(slave):
+                ctl.require_motion(slave)  # the kernel's refusal, with its error
+            source = _member(MasterSource, _SOURCES, op["MasterReference"])
+            if loops or (source == _COMMAND and master.type is _FEEDBACK_ONLY):
+                check_master(ctl, slave, master, source)
+            direction = resolve_direction(
+                _member(GearDirection, _DIRECTIONS, op["Direction"]), gearing_direction(slave)
+            )
+            memo = None
+            coupling = None
+            if key is not None:
+                memo = (MAG, key, direction, slave.config.max_acceleration)
+                coupling = batch.plans.get(memo)
+            if coupling is None:
+                coupling = self._coupling(slave, direction)
+                if memo is not None:
+                    batch.plans[memo] = coupling
+            numerator, denominator, counts, rate = coupling
+            term = GearTerm(m, source, numerator, denominator, counts=counts)
+        if rate is not None and not (0.0 < rate < math.inf):
+            RateRamp(rate)  # refused now (with its error), as execute builds it at once
+        return (slave, term, rate, direction), (s, m)
+
+    def batch_started(self, process: Process) -> None:
+        self.started_active(process, STARTED_ACTIVE)
+
+    def batch_refused(self) -> None:
+        """Nothing to undo: a refused gear changes no output of its own."""
+
+    def execute(self) -> None:
+        ctl = self.ctl
+        slave, term, rate, direction = self._gear()
+        ramp = None if rate is None else RateRamp(rate)
 
         def make(v: float, a: float) -> Process:
             return GearProcess(ctl, slave, (term,), ramp, v, a, owner=self, direction=direction)
 
         self.started(ctl.start(slave, make, replace=_REPLACE))
+
+
+def _walk(ctl: Controller, master: int, slave: int, queued: Set[int]) -> tuple[bool, bool]:
+    """(a gear of ``slave`` to ``master`` closes a loop, ``master`` is one of ``queued``
+    or follows one of them) through the active processes' masters: the walk of
+    ``Controller.would_cycle``, which a gear queued on such a slave would change."""
+    frontier = [master]
+    seen: set[int] = set()
+    loops = reaches = False
+    while frontier:
+        n = frontier.pop()
+        if n == slave:
+            loops = True
+        if n in queued:
+            reaches = True
+        if loops and (reaches or not queued):
+            break
+        if n in seen:
+            continue
+        seen.add(n)
+        try:
+            ax = ctl.axis(n)
+        except MotionError:
+            continue
+        for p in ax.processes:
+            if p.active:
+                frontier.extend(p.masters)
+    return loops, reaches
+
+
+_NONE: frozenset[int] = frozenset()
+_COMMAND = MasterSource.COMMAND
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY

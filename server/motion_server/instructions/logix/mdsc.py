@@ -216,7 +216,7 @@ class SpeedControlledMotion(ProcessInstruction):
         except BaseException:
             self.outputs["TrackingMaster"] = False  # a refused start tracks nothing
             raise
-        self.started(p, _TRACKING if self._tracking(p) else _NOT_TRACKING)
+        self.started(p, tracking_status(p))
 
     def poll(self) -> None:
         super().poll()
@@ -228,3 +228,9 @@ class SpeedControlledMotion(ProcessInstruction):
     @staticmethod
     def _tracking(p: Process | None) -> bool:
         return isinstance(p, MasterDrivenProcess) and p.active and p.tracking
+
+
+def tracking_status(p: Process) -> dict[str, bool]:
+    """The TrackingMaster output as process ``p`` starts (shared, not to be changed)."""
+    tracking = isinstance(p, MasterDrivenProcess) and p.active and p.tracking
+    return _TRACKING if tracking else _NOT_TRACKING

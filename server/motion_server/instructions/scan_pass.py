@@ -1,0 +1,388 @@
+"""One scan pass over instruction instances, with the axis commands of a batch handed to
+the kernel in one call per kind.
+
+Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel process:
+128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
+can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears) and whose trigger rose
+are latched, judged and checked one by one, as their own ``scan`` does, but their kernel
+commands are queued; the queue goes to the kernel in one call per kind
+(``Controller.start_jogs``, ``Controller.start_gears``) and then every instance writes its
+status from the process it got.
+
+The observable result is exactly that of scanning one by one (tested against it, every
+output and the kernel's arrays after every cycle). That holds because a queued command
+cannot change what a later instance of the same queue reads before the queue is handed
+over:
+
+- the queue holds one kind, in the instances' order; any other instance (another type,
+  a trigger that did not rise, an instance that executes alone) first hands the queue
+  over, so the kernel sees the commands in the order one-by-one scanning gives;
+- an instance whose axis is already in the queue (a second MAJ on one axis, a MAG whose
+  slave is a queued slave or master, whose master is a queued slave or reaches one
+  through the master/slave links) first hands the queue over: its checks then see the
+  state the queued commands leave;
+- the jogs of one call share one :class:`~..kernel.Limits`: the queue is split where the
+  limits change, keeping the order;
+- an instance that decides to execute alone (a MAJ with Merge, master-driven or under a
+  pending MDAC reassignment) hands the queue over first and runs its own ``execute``.
+
+A kernel call that raises (a plan refused on one axis) has started the axes before the
+one refused, as the loop would: the instance refused shows the error (or, for an
+unexpected exception, is contained as :class:`~.system.MotionSystem` contains one), and
+the rest of the queue is handed over again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from enum import IntEnum
+from typing import TYPE_CHECKING, Any
+
+from ..kernel import (
+    Axis,
+    AxisState,
+    AxisType,
+    ErrorCode,
+    Limits,
+    MotionError,
+    PowerEvent,
+    ProcessKind,
+)
+from ..kernel.gearing import GearProcess, GearTerm, RateRamp
+from ..kernel.power import TRANSITIONS
+from ..kernel.processes import Process
+from .base import Instruction, LogixInstruction, OperandError
+from .judging import judge_of
+
+if TYPE_CHECKING:
+    from ..kernel import Controller
+
+#: what a scan pass calls when an instance raised an unexpected exception (None: raise)
+Contain = Callable[[Instruction, Exception], None]
+
+
+#: the power states in which the kernel takes a motion command (``require_motion``),
+#: read from its table
+_MOVABLE = tuple(
+    s for s in AxisState if isinstance(TRANSITIONS.get((s, PowerEvent.MOTION)), AxisState)
+)
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
+
+
+def takes_motion(ax: Axis) -> bool:
+    """True if ``Controller.require_motion(ax)`` passes (a state that takes motion, not
+    feedback only, not faulted), without its walk of the power table with enum keys
+    (about 1 µs). False: call it, for the kernel's own error."""
+    return ax.type is not _FEEDBACK_ONLY and ax.state in _MOVABLE and not ax.fault
+
+
+class BatchKind(IntEnum):
+    """The kernel batch an instruction type's commands join."""
+
+    JOG = 0
+    GEAR = 1
+
+
+#: the process kind each batch starts (how a refused batch finds what it started)
+_PROCESS_KIND: dict[BatchKind, ProcessKind] = {
+    BatchKind.JOG: ProcessKind.JOG,
+    BatchKind.GEAR: ProcessKind.GEAR,
+}
+_NO_STATUS: dict[str, Any] = {}
+#: the processes a new gear supersedes (MAG)
+_REPLACE_GEAR = (ProcessKind.GEAR,)
+
+
+class Batch:
+    """The queued kernel commands of one kind, in the instances' order.
+
+    ``jobs[k]`` is the command of ``owners[k]``: for jogs ``(axis, signed target,
+    limits)``, for gears ``(slave, term, clutch rate or None, direction)``. ``axes`` holds every
+    axis number a queued command touches, ``slaves`` the axes it starts a process on.
+    """
+
+    __slots__ = (
+        "axes", "contain", "ctl", "jobs", "kind", "owners", "plans", "slaves", "stopping",
+    )  # fmt: skip
+
+    def __init__(self, ctl: Controller, contain: Contain | None) -> None:
+        self.ctl = ctl
+        self.contain = contain
+        self.kind: BatchKind | None = None
+        self.jobs: list[tuple[Any, ...]] = []
+        self.owners: list[BatchInstruction] = []
+        self.axes: set[int] = set()
+        self.slaves: set[int] = set()
+        #: what the instances of this scan pass planned from their values alone, by the
+        #: judge's key and what else the plan reads (the axis's limits): equal operands
+        #: on equal axes are planned once
+        self.plans: dict[tuple[Any, ...], Any] = {}
+        #: group number -> a group stop is in progress (``Controller.group_stopping``),
+        #: known until the queue is handed over (only commands outside a batch stop
+        #: groups, and they hand it over first)
+        self.stopping: dict[int, bool] = {}
+
+    def add(
+        self, kind: BatchKind, owner: BatchInstruction, job: tuple[Any, ...], axes: Iterable[int]
+    ) -> None:
+        if self.kind is not kind:
+            self.flush()
+            self.kind = kind
+        self.jobs.append(job)
+        self.owners.append(owner)
+        self.slaves.add(job[0].number)
+        self.axes.update(axes)
+
+    def flush(self) -> None:
+        """Hand the queued commands over to the kernel and write every owner's status."""
+        self.stopping.clear()  # (also with nothing queued: an instance may have asked)
+        if not self.jobs:
+            return
+        kind, jobs, owners = self.kind, self.jobs, self.owners
+        self.jobs, self.owners = [], []
+        self.axes.clear()
+        self.slaves.clear()
+        if kind is BatchKind.JOG:
+            # one call per run of equal limits, in order
+            start = 0
+            for k in range(1, len(jobs) + 1):
+                if k == len(jobs) or jobs[k][2] != jobs[start][2]:
+                    self._hand_over(BatchKind.JOG, jobs[start:k], owners[start:k])
+                    start = k
+        else:
+            assert kind is not None
+            self._hand_over(kind, jobs, owners)
+
+    def _hand_over(
+        self,
+        kind: BatchKind,
+        jobs: Sequence[tuple[Any, ...]],
+        owners: Sequence[BatchInstruction],
+    ) -> None:
+        while jobs:
+            ctl = self.ctl
+            axes = [job[0] for job in jobs]
+            before = [owner.process for owner in owners]
+            try:
+                if kind is BatchKind.JOG:
+                    limits: Limits = jobs[0][2]
+                    started = ctl.start_jogs(axes, [job[1] for job in jobs], limits, owners)
+                else:
+                    started = start_gears(
+                        ctl,
+                        axes,
+                        [job[1] for job in jobs],
+                        [job[2] for job in jobs],
+                        owners,
+                        [job[3] for job in jobs],
+                    )
+            except Exception as exc:
+                # the axes before the refused one started, as in the loop
+                k = _started_count(axes, owners, before, _PROCESS_KIND[kind])
+                for i in range(k):
+                    self._started(owners[i], _new_process(axes[i], owners[i], before[i], kind))
+                refused = owners[k]
+                refused.batch_refused()
+                if isinstance(exc, MotionError):
+                    refused.fail(exc.code)
+                else:
+                    if refused._rising:
+                        refused._write_status(_NO_STATUS)
+                    if self.contain is None:
+                        raise
+                    self.contain(refused, exc)
+                jobs, owners = jobs[k + 1 :], owners[k + 1 :]
+                continue
+            for owner, p in zip(owners, started, strict=True):
+                self._started(owner, p)
+            return
+
+    def _started(self, owner: BatchInstruction, process: Process) -> None:
+        """``owner.batch_started(process)``, an unexpected exception in it contained as
+        the one-by-one scan contains it (the others' status is still written)."""
+        try:
+            owner.batch_started(process)
+        except Exception as exc:
+            if owner._rising:
+                owner._write_status(_NO_STATUS)
+            if self.contain is None:
+                raise
+            self.contain(owner, exc)
+
+
+def _new_process(ax: Axis, owner: object, before: Process | None, kind: BatchKind) -> Process:
+    """The process of ``kind`` that ``owner`` started on ``ax`` in a refused batch."""
+    pk = _PROCESS_KIND[kind]
+    for p in ax.processes:
+        if p.owner is owner and p.kind == pk and p is not before and p.active:
+            return p
+    raise LookupError(f"no {pk.name} of {owner!r} on {ax.name}")
+
+
+def _started_count(
+    axes: Sequence[Axis], owners: Sequence[object], before: Sequence[Any], kind: ProcessKind
+) -> int:
+    """How many of a refused batch's commands started: the first axis without a new
+    active process of ``kind`` owned by its instance is the one refused."""
+    for k, ax in enumerate(axes):
+        owner, old = owners[k], before[k]
+        if not any(
+            p.owner is owner and p.kind == kind and p is not old and p.active for p in ax.processes
+        ):
+            return k
+    raise LookupError("a batch raised but every command in it started")
+
+
+def start_gears(
+    ctl: Controller,
+    slaves: Sequence[Axis],
+    terms: Sequence[GearTerm],
+    clutch_rates: Sequence[float | None],
+    owners: Sequence[object] | None = None,
+    directions: Sequence[int] | None = None,
+) -> list[Process]:
+    """``Controller.start_gears`` when the kernel has it; otherwise the loop it stands
+    for: on each slave in order, ``ctl.start`` of the gear MAG builds (one term, a clutch
+    :class:`RateRamp` at ``clutch_rates[k]`` or None to lock at once, the direction
+    ``directions[k]`` kept on the slave, +1 when None) replacing the slave's gear."""
+    batch = getattr(ctl, "start_gears", None)
+    if batch is not None:
+        return batch(slaves, terms, clutch_rates, owners, directions)
+    out: list[Process] = []
+    for k, slave in enumerate(slaves):
+        owner = None if owners is None else owners[k]
+        direction = 1 if directions is None else directions[k]
+        make = _gear_factory(ctl, slave, terms[k], clutch_rates[k], owner, direction)
+        out.append(ctl.start(slave, make, _REPLACE_GEAR))
+    return out
+
+
+def _gear_factory(
+    ctl: Controller,
+    slave: Axis,
+    term: GearTerm,
+    rate: float | None,
+    owner: object,
+    direction: int,
+) -> Callable[[float, float], Process]:
+    ramp = None if rate is None else RateRamp(rate)
+
+    def make(v: float, a: float) -> Process:
+        return GearProcess(ctl, slave, (term,), ramp, v, a, owner=owner, direction=direction)
+
+    return make
+
+
+class BatchInstruction(LogixInstruction):
+    """A Logix process instruction whose rising edge can join a kernel batch.
+
+    ``batch_job`` does what ``execute`` does up to the kernel command and returns that
+    command instead (or None: the instance executes alone); ``batch_started`` follows the
+    process the batch started, ``batch_refused`` undoes what a refused start leaves.
+    """
+
+    BATCH: BatchKind
+    process: Process | None
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """The queued command and the axis numbers it touches, or None; ``key`` is the
+        judge's key of the latched values (None: no key), by which ``batch.plans`` may
+        keep what depends only on them."""
+        raise NotImplementedError
+
+    def batch_started(self, process: Process) -> None:
+        raise NotImplementedError
+
+    def batch_refused(self) -> None:
+        """The kernel refused this instance's queued command (before its error shows)."""
+
+
+def scan_pass(
+    instances: Iterable[Instruction], contain: Contain | None = None, batch: bool = True
+) -> None:
+    """Scan ``instances`` in order (``Instruction.scan``), the rising edges of batch
+    types queued and handed to the kernel together (see the module docstring).
+    ``contain(inst, exc)`` takes an instance's unexpected exception (None: it is
+    raised); ``batch=False`` scans every instance alone (the reference)."""
+    queue: Batch | None = None
+    kinds = _KINDS
+    for inst in instances:
+        cls = type(inst)
+        kind = kinds.get(cls, _UNKNOWN) if batch else None
+        if kind is _UNKNOWN:
+            kind = kinds[cls] = _kind_of(cls)
+        if kind is None or inst._last_trigger or not inst.inputs[inst.TRIGGER]:
+            if queue is not None:
+                queue.flush()
+            try:
+                inst.scan()
+            except Exception as exc:
+                if contain is None:
+                    raise
+                contain(inst, exc)
+            continue
+        if queue is None:
+            queue = Batch(inst.ctl, contain)
+        elif queue.kind is not kind:
+            queue.flush()  # the other kind's commands first, before this one's checks
+        _rise(inst, kind, queue)  # type: ignore[arg-type]
+    if queue is not None:
+        queue.flush()
+
+
+#: the batch kind of each instruction type seen (None: scanned alone)
+_KINDS: dict[type[Instruction], Any] = {}
+_UNKNOWN = object()
+
+
+def _kind_of(cls: type[Instruction]) -> BatchKind | None:
+    """``cls.BATCH`` if the type scans as :class:`LogixInstruction` does and the
+    ``batch_job`` it has stands for the ``execute`` it has (a subclass that changes
+    either is scanned alone)."""
+    kind = getattr(cls, "BATCH", None)
+    if (
+        kind is None
+        or cls.scan is not LogixInstruction.scan
+        or cls.validate is not Instruction.validate
+    ):
+        return None
+    owners = {name: _defined_by(cls, name) for name in ("batch_job", "execute")}
+    return kind if owners["batch_job"] is owners["execute"] else None
+
+
+def _defined_by(cls: type, name: str) -> type | None:
+    for base in cls.__mro__:
+        if name in vars(base):
+            return base
+    return None
+
+
+def _rise(inst: BatchInstruction, kind: BatchKind, queue: Batch) -> None:
+    """The rising edge of ``inst`` (``LogixInstruction.scan``), its command queued."""
+    inst._last_trigger = True
+    inst._rising = True
+    inst.latch()
+    try:
+        key = judge_of(type(inst)).judge(inst)  # (Instruction.validate, keeping the key)
+        planned = inst.batch_job(queue, key)
+        if planned is not None:
+            job, axes = planned
+            queue.add(kind, inst, job, axes)
+            return
+        queue.flush()
+        inst.execute()
+    except OperandError as exc:
+        idx = exc.index + (1 if exc.index >= inst.MOTION_CONTROL_INDEX else 0)
+        inst.fail(exc.code, idx if exc.code == ErrorCode.PARAMETER_OUT_OF_RANGE else 0)
+    except MotionError as exc:
+        inst.fail(exc.code)
+    except Exception as exc:
+        if inst._rising:
+            inst._write_status(_NO_STATUS)
+        queue.flush()  # the commands before it went to the kernel before it raised
+        if queue.contain is None:
+            raise
+        queue.contain(inst, exc)
+        return
+    if inst._rising:
+        inst._write_status(_NO_STATUS)

@@ -1,0 +1,336 @@
+"""Instructions that fire in one scan and hand their commands to the kernel together
+(``instructions/scan_pass.py``) against the same scans executed instance by instance.
+
+Two systems get the same writes: one scans with batches (the default), the other with
+``batch=False`` (every instance alone, as before the batches). MAJ and MAG instances are
+mixed with MAM, MAS and MGS (which always execute alone, so they cut a batch) in one fixed
+order; random scans fire random subsets with random, partly invalid operands: two
+instances on one axis, a MAG whose master is a slave geared in the same scan, loops of
+gears, Merge, S-curve and master units (executed alone), a negative ratio, axes that do
+not exist or cannot move, and rates so small that the kernel refuses the plan of one jog
+in the middle of a batch. After every cycle both systems must show the same outputs on
+every instance, mark the same instances changed and command the same position, velocity
+and acceleration, bit for bit, with the same processes (their planned attributes) on
+every axis, lanes on and off.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from motion_server.instructions import MotionSystem, instruction_type
+from motion_server.kernel import AxisConfig, AxisType, Controller, ErrorCode, GroupConfig
+from motion_server.kernel.processes import Process
+
+from .test_instruction_fast_paths import digest
+
+#: axes 1..6 servo (on), 7 feedback only, 8 servo off; 9 does not exist
+AXES = [1, 2, 3, 4, 5, 6, 1, 2, 3, 7, 8, 9]
+#: valid rates drawn more often; 1e-30 units/s² makes a jog's plan too long (refused by
+#: the kernel when it plans it: inside the batch call)
+RATES = [100.0, 250.0, 100.0, 1e-30, 0.0]
+DYNAMICS: dict[str, list[Any]] = {
+    "Speed": [5.0, 50.0, 50.0, 5000.0, 0.0, -0.0],
+    "SpeedUnits": [0, 0, 1, 4],
+    "AccelRate": RATES,
+    "AccelUnits": [0, 0, 1],
+    "DecelRate": RATES,
+    "DecelUnits": [0, 0, 1],
+    "Profile": [0, 0, 0, 1],
+    "AccelJerk": [100.0, 50.0],
+    "DecelJerk": [100.0],
+    "JerkUnits": [2],
+    "Merge": [0, 0, 0, 1],
+    "MergeSpeed": [0, 1],
+}
+POOLS: dict[str, dict[str, list[Any]]] = {
+    "MAJ": {"Axis": AXES, "Direction": [0, 1], **DYNAMICS},
+    "MAM": {"Axis": AXES, "MoveType": [0, 1], "Position": [-10.0, 25.5], **DYNAMICS},
+    "MAG": {
+        "SlaveAxis": AXES,
+        "MasterAxis": AXES,
+        "Direction": [0, 1, 2, 3],
+        "Ratio": [0.5, 0.5, -1.25, 2.0, 0.0],
+        "SlaveCounts": [1, 3],
+        "MasterCounts": [1, 2],
+        "MasterReference": [0, 1],
+        "RatioFormat": [0, 0, 1],
+        "Clutch": [0, 1],
+        "AccelRate": [100.0, 50.0, 0.0],
+        "AccelUnits": [0, 1],
+    },
+    "MAS": {"Axis": AXES, "StopType": [0, 1, 2]},
+    "MGS": {"Group": [1, 1, 2], "StopMode": [0, 1]},
+}
+#: the instances in scan order: runs of one type, cut by the others
+ORDER = [
+    ("MAJ1", "MAJ"), ("MAJ2", "MAJ"), ("MAJ3", "MAJ"), ("MAG1", "MAG"), ("MAG2", "MAG"),
+    ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAJ5", "MAJ"), ("MAG4", "MAG"),
+    ("MAM1", "MAM"), ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MAJ7", "MAJ"),
+    ("MAJ8", "MAJ"),
+]  # fmt: skip
+TYPES = dict(ORDER)
+
+
+def build(batch: bool, lanes: bool) -> MotionSystem:
+    axes = [
+        AxisConfig(n, f"A{n}", AxisType.SERVO, max_velocity=1000.0, max_acceleration=500.0,
+                   max_deceleration=400.0, max_jerk=20000.0)
+        for n in range(1, 7)
+    ] + [AxisConfig(7, "A7", AxisType.FEEDBACK_ONLY),
+         AxisConfig(8, "A8", AxisType.SERVO)]  # fmt: skip
+    group = GroupConfig(1, "Group1", tuple(a.number for a in axes), 0.002)
+    system = MotionSystem(Controller(axes, [group], lanes=lanes), batch=batch)
+    for ax in system.ctl.axes[:6]:
+        system.ctl.servo_on(ax)
+    for name, type_name in ORDER:
+        system.add(type_name, name)
+    return system
+
+
+@st.composite
+def scans(draw: st.DrawFn) -> list[list[tuple[str, dict[str, Any], bool]]]:
+    """Cycles of (instance, operands written, trigger): many instances each, so that
+    runs of one type fire together."""
+    out = []
+    for _ in range(draw(st.integers(1, 6))):
+        names = draw(st.lists(st.sampled_from([n for n, _ in ORDER]), unique=True))
+        cycle = []
+        for name in names:
+            pool = POOLS[TYPES[name]]
+            keys = draw(st.lists(st.sampled_from(sorted(pool)), max_size=5, unique=True))
+            values = {k: draw(st.sampled_from(pool[k])) for k in keys}
+            cycle.append((name, values, draw(st.booleans())))
+        out.append(cycle)
+    return out
+
+
+def bits(x: float) -> bytes:
+    return struct.pack("<d", x)
+
+
+def processes(p: list[Process]) -> list[list[tuple[str, str]]]:
+    return [digest(q) for q in p]
+
+
+def same(batched: MotionSystem, alone: MotionSystem, when: object) -> None:
+    for name, inst in batched.instances.items():
+        assert inst.outputs == alone[name].outputs, (when, name)
+    assert batched.changed_outputs == alone.changed_outputs, when
+    assert [n for n, _ in batched.internal_errors] == [n for n, _ in alone.internal_errors]
+    for a, b in zip(batched.ctl.axes, alone.ctl.axes, strict=True):
+        for field in ("command_position", "command_velocity", "command_acceleration"):
+            assert bits(getattr(a, field)) == bits(getattr(b, field)), (when, a.name, field)
+        assert a.gear_direction == b.gear_direction, (when, a.name)
+        assert processes(a.processes) == processes(b.processes), (when, a.name)
+
+
+@pytest.mark.parametrize("lanes", [True, False])
+@settings(max_examples=150, deadline=None)
+@given(plan=scans())
+def test_a_scan_with_batches_acts_as_one_instance_at_a_time(
+    lanes: bool, plan: list[list[tuple[str, dict[str, Any], bool]]]
+) -> None:
+    batched, alone = build(True, lanes), build(False, lanes)
+    for k, cycle in enumerate(plan + [[]] * 3):
+        for system in (batched, alone):
+            for name, values, rung in cycle:
+                inst = system[name]
+                inst.inputs.update(values)
+                inst.inputs[inst.TRIGGER] = rung
+            system.changed_outputs.clear()
+        batched.cycle()
+        alone.cycle()
+        same(batched, alone, (k, cycle))
+
+
+def test_jogs_and_gears_of_one_scan_reach_the_kernel_in_one_call_each() -> None:
+    """Four MAJ on four axes and two MAG on two others, fired together: one
+    ``start_jogs`` with the four jogs and one gear batch; the outputs and motion are
+    those of the same instances scanned one by one."""
+    systems = {batch: build(batch, True) for batch in (True, False)}
+    calls: list[tuple[str, int]] = []
+    ctl = systems[True].ctl
+    start_jogs = ctl.start_jogs
+
+    def spy(axes: Any, *args: Any, **kwargs: Any) -> Any:
+        calls.append(("jogs", len(axes)))
+        return start_jogs(axes, *args, **kwargs)
+
+    ctl.start_jogs = spy  # type: ignore[method-assign]
+    for system in systems.values():
+        for k, name in enumerate(("MAJ1", "MAJ2", "MAJ3", "MAJ4")):
+            system[name].inputs.update({"Axis": k + 1, "Speed": 50.0, "Execute": True})
+        for name, slave, master in (("MAG1", 5, 1), ("MAG2", 6, 2)):
+            system[name].inputs.update({"SlaveAxis": slave, "MasterAxis": master})
+            system[name].inputs["Execute"] = True
+    for _ in range(3):
+        systems[True].cycle()
+        systems[False].cycle()
+        same(systems[True], systems[False], "cycle")
+    # MAJ1..3 are a run; MAG1 and MAG2 another; MAJ4 comes after the MAGs: its own call
+    assert calls == [("jogs", 3), ("jogs", 1)]
+    for name in ("MAJ1", "MAJ2", "MAJ3", "MAJ4", "MAG1", "MAG2"):
+        out = systems[True][name].outputs
+        assert out["DN"] and out["IP"] and not out["ER"], name
+
+
+def fire(system: MotionSystem, operands: dict[str, dict[str, Any]]) -> None:
+    """Write ``operands`` to their instances with Execute high, run one cycle."""
+    for name, values in operands.items():
+        system[name].inputs.update({**values, "Execute": True})
+    system.cycle()
+
+
+def test_a_jog_refused_in_the_middle_of_a_batch_leaves_the_others_started() -> None:
+    """Axis 2 jogs in reverse at 1,000 units/s (reached at 500 units/s²). Then MAJ1..3
+    ask axes 1..3 for +1,000 units/s at 0.2 units/s² (the same limits: one kernel
+    call): from rest that is a 5,000 s ramp, from -1,000 units/s a 10,000 s one, beyond
+    the 7,600 s the kernel plans
+    (``trapezoid.MAX_DURATION``). The kernel refuses axis 2's jog inside the batch call,
+    after axis 1's started: MAJ2 shows the kernel's error and axis 2 keeps its jog; MAJ1
+    and MAJ3 run; everything as one by one."""
+    systems = [build(batch, True) for batch in (True, False)]
+    slow = {"Speed": 1000.0, "AccelRate": 0.2, "DecelRate": 0.2, "AccelUnits": 0,
+            "DecelUnits": 0}  # fmt: skip
+    for system in systems:
+        fire(system, {"MAJ2": {"Axis": 2, "Speed": 1000.0, "Direction": 1, "AccelRate": 500.0,
+                               "AccelUnits": 0}})  # fmt: skip
+        system["MAJ2"].inputs["Execute"] = False
+        system.cycle(1100)  # 2.2 s: at speed after 1,000 / 500 = 2 s
+        assert system.ctl.axis(2).command_velocity == -1000.0
+        fire(system, {
+            "MAJ1": {"Axis": 1, **slow},
+            "MAJ2": {"Axis": 2, "Direction": 0, **slow},
+            "MAJ3": {"Axis": 3, **slow},
+        })  # fmt: skip
+    same(systems[0], systems[1], "refused")
+    out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ2", "MAJ3")}
+    assert out["MAJ2"]["ER"] and out["MAJ2"]["ERR"] == ErrorCode.PROFILE_FAILED
+    assert systems[0].ctl.axis(2).command_velocity == -1000.0
+    for name in ("MAJ1", "MAJ3"):
+        assert out[name]["DN"] and out[name]["IP"] and out[name]["ERR"] == 0, name
+
+
+def test_a_gear_that_closes_a_loop_through_a_gear_of_the_same_scan_is_refused() -> None:
+    """Axis 3 follows axis 2 (a MAG of an earlier scan). In one scan MAG1 gears 2 to 1,
+    then MAG2 gears 1 to 3: 1 -> 3 -> 2 -> 1 is a loop once MAG1's gear exists, so MAG2
+    is refused with ERR 10 (master axis conflict), as one by one."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {"MAG5": {"SlaveAxis": 3, "MasterAxis": 2, "Clutch": 1}})
+        system["MAG5"].inputs["Execute"] = False
+        fire(system, {
+            "MAG1": {"SlaveAxis": 2, "MasterAxis": 1, "Clutch": 1},
+            "MAG2": {"SlaveAxis": 1, "MasterAxis": 3, "Clutch": 1},
+        })  # fmt: skip
+    same(systems[0], systems[1], "loop")
+    mag1, mag2 = (systems[0][name].outputs for name in ("MAG1", "MAG2"))
+    assert mag1["DN"] and mag1["IP"] and not mag1["ER"]
+    assert mag2["ER"] and mag2["ERR"] == ErrorCode.MASTER_AXIS_CONFLICT
+
+
+def test_a_gear_whose_master_follows_a_slave_geared_in_the_same_scan_sees_that_gear() -> None:
+    """Axis 3 follows axis 2 and axis 2 follows axis 4 (MAGs of earlier scans). In one
+    scan MAG1 gears 2 to 1 (superseding its gear to 4), then MAG2 gears 4 to 3: once
+    MAG1's gear exists, 3 -> 2 -> 1 does not reach 4, so MAG2 is accepted, as one by
+    one (the links as they were, 3 -> 2 -> 4, would have been a loop)."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {"MAG5": {"SlaveAxis": 3, "MasterAxis": 2, "Clutch": 1}})
+        fire(system, {"MAG4": {"SlaveAxis": 2, "MasterAxis": 4, "Clutch": 1}})
+        for name in ("MAG4", "MAG5"):
+            system[name].inputs["Execute"] = False
+        fire(system, {
+            "MAG1": {"SlaveAxis": 2, "MasterAxis": 1, "Clutch": 1},
+            "MAG2": {"SlaveAxis": 4, "MasterAxis": 3, "Clutch": 1},
+        })  # fmt: skip
+    same(systems[0], systems[1], "no loop")
+    for name in ("MAG1", "MAG2"):
+        out = systems[0][name].outputs
+        assert out["DN"] and out["IP"] and not out["ER"], name
+
+
+def test_jogs_at_speeds_of_zero_and_minus_zero_keep_their_signs() -> None:
+    """MAJ1 at Speed 0.0 and MAJ2 at -0.0, otherwise alike, in one batch: the two values
+    are equal (one judge key) but one by one the jogs' targets are +0.0 and -0.0; the
+    batch keeps them apart."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {"MAJ1": {"Axis": 1, "Speed": 0.0}, "MAJ2": {"Axis": 2, "Speed": -0.0}})
+    same(systems[0], systems[1], "zeros")
+    targets = [p.target_velocity for p in systems[0].ctl.axis(2).processes]
+    assert [bits(t) for t in targets] == [bits(-0.0)]
+
+
+def test_a_jog_after_a_group_stop_in_the_same_scan_is_refused() -> None:
+    """MAJ1 jogs axis 1, MGS1 then stops group 1, MAJ7 asks axis 2 for a jog in the same
+    scan: the group is stopping, so MAJ7 is refused with ERR 78 (not allowed while
+    stopping), as one by one; MAJ1's jog had started before the stop."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {
+            "MAJ1": {"Axis": 1, "Speed": 50.0},
+            "MGS1": {"Group": 1, "StopMode": 1},
+            "MAJ7": {"Axis": 2, "Speed": 50.0},
+        })  # fmt: skip
+    same(systems[0], systems[1], "group stop")
+    out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ7")}
+    assert out["MAJ1"]["DN"] and not out["MAJ1"]["ER"]
+    assert out["MAJ7"]["ER"] and out["MAJ7"]["ERR"] == ErrorCode.NOT_ALLOWED_WHILE_STOPPING
+
+
+def test_a_group_stop_after_a_refused_jog_is_seen_by_the_next_jog() -> None:
+    """MAJ1 gives its speed in master units and its rates per second: refused with ERR
+    105 (MDSC invalid mode) when planned, after its axis checks found the group not
+    stopping; MGS1 stops the group; MAJ7 in the same scan is refused with ERR 78, as one
+    by one (what MAJ1 learnt about the group is not kept past the stop)."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {
+            "MAJ1": {"Axis": 1, "Speed": 50.0, "SpeedUnits": 4, "AccelUnits": 0},
+            "MGS1": {"Group": 1, "StopMode": 1},
+            "MAJ7": {"Axis": 2, "Speed": 50.0},
+        })  # fmt: skip
+    same(systems[0], systems[1], "group stop")
+    out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ7")}
+    assert out["MAJ1"]["ER"]
+    assert out["MAJ1"]["ERR"] == ErrorCode.MDSC_INVALID_MODE_OR_MASTER_CHANGE
+    assert out["MAJ7"]["ER"] and out["MAJ7"]["ERR"] == ErrorCode.NOT_ALLOWED_WHILE_STOPPING
+
+
+class _Broken(Exception):
+    """An unexpected exception (a bug), raised by the instance below."""
+
+
+def test_an_instance_that_raises_while_writing_its_status_is_contained() -> None:
+    """MAJ2 raises as it follows the jog it started (a bug in its status code): it shows
+    ERR 1005 (internal error) and its axis is stopped; MAJ1 and MAJ3, batched with it,
+    show their jogs; everything as one by one, where the same instance is contained."""
+    maj = instruction_type("MAJ")
+
+    def raising(self: Any, *args: Any, **kwargs: Any) -> None:
+        raise _Broken(self.name)
+
+    broken = type("BrokenMAJ", (maj,), {"started": raising, "started_active": raising})
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        old = system.instances["MAJ2"]
+        inst = broken("MAJ2", system.ctl)
+        inst.inputs.woken = old.inputs.woken
+        inst.outputs.changed = old.outputs.changed
+        system.instances["MAJ2"] = inst
+        fire(system, {f"MAJ{k}": {"Axis": k, "Speed": 50.0} for k in (1, 2, 3)})
+        assert [name for name, _ in system.internal_errors] == ["MAJ2"]
+        for _ in range(5):
+            system.cycle()
+    same(systems[0], systems[1], "contained")
+    out = {name: systems[0][name].outputs for name in ("MAJ1", "MAJ2", "MAJ3")}
+    assert out["MAJ2"]["ER"] and out["MAJ2"]["ERR"] == ErrorCode.INTERNAL_ERROR
+    for name in ("MAJ1", "MAJ3"):
+        assert out[name]["DN"] and out[name]["IP"] and not out[name]["ER"], name
