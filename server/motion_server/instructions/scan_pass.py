@@ -48,7 +48,6 @@ from ..kernel import (
     PowerEvent,
     ProcessKind,
 )
-from ..kernel.gearing import GearProcess, GearTerm, RateRamp
 from ..kernel.power import TRANSITIONS
 from ..kernel.processes import Process
 from .base import Instruction, LogixInstruction, OperandError
@@ -168,8 +167,7 @@ class Batch:
                     limits: Limits = jobs[0][2]
                     started = ctl.start_jogs(axes, [job[1] for job in jobs], limits, owners)
                 else:
-                    started = start_gears(
-                        ctl,
+                    started = ctl.start_gears(
                         axes,
                         [job[1] for job in jobs],
                         [job[2] for job in jobs],
@@ -231,46 +229,6 @@ def _started_count(
         ):
             return k
     raise LookupError("a batch raised but every command in it started")
-
-
-def start_gears(
-    ctl: Controller,
-    slaves: Sequence[Axis],
-    terms: Sequence[GearTerm],
-    clutch_rates: Sequence[float | None],
-    owners: Sequence[object] | None = None,
-    directions: Sequence[int] | None = None,
-) -> list[Process]:
-    """``Controller.start_gears`` when the kernel has it; otherwise the loop it stands
-    for: on each slave in order, ``ctl.start`` of the gear MAG builds (one term, a clutch
-    :class:`RateRamp` at ``clutch_rates[k]`` or None to lock at once, the direction
-    ``directions[k]`` kept on the slave, +1 when None) replacing the slave's gear."""
-    batch = getattr(ctl, "start_gears", None)
-    if batch is not None:
-        return batch(slaves, terms, clutch_rates, owners, directions)
-    out: list[Process] = []
-    for k, slave in enumerate(slaves):
-        owner = None if owners is None else owners[k]
-        direction = 1 if directions is None else directions[k]
-        make = _gear_factory(ctl, slave, terms[k], clutch_rates[k], owner, direction)
-        out.append(ctl.start(slave, make, _REPLACE_GEAR))
-    return out
-
-
-def _gear_factory(
-    ctl: Controller,
-    slave: Axis,
-    term: GearTerm,
-    rate: float | None,
-    owner: object,
-    direction: int,
-) -> Callable[[float, float], Process]:
-    ramp = None if rate is None else RateRamp(rate)
-
-    def make(v: float, a: float) -> Process:
-        return GearProcess(ctl, slave, (term,), ramp, v, a, owner=owner, direction=direction)
-
-    return make
 
 
 class BatchInstruction(LogixInstruction):
