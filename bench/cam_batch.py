@@ -25,9 +25,37 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import kernel_scale as ks
 from motion_server.kernel import Controller
+from motion_server.kernel.axis import Axis
 from motion_server.kernel.cam_batch import CamStart, start_position_cams
-from motion_server.kernel.cams import CamMode
+from motion_server.kernel.cams import CamMode, CamProcess, LockDirection
 from motion_server.kernel.enums import MasterReference
+
+
+def one_by_one(ctl: Controller) -> None:
+    """The ``cam`` case's cams, one ``Controller.start`` per slave (MAPC Continuous,
+    Immediate, on its master's command position, slave scaling 1, lock position 0)."""
+    half = len(ctl.axes) // 2
+    profile = ks.cam_profile()
+    for k in range(half):
+        slave = ctl.axes[half + k]
+        master = ctl.axes[k]
+
+        def make(v: float, a: float, master: Axis = master) -> CamProcess:
+            return CamProcess(
+                ctl,
+                profile,
+                CamMode.CONTINUOUS,
+                1.0,
+                ks.CAM_MASTER_SCALING,
+                0.0,
+                master=master.index,
+                source=MasterReference.COMMAND,
+                master_number=master.number,
+                lock=LockDirection.IMMEDIATE,
+                rollover=master.config.rollover,
+            )
+
+        ctl.start(slave, make, replace=())
 
 
 def batch(ctl: Controller) -> None:
@@ -81,7 +109,7 @@ def main() -> None:
     args = ap.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f}")
     for n in args.sizes:
-        for name, command in (("one by one", ks.cam), ("batch", batch)):
+        for name, command in (("one by one", one_by_one), ("batch", batch)):
             runs = [run(n, command, args.steps) for _ in range(args.repeats)]
             cmd = statistics.median(r[0] for r in runs) * 1e6
             cycle = statistics.median(r[1] for r in runs) * 1e6

@@ -25,13 +25,17 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   ms, so the 2000 steps measured hold five passes and more;
 - ``maj``, ``mag``: ``accel`` and ``clutch`` commanded through the instructions, one MAJ
   instance per master and one MAG instance per slave (units per s and s²), all executed
-  in the same scan: the command is the instructions' execution (operands latched and
-  judged, status written, the kernel command), as a scan runs it.
+  in the same scan: the command is the scan's pass over the instructions (operands
+  latched and judged, the kernel commands handed over as one batch, status written:
+  ``instructions/scan_pass.py``), as a scan runs it.
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
 the jogs of ``accel``, ``s-curve`` and the set-ups in one ``Controller.start_jogs`` call
-(the MAJ instances executed in one scan), the gears and cams axis by axis; the
+(the MAJ instances executed in one scan), the gears of ``clutch`` and the set-ups in one
+``Controller.start_gears`` call (MAG), the cams of ``cam`` in one
+:func:`~motion_server.kernel.cam_batch.start_position_cams` call (the batch entry points'
+gain over one ``Controller.start`` per axis: ``start_batch.py``, ``cam_batch.py``); the
 benchmark prints, per step of ``Controller.step``, the CPU time of the stepping thread
 (the cost on one core, which other processes on a shared machine do not inflate): mean,
 p99 and max over the case's steps, and the CPU share of the 1 ms period (target: 256
@@ -76,7 +80,6 @@ from motion_server.kernel import (
     Controller,
     GroupConfig,
     Limits,
-    ProcessKind,
     ProgrammedStopMode,
 )
 from motion_server.kernel.axis import Axis

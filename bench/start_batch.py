@@ -1,5 +1,5 @@
-"""Jogs from rest on many axes: one ``Controller.start`` per axis (as ``kernel_scale.py``'s
-``accel`` commands them) against one ``Controller.start_jogs`` call.
+"""Jogs from rest on many axes: one ``Controller.start`` per axis against one
+``Controller.start_jogs`` call (as ``kernel_scale.py``'s ``accel`` commands them).
 
 The set-up is ``kernel_scale.py``'s ``accel``: N/2 virtual masters at rest, N/2 servo
 slaves geared to them (real ratio 0.5 on the command position), a 1 ms group; the
@@ -27,9 +27,19 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import kernel_scale as ks
-from motion_server.kernel import Controller, Limits
+from motion_server.kernel import Controller, JogProcess, Limits, ProcessKind
 
 STEPS = 100
+
+
+def one_by_one(ctl: Controller) -> None:
+    """MAJ at 100 mm/s on every master, one ``Controller.start`` per axis."""
+    for ax in ctl.axes[: len(ctl.axes) // 2]:
+        ctl.start(
+            ax,
+            lambda v, a: JogProcess(ks.PERIOD, ks.SPEED, Limits(ks.SPEED, ks.RATE, ks.RATE), v, a),
+            replace=(ProcessKind.JOG,),
+        )
 
 
 def batch(ctl: Controller) -> None:
@@ -69,7 +79,7 @@ def main() -> None:
     failed = False
     for n in args.sizes:
         digests = set()
-        for name, command in (("start", ks.jog), ("start_jogs", batch)):
+        for name, command in (("start", one_by_one), ("start_jogs", batch)):
             runs = [run(n, command) for _ in range(args.repeats)]
             digests.update(r[2] for r in runs)
             cmd = statistics.median(r[0] for r in runs)
