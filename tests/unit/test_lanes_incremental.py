@@ -175,7 +175,8 @@ def run_rounds(
     """Each round: its commands issued before the same cycle, then its cycles, the
     systems compared after each; the lanes compared with a rebuild from scratch after
     every cycle that left nothing for the next rebuild (a rebuild pending is what the
-    next step does first). ``reads``: cycles (counted over all rounds) after which every
+    next step does first), and every follower lane's masters with those its members
+    name after every cycle. ``reads``: cycles (counted over all rounds) after which every
     axis's processes are read, making the stop ramps kept as rows."""
     profile = cam_profile()
     cycle = 0
@@ -198,6 +199,7 @@ def run_rounds(
             where = f"round {r} {commands}, cycle {c}"
             assert_same(fast, ref, where)
             lanes = fast.ctl.motion.lanes[1]
+            assert_masters_current(lanes, len(fast.ctl.axes), where)
             if not pending(lanes) and not fast.ctl.motion.order_dirty:
                 fresh = from_scratch(fast)
                 assert lanes_view(lanes) == lanes_view(fresh.ctl.motion.lanes[1]), where
@@ -342,3 +344,67 @@ def test_a_lane_that_only_gained_members_keeps_the_rows_it_had() -> None:
     assert cam_lane.at == slice(SLAVES[0] - 1, SLAVES[5])
     assert isinstance(cam_lane, LevelledLane)
     assert np.array_equal(cam_lane.midx, [ax.index for ax in fast.ctl.axes[:6]])
+
+
+def named_master(p: Process) -> int:
+    """The index of the master a follower reads, from the process itself (not through
+    ``master_index``, which tests count)."""
+    if isinstance(p, CamProcess):
+        assert p.index is not None
+        return p.index
+    single = p.single  # type: ignore[attr-defined]
+    assert single is not None
+    return int(single.index)
+
+
+def assert_masters_current(lanes: GroupLanes, n_axes: int, where: str) -> None:
+    """Every follower lane's masters (``midx``, and the indices each level reads) are
+    those its members' processes name, row by row."""
+    every = np.arange(n_axes)
+    for lane in (
+        *lanes.followers[MasterReference.COMMAND],
+        *lanes.followers[MasterReference.ACTUAL],
+    ):
+        if not lane.members:
+            continue
+        named = [named_master(p) for p in lane.members]
+        name = f"{where}: {type(lane).__name__} {lane.source.name}"
+        assert lane.midx.tolist() == named, name
+        for sl, masters in zip(lane.levels, lane.masters, strict=True):
+            assert every[masters].tolist() == named[sl], name
+
+
+def test_a_follower_evicted_after_a_gear_replaced_reads_the_masters_of_its_lane() -> None:
+    """The scan that found it (hypothesis, the fast lanes against the reference): masters
+    jogging, each of S7 to S12 locked to one (MAG, no clutch), then in one scan MAJ
+    three times on M1, MAM on M2 (a move over its jog: composed in Python) and MAG of
+    S7 to M1 again. The rebuild drops S7's old gear and appends its new one, and
+    levelling the followers then evicts S8 (its master is composed in Python), which
+    rebuilds the lane a second time before it is ordered: that rebuild must carry the
+    masters over from the first one, not from the order before both (each follower
+    would read the master of its neighbour: S9 M2's, S7 M6's)."""
+    fast, ref = pair()
+    gears: list[Command] = [
+        ("MAG", {"SlaveAxis": s, "MasterAxis": s - 6, "Ratio": 0.5, "Clutch": 1})
+        for s in SLAVES[:6]
+    ]  # fmt: skip
+    jogs: list[Command] = [
+        ("MAJ", {"Axis": m, "Speed": 50.0, "AccelRate": 1000.0, "DecelRate": 1000.0})
+        for m in MASTERS
+    ]  # fmt: skip
+    run_rounds(fast, ref, [(jogs, 3), (gears, 5)])
+    maj = {"Axis": 1, "Direction": 0, "Speed": 5.0, "AccelRate": 100.0, "DecelRate": 100.0,
+           "Profile": 0, "Merge": 0}  # fmt: skip
+    scan: list[Command] = [
+        ("MAJ", maj), ("MAJ", maj), ("MAJ", maj),
+        ("MAM", {"Axis": 2, "MoveType": 0, "Position": 0.0, "Speed": 5.0, "AccelRate": 100.0,
+                 "DecelRate": 100.0, "Profile": 0}),
+        ("MAG", {"SlaveAxis": 7, "MasterAxis": 1, "Ratio": 0.5, "MasterReference": 1,
+                 "Clutch": 1, "AccelRate": 50.0}),
+    ]  # fmt: skip
+    run_rounds(fast, ref, [(scan, 1)])
+    lanes = fast.ctl.motion.lanes[1]
+    gear_lane = lanes.followers[MasterReference.COMMAND][0]
+    assert sorted(ax.number for ax in gear_lane.axes) == [7, 9, 10, 11, 12]
+    assert_masters_current(lanes, len(fast.ctl.axes), "after the scan")
+    run_rounds(fast, ref, [([], 20)])

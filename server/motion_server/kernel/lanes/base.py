@@ -366,32 +366,50 @@ class LevelledLane(Lane):
     #: (those kept from ``midx``, those appended read from their processes), for
     #: :meth:`order`; None when ``midx`` did not hold the members before it
     new_midx: list[int] | None = None
+    #: ``midx`` no longer holds the members' masters: a :meth:`rebuild` that could not
+    #: carry them over ran since the last :meth:`order` (a class default for lanes
+    #: restored from older state)
+    midx_stale = False
 
     @staticmethod
     def master_index(p: Process) -> int:
         raise NotImplementedError
 
     def rebuild(self) -> None:
+        """:meth:`Lane.rebuild`, carrying the masters' indices of the members kept over
+        to ``new_midx``. The indices the members had are those of the last rebuild when
+        it has not been ordered yet (a lane rebuilt twice before its order: a follower
+        evicted while the followers are levelled, after the members admitted were
+        rebuilt), else ``midx``, as the last :meth:`order` left it; ``midx`` describes
+        the members of that order only, which a rebuild since may have changed."""
         if not self.changed:
             return
-        old = self.midx
-        known = len(old) == len(self.members)
+        pending = self.new_midx
+        old: list[int] | None
+        if pending is not None:
+            old = pending
+        elif self.midx_stale:
+            old = None
+        else:
+            old = self.midx.tolist()
+        known = old is not None and len(old) == len(self.members)
         super().rebuild()
         if known:
+            assert old is not None
             kept = self._kept
-            midx = old.tolist()
-            if len(kept) != len(midx):
-                midx = [midx[k] for k in kept]
+            midx = [old[k] for k in kept] if len(kept) != len(old) else list(old)
             master_index = self.master_index
             midx += [master_index(p) for p in self.members[len(kept) :]]
             self.new_midx = midx
         else:
             self.new_midx = None
+            self.midx_stale = True
 
     def order(self, levels: list[int]) -> None:
         """Sort the members by ``levels`` (one per member, in member order)."""
         midx = self.new_midx
         self.new_midx = None
+        self.midx_stale = False  # (set again below, from the members as they are now)
         if midx is None or len(midx) != len(self.members):
             master_index = self.master_index
             midx = [master_index(p) for p in self.members]
@@ -403,6 +421,7 @@ class LevelledLane(Lane):
                 self.slaves = []
                 self.masters = []
                 self.whole = []
+            if len(self.midx):
                 self.midx = np.zeros(0, dtype=np.intp)
             self.member_levels = []
             return

@@ -250,7 +250,7 @@ class GroupLanes:
         for lane in cmd:
             if lane.changed:
                 n = len(lane.members)
-                if len(lane.member_levels) != n or len(lane.midx) != n:
+                if len(lane.member_levels) != n or len(lane.midx) != n or lane.midx_stale:
                     self.dirty = True
                     return
                 before[lane] = lane.member_levels
