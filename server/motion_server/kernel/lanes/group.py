@@ -585,17 +585,8 @@ class GroupLanes:
         if self.cruise.members:
             self.cruise.step(s)
         if self.profiles.members:
-            profiles = self.profiles
-            profiles.step(s, compose)
-            if profiles.reached:
-                # jogs at speed: offered as Motion.offer would, in row order
-                cruise = self.cruise
-                cruise.hand_in_all(profiles.reached)  # (a time lane: joined, set by _end)
-                columns = profiles.reached_columns
-                if columns is not None:
-                    cruise.take_batch(profiles.reached, columns)
-                profiles.reached = ()
-                profiles.reached_columns = None
+            # (jogs at speed are handed to the cruise lane by the profile lane's step)
+            self.profiles.step(s, compose)
         if self.stops.members or self.stops.rows:
             self.stops.step(s, dt, compose)
         if self.scurves.members:

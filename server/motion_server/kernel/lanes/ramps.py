@@ -173,8 +173,64 @@ class PlanLane(Lane):
         return [], rows.tolist()
 
     def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
-        """End the plans of ``rows`` (from :meth:`_ending`) at the sample ``t``."""
-        raise NotImplementedError
+        """The jogs at ``rows`` (from :meth:`_ending`) reach their velocity at the sample
+        ``t``: what composing their axes does (the profile's ``finish_plan``,
+        ``JogProcess._after_step``, ``Motion.compose`` of a single process, then
+        ``Motion.offer``: at speed, it joins the cruise lane), with the finishing sample
+        computed as arrays, the same operations in the same order. Each jog leaves this
+        lane for the cruise lane, admitted in row order (``Lane.admit`` of each) with the
+        columns its rebuild would read of them (``CruiseLane._load``); its plan stays as
+        it is, built or still a request (a finished profile does not need it)."""
+        a = self.arrays
+        r = np.array(rows, dtype=np.intp)
+        gap = t[r] - a["end"][r]
+        end_vel = a["end_vel"][r]
+        # finish_plan: end_position + max(t - end, 0.0) * end_velocity (not landing)
+        x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
+        cmd = a["base"][r] + x
+        positions, velocities = x.tolist(), end_vel.tolist()
+        # already counted this sample; whole numbers (int() of each, as integers)
+        cycles = a["cycles"][r].astype(np.int64).tolist()
+        idx = self.idx[r]
+        s.cmd_pos[idx] = cmd
+        s.cmd_vel[idx] = end_vel
+        s.cmd_acc[idx] = 0.0
+        slot = self._slot
+        members, axes = self.members, self.axes
+        if len(rows) == len(members):
+            # every member (a batch of jogs at speed together): no slot is left
+            ended, their_axes = members, axes
+            slot.clear()
+        else:
+            ended = [members[k] for k in rows]
+            their_axes = [axes[k] for k in rows]
+            for p in ended:
+                slot.pop(id(p), None)
+        bases = list(map(_BASE, their_axes))
+        for p, x_k, v_k, c in zip(ended, positions, velocities, cycles, strict=True):
+            # (a JogProcess: _ending, accepts)
+            prof = p.profile  # type: ignore[attr-defined]
+            prof.cycles = c
+            prof.finished = True
+            prof.position = x_k
+            prof.velocity = v_k
+            prof.acceleration = 0.0
+            p.position = x_k
+            p.velocity = v_k
+            p.acceleration = 0.0
+            p.at_speed = True  # type: ignore[attr-defined]
+            # leaves this lane and is offered at once (Motion.offer): to the cruise lane
+            p.lane = None
+            p.offer_pending = False
+        at_speed = list(zip(ended, their_axes, strict=True))
+        cruise = self._owner.cruise  # type: ignore[attr-defined]
+        cruise.hand_in_all(at_speed)
+        dt = a["dt"][r]
+        cruise.take_batch(at_speed, [bases, x, end_vel, dt, end_vel * dt])
+        self.changed = True
+        # from this lane to the cruise lane, both time-driven: the followers keep their
+        # levels (``Lane.RELEVELS``)
+        self._owner.joined = True
 
 
 class ProfileLane(PlanLane):
@@ -346,69 +402,6 @@ class ProfileLane(PlanLane):
             else:
                 odd.append(k)
         return ended, odd
-
-    def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
-        """The jogs at ``rows`` reach their velocity at the sample ``t``: what composing
-        their axes does (``TrapezoidProfile.finish_plan``, ``JogProcess._after_step``,
-        ``Motion.compose`` of a single process, then ``Motion.offer``: at speed, it joins
-        the cruise lane), with the finishing sample computed as arrays, the same
-        operations in the same order. Each jog leaves this lane for the cruise lane
-        (its plan stays as it is, built or still a request)."""
-        a = self.arrays
-        r = np.array(rows, dtype=np.intp)
-        gap = t[r] - a["end"][r]
-        end_vel = a["end_vel"][r]
-        # finish_plan: end_position + max(t - end, 0.0) * end_velocity (not landing)
-        x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
-        cmd = a["base"][r] + x
-        positions, velocities = x.tolist(), end_vel.tolist()
-        # already counted this sample; whole numbers (int() of each, as integers)
-        cycles = a["cycles"][r].astype(np.int64).tolist()
-        idx = self.idx[r]
-        s.cmd_pos[idx] = cmd
-        s.cmd_vel[idx] = end_vel
-        s.cmd_acc[idx] = 0.0
-        slot = self._slot
-        members, axes = self.members, self.axes
-        if len(rows) == len(members):
-            # every member (a batch of jogs at speed together): no slot is left
-            ended, their_axes = members, axes
-            slot.clear()
-        else:
-            ended = [members[k] for k in rows]
-            their_axes = [axes[k] for k in rows]
-            for p in ended:
-                slot.pop(id(p), None)
-        bases = list(map(_BASE, their_axes))
-        for p, x_k, v_k, c in zip(ended, positions, velocities, cycles, strict=True):
-            # (a JogProcess on a TrapezoidProfile: _ending, accepts)
-            prof = p.profile  # type: ignore[attr-defined]
-            prof.cycles = c
-            prof.finished = True
-            prof.position = x_k
-            prof.velocity = v_k
-            prof.acceleration = 0.0
-            p.position = x_k
-            p.velocity = v_k
-            p.acceleration = 0.0
-            p.at_speed = True  # type: ignore[attr-defined]
-            # leaves this lane and is offered at once (Motion.offer): to the cruise lane
-            p.lane = None
-            p.offer_pending = False
-        at_speed: list[tuple[Process, Axis]] = list(zip(ended, their_axes, strict=True))
-        self.reached = at_speed
-        # what CruiseLane._load reads of each (the profile's dt: the lane's column)
-        dt = a["dt"][r]
-        self.reached_columns = [bases, x, end_vel, dt, end_vel * dt]
-        self.changed = True
-        # from this lane to the cruise lane: the followers keep their levels
-        self._owner.joined = True
-
-    #: the jogs :meth:`_end` ended in the last step, for the cruise lane (``GroupLanes``;
-    #: a class default for lanes restored from a snapshot saved before it existed)
-    reached: Sequence[tuple[Process, Axis]] = ()
-    #: the ``CruiseLane`` columns of :attr:`reached` (:meth:`CruiseLane.take_batch`)
-    reached_columns: list[Any] | None = None
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray

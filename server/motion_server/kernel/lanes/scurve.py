@@ -203,64 +203,6 @@ class SCurveLane(PlanLane):
                 odd.append(k)
         return ended, odd
 
-    def _end(self, s: AxisArrays, rows: list[int], t: np.ndarray) -> None:
-        """The jogs at ``rows`` reach their velocity at the sample ``t``: what composing
-        their axes does (``SCurveProfile.finish_plan``, ``JogProcess._after_step``,
-        ``Motion.compose`` of a single process, then ``Motion.offer``: at speed, it joins
-        the cruise lane), with the finishing sample computed as arrays, the same
-        operations in the same order. The plan of a jog whose plan is still a request
-        is not built: a finished profile does not need it."""
-        a = self.arrays
-        r = np.array(rows, dtype=np.intp)
-        gap = t[r] - a["end"][r]
-        end_vel = a["end_vel"][r]
-        # finish_plan: end_position + max(t - end, 0.0) * end_velocity
-        x = a["end_pos"][r] + np.where(gap < 0.0, 0.0, gap) * end_vel
-        cmd = a["base"][r] + x
-        positions, velocities = x.tolist(), end_vel.tolist()
-        cycles = (a["cycles"][r]).tolist()  # already counted this sample
-        idx = self.idx[r]
-        s.cmd_pos[idx] = cmd
-        s.cmd_vel[idx] = end_vel
-        s.cmd_acc[idx] = 0.0
-        slot = self._slot
-        members, axes = self.members, self.axes
-        if len(rows) == len(members):
-            # every member (a batch of jogs at speed together): no slot is left
-            ended, their_axes = members, axes
-            slot.clear()
-        else:
-            ended = [members[k] for k in rows]
-            their_axes = [axes[k] for k in rows]
-            for p in ended:
-                slot.pop(id(p), None)
-        for p, x_k, v_k, c in zip(ended, positions, velocities, cycles, strict=True):
-            # (a JogProcess on an SCurveProfile: _ending, accepts)
-            prof = p.profile  # type: ignore[attr-defined]
-            prof.cycles = int(c)
-            prof.finished = True
-            prof.position = x_k
-            prof.velocity = v_k
-            prof.acceleration = 0.0
-            p.position = x_k
-            p.velocity = v_k
-            p.acceleration = 0.0
-            p.at_speed = True  # type: ignore[attr-defined]
-            # leaves this lane and is offered at once (Motion.offer): to the cruise lane
-            p.lane = None
-            p.offer_pending = False
-        # admitted to the cruise lane in row order (``Lane.admit`` of each), with the
-        # columns its rebuild would read of them (``CruiseLane._load``)
-        at_speed = list(zip(ended, their_axes, strict=True))
-        cruise = self._owner.cruise  # type: ignore[attr-defined]
-        cruise.hand_in_all(at_speed)
-        dt = a["dt"][r]
-        cruise.take_batch(at_speed, [[ax.base for ax in their_axes], x, end_vel, dt, end_vel * dt])
-        self.changed = True
-        # from this lane to the cruise lane, both time-driven: the followers keep their
-        # levels (``Lane.RELEVELS``), as for the jogs the profile lane hands over
-        self._owner.joined = True
-
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
