@@ -20,7 +20,10 @@ reads it to tell a reset (:data:`RESETS`) from a deliberate disable.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from enum import IntEnum
+
+import numpy as np
 
 from .axis import Axis
 from .drive import DriveModel
@@ -160,6 +163,103 @@ class Power:
         if state != ax.state or (state, event) in REAPPLIED:
             ax.power_event = int(event)
             self._enter(ax, state, ABORT_REASON.get(event, AbortReason.NONE))
+
+    def fire_all(
+        self,
+        axes: Iterable[Axis],
+        event: PowerEvent,
+        *,
+        set_bits: int | None = None,
+        clear: bool = False,
+    ) -> None:
+        """For each of ``axes`` in order: its AxisFault bits ``|= set_bits`` (if given) or
+        cleared (``clear``), then :meth:`fire` ``event``: exactly what the per-axis calls leave, in
+        one pass. A whole group faulted or reset at once (a watchdog's latch) costs a few
+        array writes and a short loop of attribute stores instead of a full :meth:`fire`
+        per axis.
+
+        An axis with nothing to abort (no process, no stop row, no preloaded cam, nothing
+        buffered) that does not enter Servo Control is done inline: its Python attributes
+        at once, its array cells (fault, power state, after-stop action, busy, drive on)
+        and the counters in one vectorised write. Any other axis goes through :meth:`fire`
+        (its processes' owners may be told), the inline axes before it written first, so
+        every observer sees the same order as the per-axis calls. ``event`` must be one
+        the table never refuses (not in :data:`NEEDS_DRIVE`, and no error code for any
+        state): FAULT, FAULT_RESET, SHUTDOWN, SHUTDOWN_RESET, SERVO_OFF.
+        """
+        if event in NEEDS_DRIVE:
+            raise ValueError(f"{event.name} may be refused: fire it axis by axis")
+        s = self._motion.s
+        bits = 0 if set_bits is None else int(set_bits)
+        write_fault = clear or set_bits is not None
+        ev = int(event)
+        table = TRANSITIONS
+        servo = AxisState.SERVO_CONTROL
+        nothing = AfterStop.NOTHING
+        # inline axes not yet written to the arrays: all of them (fault bits), and those
+        # whose state changes (entered) with their new states
+        touched: list[int] = []
+        seen: set[int] = set()
+        entered: list[int] = []
+        states: list[int] = []
+
+        def flush() -> None:
+            if touched:
+                if write_fault:
+                    if clear:
+                        s.fault[touched] = 0
+                    else:
+                        s.fault[touched] |= bits
+                    s.fault_changes += len(touched)
+                s.dirty.update(touched)
+                touched.clear()
+                seen.clear()
+            if entered:
+                s.busy[entered] = False
+                s.after_stop[entered] = int(nothing)
+                s.axis_state[entered] = states
+                s.state_changes += len(entered)
+                on = s.drive_on[entered]
+                for _ in range(int(np.count_nonzero(on))):
+                    self._drive.switched()
+                s.drive_on[entered] = False
+                entered.clear()
+                states.clear()
+
+        for ax in axes:
+            i = ax.index
+            current = ax._state
+            nxt = table.get((current, event))
+            if not isinstance(nxt, AxisState):
+                raise TransitionError(f"axis {ax.name} power", current, event)
+            changes = nxt != current or (nxt, event) in REAPPLIED
+            if i in seen or (
+                changes
+                and (
+                    nxt == servo
+                    or ax._processes
+                    or ax.stop_rows is not None
+                    or ax.preloaded_cams
+                    or ax.buffered is not None
+                )
+            ):
+                flush()
+                if write_fault:
+                    ax.fault = 0 if clear else ax.fault | bits
+                self.fire(ax, event)
+                continue
+            touched.append(i)
+            seen.add(i)
+            if changes:
+                # what _enter does to an axis without processes: abort (busy False), drop
+                # the stop latch and the after-stop action, the new state, drive off
+                ax.power_event = ev
+                ax._stop_latch = None
+                ax._after_stop = nothing
+                ax._state = nxt
+                entered.append(i)
+                states.append(int(nxt))
+        flush()
 
     def _enter(self, ax: Axis, state: AxisState, reason: AbortReason) -> None:
         if state != AxisState.SERVO_CONTROL:

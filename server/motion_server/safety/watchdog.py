@@ -157,9 +157,7 @@ class Watchdog:
     def reset(self) -> None:
         """The explicit reset: clear the latch and the axes' watchdog faults."""
         if self.state == WatchdogState.FAULTED:
-            for ax in self.group.axes:
-                if ax.fault & WATCHDOG_FAULT:
-                    self.ctl.fault_reset(ax)
+            self.ctl.fault_reset_axes([ax for ax in self.group.axes if ax.fault & WATCHDOG_FAULT])
             self.beats.clear()
         self.fire(WatchdogEvent.RESET)
 
@@ -173,9 +171,10 @@ class Watchdog:
         elif self.state == WatchdogState.STOPPING:
             assert self.stop is not None
             if self.stop.complete:
-                for ax in self.group.axes:
-                    if ax.type != AxisType.FEEDBACK_ONLY:
-                        self.ctl.fault(ax, WATCHDOG_FAULT)
+                self.ctl.fault_axes(
+                    [ax for ax in self.group.axes if ax.type != AxisType.FEEDBACK_ONLY],
+                    WATCHDOG_FAULT,
+                )
                 self.stop = None
                 self.fire(WatchdogEvent.STOPPED)
         elif self.state == WatchdogState.FAULTED and not any(
