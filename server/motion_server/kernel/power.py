@@ -183,82 +183,88 @@ class Power:
         at once, its array cells (fault, power state, after-stop action, busy, drive on)
         and the counters in one vectorised write. Any other axis goes through :meth:`fire`
         (its processes' owners may be told), the inline axes before it written first, so
-        every observer sees the same order as the per-axis calls. ``event`` must be one
-        the table never refuses (not in :data:`NEEDS_DRIVE`, and no error code for any
-        state): FAULT, FAULT_RESET, SHUTDOWN, SHUTDOWN_RESET, SERVO_OFF.
+        every observer sees the same order as the per-axis calls; a refusal raises there,
+        as it would axis by axis, the axes before it done. ``event`` must not be one a
+        feedback-only axis refuses (:data:`NEEDS_DRIVE`): FAULT, FAULT_RESET, SHUTDOWN,
+        SHUTDOWN_RESET, SERVO_OFF and the after-stop events are meant.
         """
         if event in NEEDS_DRIVE:
-            raise ValueError(f"{event.name} may be refused: fire it axis by axis")
+            raise ValueError(f"{event.name} depends on the axis type: fire it axis by axis")
         s = self._motion.s
         bits = 0 if set_bits is None else int(set_bits)
         write_fault = clear or set_bits is not None
         ev = int(event)
-        table = TRANSITIONS
-        servo = AxisState.SERVO_CONTROL
         nothing = AfterStop.NOTHING
-        # inline axes not yet written to the arrays: all of them (fault bits), and those
-        # whose state changes (entered) with their new states
-        touched: list[int] = []
-        seen: set[int] = set()
+        # power state -> True: the event takes an axis without processes there to
+        # ``target`` inline, False: it changes nothing; a state missing (a refusal, or
+        # entering Servo Control, where the command is set at rest, or a second target)
+        # goes through fire
+        enter: dict[AxisState, bool] = {}
+        target: AxisState | None = None
+        for state in AxisState:
+            nxt = TRANSITIONS.get((state, event))
+            if isinstance(nxt, AxisState):
+                if nxt == state and (nxt, event) not in REAPPLIED:
+                    enter[state] = False
+                elif nxt != AxisState.SERVO_CONTROL and target in (None, nxt):
+                    target = nxt
+                    enter[state] = True
+        to = AxisState.AXIS_READY if target is None else target  # (unused when None)
+        # inline axes not yet written to the arrays: those the event changes nothing on
+        # (their fault bits only) and those that enter ``target``
+        same: list[int] = []
         entered: list[int] = []
-        states: list[int] = []
 
         def flush() -> None:
-            if touched:
+            if same or entered:
+                idx = np.array(same + entered, dtype=np.intp)
                 if write_fault:
                     if clear:
-                        s.fault[touched] = 0
+                        s.fault[idx] = 0
                     else:
-                        s.fault[touched] |= bits
-                    s.fault_changes += len(touched)
-                s.dirty.update(touched)
-                touched.clear()
-                seen.clear()
+                        s.fault[idx] |= bits
+                    s.fault_changes += len(idx)
+                s.dirty.update(same)
+                s.dirty.update(entered)
+                same.clear()
             if entered:
-                s.busy[entered] = False
-                s.after_stop[entered] = int(nothing)
-                s.axis_state[entered] = states
+                idx = np.array(entered, dtype=np.intp)
+                s.busy[idx] = False
+                s.after_stop[idx] = int(nothing)
+                s.axis_state[idx] = int(to)
                 s.state_changes += len(entered)
-                on = s.drive_on[entered]
-                for _ in range(int(np.count_nonzero(on))):
+                drive_on = s.drive_on
+                was_on = int(np.count_nonzero(drive_on))
+                drive_on[idx] = False
+                # one switch per drive that went off (an axis named twice switches once)
+                for _ in range(was_on - int(np.count_nonzero(drive_on))):
                     self._drive.switched()
-                s.drive_on[entered] = False
                 entered.clear()
-                states.clear()
 
         for ax in axes:
-            i = ax.index
-            current = ax._state
-            nxt = table.get((current, event))
-            if not isinstance(nxt, AxisState):
-                raise TransitionError(f"axis {ax.name} power", current, event)
-            changes = nxt != current or (nxt, event) in REAPPLIED
-            if i in seen or (
-                changes
-                and (
-                    nxt == servo
-                    or ax._processes
-                    or ax.stop_rows is not None
-                    or ax.preloaded_cams
-                    or ax.buffered is not None
-                )
-            ):
-                flush()
-                if write_fault:
-                    ax.fault = 0 if clear else ax.fault | bits
-                self.fire(ax, event)
+            changes = enter.get(ax._state)
+            if changes is False:
+                same.append(ax.index)
                 continue
-            touched.append(i)
-            seen.add(i)
-            if changes:
+            if changes and not (
+                ax._processes
+                or ax.stop_rows is not None
+                or ax.preloaded_cams
+                or ax.buffered is not None
+            ):
                 # what _enter does to an axis without processes: abort (busy False), drop
-                # the stop latch and the after-stop action, the new state, drive off
+                # the stop latch and the after-stop action, the new state, drive off (the
+                # arrays in flush)
                 ax.power_event = ev
                 ax._stop_latch = None
                 ax._after_stop = nothing
-                ax._state = nxt
-                entered.append(i)
-                states.append(int(nxt))
+                ax._state = to
+                entered.append(ax.index)
+                continue
+            flush()
+            if write_fault:
+                ax.fault = 0 if clear else ax.fault | bits
+            self.fire(ax, event)
         flush()
 
     def _enter(self, ax: Axis, state: AxisState, reason: AbortReason) -> None:
