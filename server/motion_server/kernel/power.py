@@ -27,7 +27,7 @@ import numpy as np
 
 from .axis import Axis
 from .drive import DriveModel
-from .enums import AbortReason, AfterStop, AxisState, AxisType
+from .enums import AbortReason, AfterStop, AxisState, AxisType, PLCopenState
 from .errors import ErrorCode, MotionError, TransitionError
 from .motion import Motion
 
@@ -214,6 +214,10 @@ class Power:
         # (their fault bits only) and those that enter ``target``
         same: list[int] = []
         entered: list[int] = []
+        homed: list[int] = []  # those of ``entered`` with Homed or HomingStatus
+        to_plcopen = (
+            PLCopenState.ERRORSTOP if to == AxisState.AXIS_FAULTED else PLCopenState.DISABLED
+        )
 
         def flush() -> None:
             if same or entered:
@@ -225,10 +229,17 @@ class Power:
                         s.fault[idx] |= bits
                     s.fault_changes += len(idx)
                 s.dirty.update(same)
-                s.dirty.update(entered)
                 same.clear()
             if entered:
                 idx = np.array(entered, dtype=np.intp)
+                # their status words derived here, not marked dirty (what status_arrays
+                # would find: no process, no latch, a state other than Servo Control;
+                # a homed axis is left to it)
+                s.plcopen_state[idx] = int(to_plcopen)
+                s.motion_bits[idx] = 0
+                s.dirty.difference_update(entered)
+                s.dirty.update(homed)
+                homed.clear()
                 s.busy[idx] = False
                 s.after_stop[idx] = int(nothing)
                 s.axis_state[idx] = int(to)
@@ -260,6 +271,8 @@ class Power:
                 ax._after_stop = nothing
                 ax._state = to
                 entered.append(ax.index)
+                if ax._homed or ax._homing_armed is not None:
+                    homed.append(ax.index)
                 continue
             flush()
             if write_fault:
