@@ -108,6 +108,7 @@ picks = st.lists(st.integers(0, N_AXES - 1), max_size=2 * N_AXES)
     bits=st.sampled_from(BITS),
     read_early=st.booleans(),
     reset=picks,
+    shutdown_reset=st.booleans(),
     cycles=st.integers(0, 60),
 )
 def test_faulting_in_one_batch_equals_faulting_axis_by_axis(
@@ -119,6 +120,7 @@ def test_faulting_in_one_batch_equals_faulting_axis_by_axis(
     bits: int,
     read_early: bool,
     reset: list[int],
+    shutdown_reset: bool,
     cycles: int,
 ) -> None:
     # the batch and the calls axis by axis, on two controllers alike (lanes on or off)
@@ -149,9 +151,14 @@ def test_faulting_in_one_batch_equals_faulting_axis_by_axis(
     pa.step()
     pb.step()
     compare(pa, pb, ap, bp, as_, bs, "the cycle after the fault")
-    pa.fault_reset_axes([pa.axes[k] for k in reset])
-    for k in reset:
-        pb.fault_reset(pb.axes[k])
+    if shutdown_reset:  # MASR / MGSR
+        pa.shutdown_reset_axes([pa.axes[k] for k in reset])
+        for k in reset:
+            pb.shutdown_reset(pb.axes[k])
+    else:
+        pa.fault_reset_axes([pa.axes[k] for k in reset])
+        for k in reset:
+            pb.fault_reset(pb.axes[k])
     compare(pa, pb, ap, bp, as_, bs, "after the reset")
     for k in range(cycles):
         pa.step()
@@ -235,3 +242,10 @@ def test_every_power_state_homed_or_not_faulted_and_reset_in_one_batch(
     for ax in pb.axes:
         pb.fault_reset(ax)
     compare(pa, pb, nothing, nothing, nothing, nothing, "reset")
+    for ctl in (pa, pb):
+        for ax in ctl.axes[:4]:
+            ctl.shutdown(ax)
+    pa.group_shutdown_reset(1)  # MGSR: in one batch
+    for ax in pb.axes:
+        pb.shutdown_reset(ax)
+    compare(pa, pb, nothing, nothing, nothing, nothing, "shut down and reset")
