@@ -456,6 +456,29 @@ class Controller:
         ax.fault |= int(bits)
         self.power.fire(ax, PowerEvent.FAULT)
 
+    def fault_axes(self, axes: Iterable[Axis], bits: int) -> None:
+        """:meth:`fault` on each of ``axes`` in order with the same ``bits``, in one pass
+        (:meth:`Power.fire_all <.power.Power.fire_all>`): a watchdog faulting its group."""
+        self.power.fire_all(axes, PowerEvent.FAULT, set_bits=bits)
+
+    def fault_reset_axes(self, axes: Iterable[Axis]) -> None:
+        """:meth:`fault_reset` on each of ``axes`` in order, in one pass while no injected
+        Disable Drive cause is held (one held faults its axis again: axis by axis then)."""
+        if self.faults.held:
+            for ax in axes:
+                self.fault_reset(ax)
+            return
+        self.power.fire_all(axes, PowerEvent.FAULT_RESET, clear=True)
+
+    def shutdown_reset_axes(self, axes: Iterable[Axis]) -> None:
+        """:meth:`shutdown_reset` on each of ``axes`` in order, in one pass (MGSR), as
+        :meth:`fault_reset_axes`."""
+        if self.faults.held:
+            for ax in axes:
+                self.shutdown_reset(ax)
+            return
+        self.power.fire_all(axes, PowerEvent.SHUTDOWN_RESET, clear=True)
+
     def fault_reset(self, ax: Axis) -> None:
         """MAFR / MC_Reset: clear faults; a faulted axis returns to Axis Ready. An injected
         Disable Drive cause still held faults it again at once (:mod:`.faults`)."""
@@ -496,8 +519,7 @@ class Controller:
     def group_shutdown_reset(self, ref: int | str) -> MotionGroup:
         """MGSR: every axis of the group from Axis Shutdown (or faulted) to Axis Ready."""
         g = self.group(ref)
-        for ax in g.axes:
-            self.shutdown_reset(ax)
+        self.shutdown_reset_axes(g.axes)
         return g
 
     def release_followers(self, master: Axis, reason: AbortReason) -> None:

@@ -20,11 +20,14 @@ reads it to tell a reset (:data:`RESETS`) from a deliberate disable.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from enum import IntEnum
+
+import numpy as np
 
 from .axis import Axis
 from .drive import DriveModel
-from .enums import AbortReason, AfterStop, AxisState, AxisType
+from .enums import AbortReason, AfterStop, AxisState, AxisType, PLCopenState
 from .errors import ErrorCode, MotionError, TransitionError
 from .motion import Motion
 
@@ -160,6 +163,122 @@ class Power:
         if state != ax.state or (state, event) in REAPPLIED:
             ax.power_event = int(event)
             self._enter(ax, state, ABORT_REASON.get(event, AbortReason.NONE))
+
+    def fire_all(
+        self,
+        axes: Iterable[Axis],
+        event: PowerEvent,
+        *,
+        set_bits: int | None = None,
+        clear: bool = False,
+    ) -> None:
+        """For each of ``axes`` in order: its AxisFault bits ``|= set_bits`` (if given) or
+        cleared (``clear``), then :meth:`fire` ``event``: exactly what the per-axis calls leave, in
+        one pass. A whole group faulted or reset at once (a watchdog's latch) costs a few
+        array writes and a short loop of attribute stores instead of a full :meth:`fire`
+        per axis.
+
+        An axis with nothing to abort (no process, no stop row, no preloaded cam, nothing
+        buffered) that does not enter Servo Control is done inline: its Python attributes
+        at once, its array cells (fault, power state, after-stop action, busy, drive on)
+        and the counters in one vectorised write. Any other axis goes through :meth:`fire`
+        (its processes' owners may be told), the inline axes before it written first, so
+        every observer sees the same order as the per-axis calls; a refusal raises there,
+        as it would axis by axis, the axes before it done. ``event`` must not be one a
+        feedback-only axis refuses (:data:`NEEDS_DRIVE`): FAULT, FAULT_RESET, SHUTDOWN,
+        SHUTDOWN_RESET, SERVO_OFF and the after-stop events are meant.
+        """
+        if event in NEEDS_DRIVE:
+            raise ValueError(f"{event.name} depends on the axis type: fire it axis by axis")
+        s = self._motion.s
+        bits = 0 if set_bits is None else int(set_bits)
+        write_fault = clear or set_bits is not None
+        ev = int(event)
+        nothing = AfterStop.NOTHING
+        # power state -> True: the event takes an axis without processes there to
+        # ``target`` inline, False: it changes nothing; a state missing (a refusal, or
+        # entering Servo Control, where the command is set at rest, or a second target)
+        # goes through fire
+        enter: dict[AxisState, bool] = {}
+        target: AxisState | None = None
+        for state in AxisState:
+            nxt = TRANSITIONS.get((state, event))
+            if isinstance(nxt, AxisState):
+                if nxt == state and (nxt, event) not in REAPPLIED:
+                    enter[state] = False
+                elif nxt != AxisState.SERVO_CONTROL and target in (None, nxt):
+                    target = nxt
+                    enter[state] = True
+        to = AxisState.AXIS_READY if target is None else target  # (unused when None)
+        # inline axes not yet written to the arrays: those the event changes nothing on
+        # (their fault bits only) and those that enter ``target``
+        same: list[int] = []
+        entered: list[int] = []
+        homed: list[int] = []  # those of ``entered`` with Homed or HomingStatus
+        to_plcopen = (
+            PLCopenState.ERRORSTOP if to == AxisState.AXIS_FAULTED else PLCopenState.DISABLED
+        )
+
+        def flush() -> None:
+            if same or entered:
+                idx = np.array(same + entered, dtype=np.intp)
+                if write_fault:
+                    if clear:
+                        s.fault[idx] = 0
+                    else:
+                        s.fault[idx] |= bits
+                    s.fault_changes += len(idx)
+                s.dirty.update(same)
+                same.clear()
+            if entered:
+                idx = np.array(entered, dtype=np.intp)
+                # their status words derived here, not marked dirty (what status_arrays
+                # would find: no process, no latch, a state other than Servo Control;
+                # a homed axis is left to it)
+                s.plcopen_state[idx] = int(to_plcopen)
+                s.motion_bits[idx] = 0
+                s.dirty.difference_update(entered)
+                s.dirty.update(homed)
+                homed.clear()
+                s.busy[idx] = False
+                s.after_stop[idx] = int(nothing)
+                s.axis_state[idx] = int(to)
+                s.state_changes += len(entered)
+                drive_on = s.drive_on
+                was_on = int(np.count_nonzero(drive_on))
+                drive_on[idx] = False
+                # one switch per drive that went off (an axis named twice switches once)
+                for _ in range(was_on - int(np.count_nonzero(drive_on))):
+                    self._drive.switched()
+                entered.clear()
+
+        for ax in axes:
+            changes = enter.get(ax._state)
+            if changes is False:
+                same.append(ax.index)
+                continue
+            if changes and not (
+                ax._processes
+                or ax.stop_rows is not None
+                or ax.preloaded_cams
+                or ax.buffered is not None
+            ):
+                # what _enter does to an axis without processes: abort (busy False), drop
+                # the stop latch and the after-stop action, the new state, drive off (the
+                # arrays in flush)
+                ax.power_event = ev
+                ax._stop_latch = None
+                ax._after_stop = nothing
+                ax._state = to
+                entered.append(ax.index)
+                if ax._homed or ax._homing_armed is not None:
+                    homed.append(ax.index)
+                continue
+            flush()
+            if write_fault:
+                ax.fault = 0 if clear else ax.fault | bits
+            self.fire(ax, event)
+        flush()
 
     def _enter(self, ax: Axis, state: AxisState, reason: AbortReason) -> None:
         if state != AxisState.SERVO_CONTROL:

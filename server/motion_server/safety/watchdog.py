@@ -157,9 +157,7 @@ class Watchdog:
     def reset(self) -> None:
         """The explicit reset: clear the latch and the axes' watchdog faults."""
         if self.state == WatchdogState.FAULTED:
-            for ax in self.group.axes:
-                if ax.fault & WATCHDOG_FAULT:
-                    self.ctl.fault_reset(ax)
+            self.ctl.fault_reset_axes([ax for ax in self.group.axes if ax.fault & WATCHDOG_FAULT])
             self.beats.clear()
         self.fire(WatchdogEvent.RESET)
 
@@ -173,14 +171,15 @@ class Watchdog:
         elif self.state == WatchdogState.STOPPING:
             assert self.stop is not None
             if self.stop.complete:
-                for ax in self.group.axes:
-                    if ax.type != AxisType.FEEDBACK_ONLY:
-                        self.ctl.fault(ax, WATCHDOG_FAULT)
+                # the whole group faulted in one batch (feedback-only axes have no drive)
+                fb = AxisType.FEEDBACK_ONLY
+                self.ctl.fault_axes([ax for ax in self.group.axes if ax.type != fb], WATCHDOG_FAULT)
                 self.stop = None
                 self.fire(WatchdogEvent.STOPPED)
-        elif self.state == WatchdogState.FAULTED and not any(
-            ax.fault & WATCHDOG_FAULT for ax in self.group.axes
-        ):
+        elif (
+            self.state == WatchdogState.FAULTED
+            and not (self.ctl.arrays.fault[self.group.idx] & WATCHDOG_FAULT).any()
+        ):  # (the group's AxisFault words read as one array: every cycle while latched)
             self.beats.clear()
             self.fire(WatchdogEvent.CLEARED)
 
