@@ -43,7 +43,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar, NamedTuple
 
-from ...kernel import Axis, MasterReference, ProcessKind
+from ...kernel import Axis, AxisType, MasterReference, ProcessKind
 from ...kernel.cam_batch import CamStart
 from ...kernel.cam_profile import CamProfile
 from ...kernel.cams import (
@@ -63,7 +63,7 @@ from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
 from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Operand, Quantity, StatusField, TagType
-from .mag import DIRECTION, GearDirection, _walk, resolve_direction
+from .mag import _NONE, DIRECTION, GearDirection, _walk, resolve_direction
 from .mccp import CAM_PROFILE
 
 LOCKS = {
@@ -215,21 +215,72 @@ class MAPC(CamInstruction):
             return None
         s = int(op["SlaveAxis"])
         m = int(op["MasterAxis"])
-        if batch.jobs:
-            _, reaches = _walk(self.ctl, m, s, batch.slaves)
-            if reaches or s in batch.axes:
-                batch.flush()
-        slave = self.axis("SlaveAxis")
+        # one walk over the master/slave links: whether the cam closes a loop, whether
+        # its master is a queued slave or follows one
+        loops, reaches = _walk(self.ctl, m, s, batch.slaves if batch.jobs else _NONE)
+        flushed = reaches or s in batch.axes
+        if flushed:
+            batch.flush()  # its checks see the cams queued before it (in full: ``_plan``)
+        ctl = self.ctl
+        slave = ctl.axis(s)
         if slave.preloaded_cams:
             return None
-        plan = self._plan()
+        # what the checks find from the values and the profile alone (the judge's key and
+        # the profile the slot holds): worked out once per set of them in a scan pass
+        memo = None
+        values = None
+        if key is not None and not flushed:
+            slot = ctl.cams.slots.get(int(op["CamProfile"]))
+            profile = None if slot is None else slot.profile
+            if profile is not None:
+                memo = (MAPC, key, id(profile))
+                values = batch.plans.get(memo)
+        if values is None:
+            plan = self._plan()
+            if memo is not None:
+                batch.plans[memo] = (
+                    plan.profile,
+                    plan.ss,
+                    plan.ms,
+                    plan.cam_lock,
+                    plan.source,
+                    CamMode(int(op["ExecutionMode"])),
+                    GearDirection(int(op["Direction"])),
+                )
+            mode = CamMode(int(op["ExecutionMode"]))
+        else:
+            # the checks of ``_plan`` in its order, those of the values known to pass
+            profile, ss, ms, cam_lock, source, mode, selection = values
+            master = ctl.axis(m)
+            if not takes_motion(slave):
+                ctl.require_motion(slave)
+            if active_cam(slave, ProcessKind.POSITION_CAM) is not None:
+                raise MotionError(
+                    ErrorCode.ILLEGAL_DYNAMIC_CHANGE,
+                    f"{slave.name} is position camming: use the Pending schedule or stop the cam",
+                )
+            if loops or (source == _COMMAND and master.type is _FEEDBACK_ONLY):
+                check_master(ctl, slave, master, source)  # (it refuses: its error)
+            direction = resolve_direction(selection, slave.cam_direction)
+            plan = _Plan(
+                slave,
+                master,
+                ExecutionSchedule.IMMEDIATE,
+                int(op["CamProfile"]),
+                profile,
+                ss,
+                ms,
+                cam_lock,
+                source,
+                direction,
+            )
         master = plan.master
         self._queued = plan
         start = CamStart(
             slave,
             master,
             plan.profile,
-            CamMode(int(op["ExecutionMode"])),
+            mode,
             plan.direction * plan.ss,
             plan.ms,
             plan.cam_lock,
@@ -298,3 +349,7 @@ class _Plan(NamedTuple):
     cam_lock: float
     source: MasterReference
     direction: int
+
+
+_COMMAND = MasterReference.COMMAND
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
