@@ -29,6 +29,11 @@ MotionStatus: PositionCamStatus while the cam is in process (waiting for its loc
 position too), PositionCamLockStatus while it is locked and driving the slave,
 PositionCamPendingStatus while a Pending cam waits.
 
+Scanned by :func:`~..scan_pass.scan_pass`, the Immediate MAPC of one scan that follow
+their master both ways, on slaves without a preloaded cam, start their cams in one
+:func:`~...kernel.cam_batch.start_position_cams` call, with the results of executing them
+one by one (``batch_job``); the others execute alone.
+
 The CamType operand of RM002 is not modelled (profiles are all of one kind here).
 
 Errors: 23 an Immediate or lock-position MAPC while the slave is position camming (use
