@@ -28,6 +28,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   in the same scan: the command is the scan's pass over the instructions (operands
   latched and judged, the kernel commands handed over as one batch, status written:
   ``instructions/scan_pass.py``), as a scan runs it.
+- ``mapc``: ``cam`` commanded through the instruction, one MAPC instance per slave
+  (Continuous, Immediate, on its master's command position, the cam table's profile in
+  slot 1 as MCCP computes it), all executed in the same scan (100 steps).
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
@@ -248,6 +251,26 @@ MAG_SETUP, MAG_COMMAND = instructions(
                "Clutch": 0, "AccelRate": RATE, "AccelUnits": 0},
 )  # fmt: skip
 
+#: MAPC on every slave (the ``cam`` cam), through the instruction: profile slot 1,
+#: Continuous, master scaling 0.1 mm per cam unit, command reference
+MAPC_SETUP, MAPC_COMMAND = instructions(
+    "MAPC",
+    lambda n: range(n // 2 + 1, n + 1),
+    lambda n, k: {"SlaveAxis": k, "MasterAxis": k - n // 2, "CamProfile": 1,
+               "MasterScaling": CAM_MASTER_SCALING, "ExecutionMode": CamMode.CONTINUOUS,
+               "MasterReference": MasterReference.COMMAND},
+)  # fmt: skip
+
+
+def mapc_setup(ctl: Controller) -> None:
+    """Masters jogging, the cam table's profile calculated into slot 1 (what MCCP leaves:
+    the bench's controller declares no cam tables), one MAPC per slave."""
+    from motion_server.kernel.cam_tables import ProfileSlot
+
+    jog(ctl)
+    ctl.cams.slots[1] = ProfileSlot(1, len(CAM_MASTERS), cam_profile())
+    MAPC_SETUP(ctl)
+
 
 def geared(ctl: Controller) -> None:
     """Masters jogging, slaves geared to them (the set-up of ``steady``)."""
@@ -269,6 +292,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "cam": (jog, cam, 2000),
     "maj": (lambda c: (gear(c, False), MAJ_SETUP(c)), MAJ_COMMAND, 100),
     "mag": (lambda c: (jog(c), MAG_SETUP(c)), MAG_COMMAND, 60),
+    "mapc": (mapc_setup, MAPC_COMMAND, 100),
 }
 
 

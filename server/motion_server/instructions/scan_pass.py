@@ -3,11 +3,12 @@ the kernel in one call per kind.
 
 Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel process:
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
-can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears) and whose trigger rose
-are latched, judged and checked one by one, as their own ``scan`` does, but their kernel
-commands are queued; the queue goes to the kernel in one call per kind
-(``Controller.start_jogs``, ``Controller.start_gears``) and then every instance writes its
-status from the process it got.
+can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams)
+and whose trigger rose are latched, judged and checked one by one, as their own ``scan``
+does, but their kernel commands are queued; the queue goes to the kernel in one call per
+kind (``Controller.start_jogs``, ``Controller.start_gears``,
+``kernel.cam_batch.start_position_cams``) and then every instance writes its status from
+the process it got.
 
 The observable result is exactly that of scanning one by one (tested against it, every
 output and the kernel's arrays after every cycle). That holds because a queued command
@@ -19,12 +20,15 @@ over:
   over, so the kernel sees the commands in the order one-by-one scanning gives;
 - an instance whose axis is already in the queue (a second MAJ on one axis, a MAG whose
   slave is a queued slave or master, whose master is a queued slave or reaches one
-  through the master/slave links) first hands the queue over: its checks then see the
-  state the queued commands leave;
+  through the master/slave links; a MAPC whose slave is a queued slave or master, or
+  whose master reaches a queued slave) first hands the queue over: its checks then see
+  the state the queued commands leave;
 - the jogs of one call share one :class:`~..kernel.Limits`: the queue is split where the
   limits change, keeping the order;
 - an instance that decides to execute alone (a MAJ with Merge, master-driven or under a
-  pending MDAC reassignment) hands the queue over first and runs its own ``execute``.
+  pending MDAC reassignment; a MAPC with a schedule other than Immediate, a master
+  direction other than both ways, or a cam preloaded on its slave) hands the queue over
+  first and runs its own ``execute``.
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
@@ -48,6 +52,7 @@ from ..kernel import (
     PowerEvent,
     ProcessKind,
 )
+from ..kernel.cam_batch import start_position_cams
 from ..kernel.power import TRANSITIONS
 from ..kernel.processes import Process
 from .base import Instruction, LogixInstruction, OperandError
@@ -80,12 +85,14 @@ class BatchKind(IntEnum):
 
     JOG = 0
     GEAR = 1
+    POSITION_CAM = 2
 
 
 #: the process kind each batch starts (how a refused batch finds what it started)
 _PROCESS_KIND: dict[BatchKind, ProcessKind] = {
     BatchKind.JOG: ProcessKind.JOG,
     BatchKind.GEAR: ProcessKind.GEAR,
+    BatchKind.POSITION_CAM: ProcessKind.POSITION_CAM,
 }
 _NO_STATUS: dict[str, Any] = {}
 #: the processes a new gear supersedes (MAG)
@@ -96,7 +103,8 @@ class Batch:
     """The queued kernel commands of one kind, in the instances' order.
 
     ``jobs[k]`` is the command of ``owners[k]``: for jogs ``(axis, signed target,
-    limits)``, for gears ``(slave, term, clutch rate or None, direction)``. ``axes`` holds every
+    limits)``, for gears ``(slave, term, clutch rate or None, direction)``, for position
+    cams a :class:`~..kernel.cam_batch.CamStart` (its slave first). ``axes`` holds every
     axis number a queued command touches, ``slaves`` the axes it starts a process on.
     """
 
@@ -162,10 +170,13 @@ class Batch:
             ctl = self.ctl
             axes = [job[0] for job in jobs]
             before = [owner.process for owner in owners]
+            started: Sequence[Process]
             try:
                 if kind is BatchKind.JOG:
                     limits: Limits = jobs[0][2]
                     started = ctl.start_jogs(axes, [job[1] for job in jobs], limits, owners)
+                elif kind is BatchKind.POSITION_CAM:
+                    started = start_position_cams(ctl, jobs)  # type: ignore[arg-type]
                 else:
                     started = ctl.start_gears(
                         axes,

@@ -29,6 +29,11 @@ MotionStatus: PositionCamStatus while the cam is in process (waiting for its loc
 position too), PositionCamLockStatus while it is locked and driving the slave,
 PositionCamPendingStatus while a Pending cam waits.
 
+Scanned by :func:`~..scan_pass.scan_pass`, the Immediate MAPC of one scan that follow
+their master both ways, on slaves without a preloaded cam, start their cams in one
+:func:`~...kernel.cam_batch.start_position_cams` call, with the results of executing them
+one by one (``batch_job``); the others execute alone.
+
 The CamType operand of RM002 is not modelled (profiles are all of one kind here).
 
 Errors: 23 an Immediate or lock-position MAPC while the slave is position camming (use
@@ -41,9 +46,11 @@ loop; 5, 7, 20 the slave's power state.
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar, NamedTuple
 
-from ...kernel import MasterReference, ProcessKind
+from ...kernel import Axis, AxisType, MasterReference, ProcessKind
+from ...kernel.cam_batch import CamStart
+from ...kernel.cam_profile import CamProfile
 from ...kernel.cams import (
     CamMode,
     CamProcess,
@@ -53,13 +60,15 @@ from ...kernel.cams import (
 )
 from ...kernel.errors import ErrorCode, MotionError
 from ...kernel.gearing import check_master
+from ...kernel.processes import Process
 from ..base import Gate, gate
 from ..cam_common import ExecutionSchedule, calculated_profile, scaling, start_cam
-from ..logix_common import ProcessInstruction
+from ..logix_common import STARTED_ACTIVE, ProcessInstruction
 from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
+from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Operand, Quantity, StatusField, TagType
-from .mag import DIRECTION, GearDirection, resolve_direction
+from .mag import _NONE, DIRECTION, GearDirection, _walk, resolve_direction
 from .mccp import CAM_PROFILE
 
 LOCKS = {
@@ -153,11 +162,19 @@ class MAPC(CamInstruction):
         ),
     )
 
-    def execute(self) -> None:
+    #: rising edges in one scan (Immediate, master both ways, no cam preloaded on the
+    #: slave) start their cams with one ``start_position_cams``
+    BATCH = BatchKind.POSITION_CAM
+    #: the plan of a command queued in a batch, until the batch started it
+    _queued: _Plan | None = None
+
+    def _plan(self) -> _Plan:
+        """The checks of ``execute``, in its order, and what the cam is built from."""
         ctl = self.ctl
         slave = self.axis("SlaveAxis")
         master = self.axis("MasterAxis")
-        ctl.require_motion(slave)
+        if not takes_motion(slave):
+            ctl.require_motion(slave)  # the kernel's refusal, with its error
         schedule = ExecutionSchedule(int(self.op["ExecutionSchedule"]))
         number = int(self.op["CamProfile"])
         if number not in ctl.cams.slots:
@@ -185,6 +202,120 @@ class MAPC(CamInstruction):
             source = current.source
         check_master(ctl, slave, master, source)
         direction = resolve_direction(GearDirection(int(self.op["Direction"])), slave.cam_direction)
+        return _Plan(slave, master, schedule, number, profile, ss, ms, cam_lock, source, direction)
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the cam returned as a
+        :class:`~...kernel.cam_batch.CamStart` for ``start_position_cams``; None (executed
+        alone) for a schedule other than Immediate, a master direction other than both
+        ways (the batch starts cams locked at once, following the master both ways) and
+        a slave with a cam preloaded (it would follow the new one). A slave or master
+        that a queued cam touches, or a master that follows a queued slave, hands the
+        queue over first: the checks then see the cams queued before."""
+        op = self.op
+        if (
+            int(op["ExecutionSchedule"]) != ExecutionSchedule.IMMEDIATE
+            or int(op["MasterDirection"]) != MasterDirection.BIDIRECTIONAL
+        ):
+            return None
+        s = int(op["SlaveAxis"])
+        m = int(op["MasterAxis"])
+        # one walk over the master/slave links: whether the cam closes a loop, whether
+        # its master is a queued slave or follows one
+        loops, reaches = _walk(self.ctl, m, s, batch.slaves if batch.jobs else _NONE)
+        flushed = reaches or s in batch.axes
+        if flushed:
+            batch.flush()  # its checks see the cams queued before it (in full: ``_plan``)
+        ctl = self.ctl
+        slave = ctl.axis(s)
+        if slave.preloaded_cams:
+            return None
+        # what the checks find from the values and the profile alone (the judge's key and
+        # the profile the slot holds): worked out once per set of them in a scan pass
+        memo = None
+        values = None
+        if key is not None and not flushed:
+            slot = ctl.cams.slots.get(int(op["CamProfile"]))
+            profile = None if slot is None else slot.profile
+            if profile is not None:
+                memo = (MAPC, key, id(profile))
+                values = batch.plans.get(memo)
+        if values is None:
+            plan = self._plan()
+            if memo is not None:
+                batch.plans[memo] = (
+                    plan.profile,
+                    plan.ss,
+                    plan.ms,
+                    plan.cam_lock,
+                    plan.source,
+                    CamMode(int(op["ExecutionMode"])),
+                    GearDirection(int(op["Direction"])),
+                )
+            mode = CamMode(int(op["ExecutionMode"]))
+        else:
+            # the checks of ``_plan`` in its order, those of the values known to pass
+            profile, ss, ms, cam_lock, source, mode, selection = values
+            master = ctl.axis(m)
+            if not takes_motion(slave):
+                ctl.require_motion(slave)
+            if active_cam(slave, ProcessKind.POSITION_CAM) is not None:
+                raise MotionError(
+                    ErrorCode.ILLEGAL_DYNAMIC_CHANGE,
+                    f"{slave.name} is position camming: use the Pending schedule or stop the cam",
+                )
+            if loops or (source == _COMMAND and master.type is _FEEDBACK_ONLY):
+                check_master(ctl, slave, master, source)  # (it refuses: its error)
+            direction = resolve_direction(selection, slave.cam_direction)
+            plan = _Plan(
+                slave,
+                master,
+                ExecutionSchedule.IMMEDIATE,
+                int(op["CamProfile"]),
+                profile,
+                ss,
+                ms,
+                cam_lock,
+                source,
+                direction,
+            )
+        master = plan.master
+        self._queued = plan
+        start = CamStart(
+            slave,
+            master,
+            plan.profile,
+            mode,
+            plan.direction * plan.ss,
+            plan.ms,
+            plan.cam_lock,
+            plan.source,
+            owner=self,
+        )
+        return start, (s, master.number)
+
+    def batch_started(self, process: Process) -> None:
+        plan = self._queued
+        self._queued = None
+        assert plan is not None and isinstance(process, CamProcess)
+        # (the batch builds its cams with the lock position's default: an Immediate cam
+        # never reads it, but it is the cam's state as ``execute`` leaves it)
+        process.master_lock = float(self.op["MasterLockPosition"])
+        plan.slave.cam_direction = plan.direction
+        self.ctl.cams.register(plan.number, process)
+        self.started_active(process, STARTED_ACTIVE)
+
+    def batch_refused(self) -> None:
+        """Nothing to undo: a refused cam changes nothing of its own."""
+        self._queued = None
+
+    def execute(self) -> None:
+        ctl = self.ctl
+        plan = self._plan()
+        slave, master, schedule = plan.slave, plan.master, plan.schedule
+        profile, ss, ms, cam_lock = plan.profile, plan.ss, plan.ms, plan.cam_lock
+        source, direction = plan.source, plan.direction
+        pending = schedule == ExecutionSchedule.PENDING
 
         def build() -> CamProcess:
             return CamProcess(
@@ -206,5 +337,24 @@ class MAPC(CamInstruction):
 
         proc = start_cam(ctl, slave, build, pending)
         slave.cam_direction = direction
-        ctl.cams.register(number, proc)
+        ctl.cams.register(plan.number, proc)
         self.started(proc)
+
+
+class _Plan(NamedTuple):
+    """What MAPC's checks found: the axes, the profile and the cam's parameters."""
+
+    slave: Axis
+    master: Axis
+    schedule: ExecutionSchedule
+    number: int
+    profile: CamProfile
+    ss: float
+    ms: float
+    cam_lock: float
+    source: MasterReference
+    direction: int
+
+
+_COMMAND = MasterReference.COMMAND
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
