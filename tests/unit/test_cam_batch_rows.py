@@ -112,7 +112,11 @@ def cam_starts(
     ctl: Controller, picks: list[tuple[int, int, int]], sets: list[Params]
 ) -> list[CamStart]:
     """Cams on distinct slaves at rest (``picks``: slave, master, parameter set; a master
-    beyond the axes: the slave of the cam before, a chain within the batch)."""
+    beyond the axes: the slave of the cam before, a chain within the batch). A pick that
+    would close a loop of master/slave links, with the processes running or the cams
+    before it in the batch, is left out, as the gears of the set-up are: the instructions
+    refuse such a link (ERR 10), and in a loop the motion depends on which axis of it
+    composes first, an order neither way of starting defines."""
     profs = profiles()
     out: list[CamStart] = []
     taken: set[int] = set()
@@ -121,6 +125,17 @@ def cam_starts(
             m = out[-1].slave.number if out else 1
         slave = ctl.axis(s)
         if s == m or s in taken or slave.processes or slave.buffered is not None:
+            continue
+        batch_masters = {c.slave.number: c.master.number for c in out}
+        reach, seen = [m], set()
+        while reach and s not in seen:
+            x = reach.pop()
+            if x not in seen:
+                seen.add(x)
+                reach += [q for p in ctl.axis(x).processes if p.active for q in p.masters]
+                if x in batch_masters:
+                    reach.append(batch_masters[x])
+        if s in seen:
             continue
         taken.add(s)
         k, mode, scale, ms, lock, src = sets[j % len(sets)]
