@@ -25,37 +25,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import kernel_scale as ks
 from motion_server.kernel import Controller
-from motion_server.kernel.axis import Axis
 from motion_server.kernel.cam_batch import CamStart, start_position_cams
-from motion_server.kernel.cams import CamMode, CamProcess, LockDirection
+from motion_server.kernel.cams import CamMode
 from motion_server.kernel.enums import MasterReference
 
 
 def one_by_one(ctl: Controller) -> None:
-    """The ``cam`` case's cams, one ``Controller.start`` per slave (MAPC Continuous,
-    Immediate, on its master's command position, slave scaling 1, lock position 0)."""
-    half = len(ctl.axes) // 2
+    """The ``cam`` case's cams, one ``Controller.start`` per slave."""
     profile = ks.cam_profile()
-    for k in range(half):
-        slave = ctl.axes[half + k]
-        master = ctl.axes[k]
-
-        def make(v: float, a: float, master: Axis = master) -> CamProcess:
-            return CamProcess(
-                ctl,
-                profile,
-                CamMode.CONTINUOUS,
-                1.0,
-                ks.CAM_MASTER_SCALING,
-                0.0,
-                master=master.index,
-                source=MasterReference.COMMAND,
-                master_number=master.number,
-                lock=LockDirection.IMMEDIATE,
-                rollover=master.config.rollover,
-            )
-
-        ctl.start(slave, make, replace=())
+    for k in range(len(ctl.axes) // 2):
+        ks.start_cam(ctl, k, profile)
 
 
 def batch(ctl: Controller) -> None:

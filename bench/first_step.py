@@ -32,8 +32,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import kernel_scale as ks
 from motion_server.kernel import Controller, ProcessKind
-from motion_server.kernel.axis import Axis
-from motion_server.kernel.cams import CamMode, CamProcess, LockDirection
 from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference, RateRamp
 
 #: slaves left out of the set-up's gearing, commanded in the measured scan
@@ -66,29 +64,11 @@ def _gear(ctl: Controller, k: int, clutch: bool) -> None:
 
 
 def few_cams(ctl: Controller) -> None:
-    """``kernel_scale.cam``'s MAPC on the last ``FEW`` slaves only."""
+    """``kernel_scale.cam``'s MAPC on the last ``FEW`` slaves only, one by one."""
     half = len(ctl.axes) // 2
     profile = ks.cam_profile()
     for k in range(half - FEW, half):
-        slave = ctl.axes[half + k]
-        master = ctl.axes[k]
-
-        def make(v: float, a: float, master: Axis = master) -> CamProcess:
-            return CamProcess(
-                ctl,
-                profile,
-                CamMode.CONTINUOUS,
-                1.0,
-                ks.CAM_MASTER_SCALING,
-                0.0,
-                master=master.index,
-                source=MasterReference.COMMAND,
-                master_number=master.number,
-                lock=LockDirection.IMMEDIATE,
-                rollover=master.config.rollover,
-            )
-
-        ctl.start(slave, make, replace=())
+        ks.start_cam(ctl, k, profile)
 
 
 CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None]]] = {

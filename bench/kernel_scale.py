@@ -87,7 +87,7 @@ from motion_server.kernel import (
 )
 from motion_server.kernel.axis import Axis
 from motion_server.kernel.cam_profile import CamProfile, SegmentType, compute_profile
-from motion_server.kernel.cams import CamMode, CamProcess
+from motion_server.kernel.cams import CamMode, CamProcess, LockDirection
 from motion_server.kernel.gearing import GearTerm, MasterReference
 from motion_server.kernel.group import OperatingMode
 
@@ -173,6 +173,31 @@ def cam(ctl: Controller) -> None:
             for k in range(half)
         ],
     )
+
+
+def start_cam(ctl: Controller, k: int, profile: CamProfile) -> None:
+    """``cam``'s MAPC on slave ``k`` (0-based among the slaves), started on its own through
+    ``Controller.start``, as a scan that executes one MAPC does: Continuous, Immediate,
+    on master ``k``'s command position, slave scaling 1, cam lock position 0."""
+    half = len(ctl.axes) // 2
+    master = ctl.axes[k]
+
+    def make(v: float, a: float) -> CamProcess:
+        return CamProcess(
+            ctl,
+            profile,
+            CamMode.CONTINUOUS,
+            1.0,
+            CAM_MASTER_SCALING,
+            0.0,
+            master=master.index,
+            source=MasterReference.COMMAND,
+            master_number=master.number,
+            lock=LockDirection.IMMEDIATE,
+            rollover=master.config.rollover,
+        )
+
+    ctl.start(ctl.axes[half + k], make, replace=())
 
 
 def cams_in_lanes(ctl: Controller) -> tuple[int, int]:
