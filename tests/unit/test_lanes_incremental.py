@@ -408,3 +408,31 @@ def test_a_follower_evicted_after_a_gear_replaced_reads_the_masters_of_its_lane(
     assert sorted(ax.number for ax in gear_lane.axes) == [7, 9, 10, 11, 12]
     assert_masters_current(lanes, len(fast.ctl.axes), "after the scan")
     run_rounds(fast, ref, [([], 20)])
+
+
+def test_a_follower_admitted_below_one_kept_leaves_the_axes_composed_in_python() -> None:
+    """The scan that found it (hypothesis, the lanes against a rebuild from scratch):
+    masters jogging; in one scan MAJ on S8, MAG of S7 on S15 and of S8 on M1 (both
+    clutched), MAS (jog) on S8 and MAG of S15 on M1. S7 (level 1: it reads S15) is in the
+    lane of locked gears when S8 is admitted to it at level 0; ordered by level, S8 comes
+    first, before the member kept. The axes left to Python were those that were without
+    the axes that joined, taken from the tail of the lane after that order: S7, not S8.
+    S8 was then composed twice, in its lane and in Python."""
+    fast, ref = pair()
+    jog: Command = ("MAJ", {"Axis": 8, "Direction": 0, "Speed": 10.0, "AccelRate": 200.0,
+                            "DecelRate": 200.0, "Profile": 0})  # fmt: skip
+    scan: list[Command] = [
+        jog,
+        ("MAG", {"SlaveAxis": 7, "MasterAxis": 15, "Ratio": 0.5, "MasterReference": 1,
+                 "Clutch": 1, "AccelRate": 100.0}),
+        ("MAG", {"SlaveAxis": 8, "MasterAxis": 1, "Ratio": 0.5, "MasterReference": 1,
+                 "Clutch": 1, "AccelRate": 100.0}),
+        ("MAS", {"Axis": 8, "StopType": 1}),
+        ("MAG", {"SlaveAxis": 15, "MasterAxis": 1, "Ratio": 0.5, "MasterReference": 1,
+                 "Clutch": 0, "AccelRate": 100.0}),
+    ]  # fmt: skip
+    run_rounds(fast, ref, [(jog_masters(40.0), 30), (scan, 3)])
+    lanes = fast.ctl.motion.lanes[1]
+    laned = {ax.number for lane in lanes.all for ax in lane.axes}
+    assert {7, 8, 15} <= laned
+    assert not laned & {ax.number for ax in lanes.python_order}

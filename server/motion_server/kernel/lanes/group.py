@@ -260,6 +260,9 @@ class GroupLanes:
         self._defer_release([x.members for x in changed if x.members])
         for x in changed:
             x.rebuild()
+        # the axes that joined a lane: appended after the members kept (taken before the
+        # follower lanes are ordered by level, which moves them)
+        joined = {id(ax) for lane in changed for ax in lane.axes[len(lane._kept) :]}
         handed = self._handed
         levels_of: dict[LevelledLane, list[int]] = {}
         admitted: list[tuple[LevelledLane, list[int]]] = []  # (lane, rows) admitted
@@ -299,7 +302,6 @@ class GroupLanes:
             # only followers joined or passed between follower lanes: the axes left to
             # Python are those that were, without the axes that joined a lane (no axis
             # left one for Python: that marks the lanes dirty)
-            joined = {id(ax) for lane in changed for ax in lane.axes[len(lane._kept) :]}
             if joined:
                 self.python_order = [ax for ax in self.python_order if id(ax) not in joined]
         for ax in self.python_order:
