@@ -31,6 +31,7 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
+from . import status_words
 from .axis import Axis, latch_stops
 from .cam_tables import CamStore, CamTableConfig
 from .config import MAX_PERIOD, MIN_PERIOD, AxisConfig, GroupConfig
@@ -429,12 +430,7 @@ class Controller:
         into the kernel); MotionStatus is computed afresh."""
         s = self.arrays
         if s.dirty:
-            axes = self.axes
-            for i in s.dirty:
-                ax = axes[i]
-                s.plcopen_state[i] = int(ax.plcopen_state)
-                s.motion_bits[i] = ax.process_bits()
-            s.dirty.clear()
+            status_words.derive(s, self.axes)
         # the Accel and Decel bits: the sign of velocity x acceleration (Axis.motion_status)
         prod = s.cmd_vel * s.cmd_acc
         status = s.motion_bits + (prod > 0.0)
