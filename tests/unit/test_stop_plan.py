@@ -26,7 +26,9 @@ from motion_server.kernel import (
     JogProcess,
     Limits,
     MotionError,
+    MotionStatusBit,
     MoveProcess,
+    PLCopenState,
     ProcessKind,
     ProgrammedStopMode,
 )
@@ -299,7 +301,7 @@ def test_a_group_stop_with_the_lanes_builds_no_ramp_axis_by_axis(
 ) -> None:
     """The point of the batch: with the lanes, a group stop of 14 jogging axes neither
     calls the ramp's constructor nor Controller.stop once (the reference does both per
-    axis), and every ramp joins the stop lane."""
+    jogging axis), and every ramp joins the stop lane."""
     fast, ref = pair([ProgrammedStopMode.FAST_STOP] * N_AXES)
     for ctl in (fast, ref):
         for ax in ctl.axes[: N_AXES - 2]:
@@ -322,7 +324,9 @@ def test_a_group_stop_with_the_lanes_builds_no_ramp_axis_by_axis(
     fast.group_stop(1, ProgrammedStopMode.FAST_STOP)
     assert calls == []
     ref.group_stop(1, ProgrammedStopMode.FAST_STOP)
-    assert calls.count("stop") == N_AXES - 1  # the servo and virtual axes
+    # the jogging axes: the servo or virtual axis at rest has nothing to stop (no ramp
+    # from rest), the feedback-only one is not stopped
+    assert calls.count("stop") == N_AXES - 2
     fast.step()
     ref.step()
     ramps = [ax.processes[0] for ax in fast.axes[: N_AXES - 2]]
@@ -530,3 +534,36 @@ def test_a_second_group_stop_while_the_rows_ramp_equals_the_reference(second: st
         ref.step()
         assert_same_unread(fast, ref, stops[0], stops[1], f"cycle {k}")
     assert_same(fast, ref, procs[0], procs[1], stops[0], stops[1], "at the end")
+
+
+def test_a_group_stop_makes_no_ramp_for_an_axis_with_nothing_to_stop() -> None:
+    """An MGS of a group whose axes are mostly at rest (the group stopped before, a few
+    axes started again): the axes at rest keep no process (a ramp from rest would be done
+    at once and move nothing), are held Stopping by the stop's latch until its first
+    update and keep their positions; the jogging ones ramp to rest. Both paths alike."""
+    stopping = 1 << MotionStatusBit.STOPPING
+    for ctl in pair([ProgrammedStopMode.FAST_STOP] * N_AXES):
+        jogging = ctl.axes[:2]
+        for ax in jogging:
+            ctl.start(ax, lambda v, a: JogProcess(DT, 50.0, Limits(50.0, 5e3, 5e3), v, a))
+        ctl.run(20)
+        at_rest = ctl.axes[2 : N_AXES - 1]
+        held = [ax.command_position for ax in at_rest]
+        handle = ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
+        for ax in at_rest:
+            assert ax.processes == [] and ax.stop_latch is handle
+            assert ax.motion_status & stopping
+            assert ax.plcopen_state == PLCopenState.STOPPING
+        assert all(ax.processes[0].kind == ProcessKind.STOP for ax in jogging)
+        ctl.step()
+        for ax, position in zip(at_rest, held, strict=True):
+            assert ax.stop_latch is None and not ax.motion_status & stopping
+            assert ax.plcopen_state == PLCopenState.STANDSTILL
+            assert ax.command_position == position and ax.command_velocity == 0.0
+        # 50 mm/s at 2,650 and 2,800 mm/s² (5.3 and 5.6 mm/s a period of 2 ms): at rest
+        # in the 10th period (50 / 5.3 = 9.4) and the 9th (8.9)
+        ctl.run(8)
+        assert jogging[0].command_velocity > 0.0 and jogging[1].command_velocity == 0.0
+        assert not handle.complete
+        ctl.step()
+        assert jogging[0].command_velocity == 0.0 and handle.complete

@@ -105,6 +105,12 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return v
 
 
+def _something_to_stop(ax: Axis) -> bool:
+    """A group stop has something to replace on ``ax``: a process (a ramp still a row of
+    the stop lane too), a buffered command or a preloaded cam."""
+    return bool(ax.processes) or ax.buffered is not None or bool(ax.preloaded_cams)
+
+
 class Controller:
     def __init__(
         self,
@@ -923,7 +929,10 @@ class Controller:
         self, g: MotionGroup, forced: ProgrammedStopMode | None, handle: GroupStop
     ) -> GroupStop:
         """:meth:`group_stop` one axis after the other: the reference the planned path
-        is tested against (``Controller(lanes=False)``)."""
+        is tested against (``Controller(lanes=False)``). An axis in Servo Control with
+        nothing to stop (no process, nothing buffered, no cam preloaded: at rest) gets no
+        ramp, only its latch and its action after the stop: a ramp from rest would be
+        done at once and move nothing."""
         owner = handle.owner
         for ax in g.axes:
             self.mdsc.break_axis(ax, AbortReason.STOPPED, hold_active=True)
@@ -936,7 +945,8 @@ class Controller:
             elif mode == ProgrammedStopMode.HARD_DISABLE:
                 self.servo_off(ax)
             elif ax.state == AxisState.SERVO_CONTROL:
-                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
+                if _something_to_stop(ax):
+                    self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = AFTER_FAST_STOP[mode]
                 g.after_stops = True
             elif mode == ProgrammedStopMode.FAST_SHUTDOWN:
@@ -959,7 +969,8 @@ class Controller:
         idx = np.array([ax.index for ax in axes], dtype=np.intp)
         if not stop_axes(self.motion, axes, owner, idx=idx):
             for ax, action in ramping:
-                self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
+                if _something_to_stop(ax):
+                    self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = action
                 g.after_stops = True
                 ax.stop_latch = handle
