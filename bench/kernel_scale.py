@@ -11,6 +11,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   drives go off once settled), Hard Disable and Hard Shutdown (100 steps: they coast);
 - ``program``: from ``steady``, Run -> Program: the programmed stop (Fast Stop) of the
   group (100 steps);
+- ``again``: MGS Fast Stop of a group already stopped, with four masters jogging again
+  (what an operator toggling MGS makes the controller do, as ``write_abuse.py`` does):
+  the axes at rest have nothing to stop (100 steps);
 - ``accel``: masters at rest, slaves locked to them; MAJ from rest to 100 mm/s on every
   master, the slaves follow (100 steps);
 - ``clutch``: masters jogging at 100 mm/s; MAG with the clutch enabled on every slave: the
@@ -303,6 +306,16 @@ def geared(ctl: Controller) -> None:
     gear(ctl, False)
 
 
+def stopped_then_four(ctl: Controller) -> None:
+    """The set-up of ``again``: ``steady``, a Fast Stop of the group run to rest, then
+    four masters jogging again."""
+    geared(ctl)
+    ctl.run(150)
+    stop(ctl)
+    ctl.run(150)  # at rest: 100 mm/s at 1,000 mm/s² is 100 ms
+    ctl.start_jogs(ctl.axes[:4], [SPEED] * 4, Limits(SPEED, RATE, RATE))
+
+
 #: case -> (set-up, command, steps measured after the command)
 CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None], int]] = {
     "steady": (lambda c: (jog(c), gear(c, False)), lambda c: None, 2000),
@@ -311,6 +324,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "hard": (geared, stop_in(ProgrammedStopMode.HARD_DISABLE), 100),
     "shutdown": (geared, stop_in(ProgrammedStopMode.HARD_SHUTDOWN), 100),
     "program": (geared, leave_run, 100),
+    "again": (stopped_then_four, stop, 100),
     "accel": (lambda c: gear(c, False), jog, 100),
     "clutch": (jog, lambda c: gear(c, True), 60),
     "s-curve": (lambda c: gear(c, False), lambda c: jog(c, JERK), 100),
