@@ -11,6 +11,8 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   drives go off once settled), Hard Disable and Hard Shutdown (100 steps: they coast);
 - ``program``: from ``steady``, Run -> Program: the programmed stop (Fast Stop) of the
   group (100 steps);
+- ``mgsd``: from ``steady``, MGSD: every axis to Axis Shutdown, the drives off at once,
+  the axes coast (100 steps);
 - ``again``: MGS Fast Stop of a group already stopped, with four masters jogging again
   (what an operator toggling MGS makes the controller do, as ``write_abuse.py`` does):
   the axes at rest have nothing to stop (100 steps);
@@ -325,6 +327,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "shutdown": (geared, stop_in(ProgrammedStopMode.HARD_SHUTDOWN), 100),
     "program": (geared, leave_run, 100),
     "again": (stopped_then_four, stop, 100),
+    "mgsd": (geared, lambda c: c.group_shutdown(1), 100),
     "accel": (lambda c: gear(c, False), jog, 100),
     "clutch": (jog, lambda c: gear(c, True), 60),
     "s-curve": (lambda c: gear(c, False), lambda c: jog(c, JERK), 100),

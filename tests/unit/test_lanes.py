@@ -97,6 +97,8 @@ TYPES = (
     "MSO",
     "MSF",
     "MGS",
+    "MGSD",
+    "MGSR",
     "MC_GearIn",
     "MC_GearOut",
     "MC_CombineAxes",

@@ -1,8 +1,8 @@
 """Group stops planned as arrays (:mod:`motion_server.kernel.stop_plan`) change nothing
 but speed: a controller with the fast lanes (which plans a group stop's ramps in one
 batch) and one without (``lanes=False``: the stop axis by axis, the reference), given the
-same random motion on many axes and then the same group stop, in any mode, at a random
-moment, agree bit for bit after every cycle on every array, every axis and every process
+same random motion on many axes and then the same group stop, in any mode, or MGSD (a
+batch of shutdowns with the lanes), at a random moment, agree bit for bit after every cycle on every array, every axis and every process
 ever started, its state, abort reason and kinematics (a laned process is read through
 its lane's sync, which leaves it in the lane)."""
 
@@ -134,6 +134,8 @@ def apply(ctl: Controller, cmd: Command, started: list[Process], stops: list[Any
         elif name == "mgs":
             forced = None if x < 0 else MODES[int(x) % len(MODES)]
             stops.append(ctl.group_stop(1, forced, owner="MGS"))
+        elif name == "mgsd":
+            ctl.group_shutdown(1)
         elif name == "program":
             stops.extend(ctl.set_mode(OperatingMode.PROGRAM))
             ctl.set_mode(OperatingMode.RUN)
@@ -183,7 +185,7 @@ def assert_same(fast: Controller, ref: Controller, fp: list[Process], rp: list[P
 
 
 NAMES = ("jog", "jog", "jog", "move", "gear", "gear", "clutch", "cam", "mas", "off", "on")
-STOPS = ("mgs", "mgs", "mgs", "program")
+STOPS = ("mgs", "mgs", "mgs", "program", "mgsd")
 
 
 def command(names: tuple[str, ...]) -> st.SearchStrategy[Command]:

@@ -512,10 +512,34 @@ class Controller:
         self._reassert(ax)
 
     def group_shutdown(self, ref: int | str) -> MotionGroup:
-        """MGSD: every axis of the group (feedback-only ones too) to Axis Shutdown."""
+        """MGSD: every axis of the group (feedback-only ones too) to Axis Shutdown, one
+        after the other in the group's order. With the lanes, when every driven axis is
+        in Servo Control, no MDAC link is left to break and the feedback-only axes come
+        after the driven ones, the driven axes are shut down as one batch, as a Hard
+        Shutdown group stop shuts them down (:meth:`_power_off`: the same result, each
+        axis's followers released before the next axis), then the feedback-only ones.
+        Otherwise, with the lanes, the axes that read each master are found once for all
+        the shutdowns (:meth:`Motion.followers <.motion.Motion.followers>`), not by a
+        search of every axis for each axis shut down (1,024 axes: 0.6 s)."""
         g = self.group(ref)
-        for ax in g.axes:
-            self.shutdown(ax)
+        if not self.lanes_enabled:
+            for ax in g.axes:
+                self.shutdown(ax)
+            return g
+        axes = self._motion_axes[g.number]
+        rest: Sequence[Axis] = g.axes
+        if (
+            axes
+            and not self.mdsc.linked
+            and g.axes[: len(axes)] == axes
+            and (self.arrays.axis_state[g.motion_idx] == _SERVO_CONTROL_INT).all()
+        ):
+            self._power_off(g, ProgrammedStopMode.HARD_SHUTDOWN)
+            rest = g.axes[len(axes) :]
+        if rest:
+            followers = self.motion.followers()
+            for ax in rest:
+                self._shutdown(ax, followers)
         return g
 
     def group_shutdown_reset(self, ref: int | str) -> MotionGroup:
