@@ -225,7 +225,7 @@ class Runtime:
         ``opcua`` override the site map's ``enabled`` of each front-end."""
         loop = asyncio.get_running_loop()
         self._loop = loop
-        self.scan.rebase(loop.time())
+        self.scan.rebase(loop.time(), loop.time)
         cfg = self.site.modbus
         task: asyncio.Task[None] | None = None
         links: list[ScanLink] = []

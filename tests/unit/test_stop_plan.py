@@ -2,9 +2,10 @@
 but speed: a controller with the fast lanes (which plans a group stop's ramps in one
 batch) and one without (``lanes=False``: the stop axis by axis, the reference), given the
 same random motion on many axes and then the same group stop, in any mode, or MGSD (a
-batch of shutdowns with the lanes), at a random moment, agree bit for bit after every cycle on every array, every axis and every process
-ever started, its state, abort reason and kinematics (a laned process is read through
-its lane's sync, which leaves it in the lane)."""
+batch of shutdowns with the lanes), at a random moment, agree bit for bit after every
+cycle on every array, every axis and every process ever started, its state, abort
+reason and kinematics (a laned process is read through its lane's sync, which leaves it
+in the lane)."""
 
 from __future__ import annotations
 

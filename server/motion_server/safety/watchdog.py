@@ -13,9 +13,12 @@ live in the Safety folder. Rules:
   ``ceil(T / period)``. A beat written between cycles k-1 and k is stamped with cycle k;
   before every cycle the watchdog checks, and the cycle that starts T after the last beat
   runs the stop. So the stop starts within T plus one cycle, deterministically with the
-  manual clock. With the realtime clock simulated time follows the wall clock; cycles the
-  loop dropped beyond its catch-up bound are not counted (the watchdog is late by them,
-  and ``Diagnostics.DroppedCycles`` shows them).
+  manual clock. With the realtime clock a beat also keeps the wall-clock time the scan
+  received it (:func:`arriving_at`), and the scan trips the watchdog T after that,
+  between cycles if that moment falls between them (:meth:`Watchdog.due`): the stop is
+  commanded T after the beat arrived, whatever the cycle's phase, and late or dropped
+  cycles do not delay it; the next cycle steps it. The count of cycles stays as the
+  bound (and is the only one with the other clocks).
 - **Reaction.** An MGS of the group: programmed (each axis's own stop mode), fast stop or
   fast disable. When the group has stopped, the latch: every non-feedback axis of the
   group is faulted with :data:`WATCHDOG_FAULT` (AxisFault bit 2, drive off), and the
@@ -29,7 +32,10 @@ live in the Safety folder. Rules:
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
+from contextvars import ContextVar
 from enum import IntEnum
 
 from ..config import WatchdogSection
@@ -41,6 +47,19 @@ from .client import current_client
 
 #: AxisFault bit of a watchdog trip (communication loss)
 WATCHDOG_FAULT = 1 << 2
+
+_ARRIVED: ContextVar[float | None] = ContextVar("motion_server_beat_arrived", default=None)
+
+
+@contextlib.contextmanager
+def arriving_at(when: float) -> Iterator[None]:
+    """The heartbeats written in this block arrived at ``when`` (``time.monotonic``
+    seconds): the scan says so while its clock is the wall clock."""
+    token = _ARRIVED.set(when)
+    try:
+        yield
+    finally:
+        _ARRIVED.reset(token)
 
 
 class WatchdogState(IntEnum):
@@ -101,13 +120,21 @@ class Watchdog:
         self.reset_input = False
         #: supervised sources: key -> (cycle of the last change, last value)
         self.beats: dict[str, tuple[int, int]] = {}
+        #: key -> when the scan received its last change (monotonic seconds), for the
+        #: sources whose last change came with the wall clock (:func:`arriving_at`)
+        self.arrivals: dict[str, float] = {}
         self.stop: GroupStop | None = None
 
     # -- snapshots ------------------------------------------------------------------------
     def __getstate__(self) -> dict[str, object]:
         """Its state without its configuration (the site map's: a restore attaches it
-        again with :meth:`configure`)."""
-        return {k: v for k, v in self.__dict__.items() if k != "config"}
+        again with :meth:`configure`) nor the wall-clock times of the beats (another
+        process's clock: the count of cycles goes on alone)."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("config", "arrivals")}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self.arrivals = {}
 
     def configure(self, config: WatchdogSection) -> None:
         """Attach the configuration of a watchdog loaded from a snapshot."""
@@ -146,7 +173,34 @@ class Watchdog:
             return
         # stamped with the cycle that runs next (the write lands between cycles)
         self.beats[key] = (self.ctl.tick, value)
+        arrived = _ARRIVED.get()
+        if arrived is None:
+            self.arrivals.pop(key, None)
+        else:
+            self.arrivals[key] = arrived
         self.fire(WatchdogEvent.BEAT)
+
+    def expiry(self) -> float | None:
+        """When (monotonic seconds) the armed watchdog runs out T after the oldest
+        supervised beat, if every one came with the wall clock; else None (the count of
+        cycles alone decides)."""
+        if self.state != WatchdogState.ARMED or len(self.arrivals) != len(self.beats):
+            return None
+        return min(self.arrivals.values()) + self.config.timeout
+
+    def due(self, now: float) -> bool:
+        """Trip if the wall clock says the timeout has run out at ``now``; True if it
+        tripped."""
+        expiry = self.expiry()
+        if expiry is None or now < expiry:
+            return False
+        self.trip()
+        return True
+
+    def forget_arrivals(self) -> None:
+        """The clock stopped following the wall clock (or starts again): the beats'
+        arrival times no longer count, the count of cycles does."""
+        self.arrivals.clear()
 
     def set_reset(self, value: bool) -> None:
         rising = value and not self.reset_input
@@ -159,6 +213,7 @@ class Watchdog:
         if self.state == WatchdogState.FAULTED:
             self.ctl.fault_reset_axes([ax for ax in self.group.axes if ax.fault & WATCHDOG_FAULT])
             self.beats.clear()
+            self.arrivals.clear()
         self.fire(WatchdogEvent.RESET)
 
     # -- the cycle ------------------------------------------------------------------------
@@ -181,6 +236,7 @@ class Watchdog:
             and not (self.ctl.arrays.fault[self.group.idx] & WATCHDOG_FAULT).any()
         ):  # (the group's AxisFault words read as one array: every cycle while latched)
             self.beats.clear()
+            self.arrivals.clear()
             self.fire(WatchdogEvent.CLEARED)
 
     def trip(self) -> None:

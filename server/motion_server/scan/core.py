@@ -37,6 +37,7 @@ becomes true.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import time
@@ -58,7 +59,7 @@ from ..kernel import GroupStop
 from ..kernel.group import OperatingMode
 from ..safety import retain
 from ..safety.client import writing_as
-from ..safety.watchdog import Watchdog
+from ..safety.watchdog import Watchdog, arriving_at
 from ..scheduling import LOAD_WINDOW
 from ..tagmap import ClockMode, CommFault, Folder, TagAccessError, TagImage, build_tagmap
 from ..tagmap.image import CommSettings, Getter, Setter
@@ -184,6 +185,8 @@ class Scan:
         self._stop_cycles = 0
         self._reschedule = True
         self._deadline = 0.0
+        #: what reads the time :meth:`service` is called with (see :meth:`rebase`)
+        self.clock: Callable[[], float] = time.monotonic
         self._next_log = 0.0
         self._next_save = 0.0
         self._load_start = 0.0
@@ -269,8 +272,14 @@ class Scan:
         if control is not None:
             control.send(wire.encode_simple(wire.Kind.READY))
 
-    def rebase(self, now: float) -> None:
-        """Restart the schedule and the timers from ``now`` (a new clock source)."""
+    def rebase(self, now: float, clock: Callable[[], float] | None = None) -> None:
+        """Restart the schedule and the timers from ``now`` (a new clock source);
+        ``clock``: what reads that source, the time :meth:`service` is called with (by
+        default ``time.monotonic``)."""
+        if clock is not None:
+            self.clock = clock
+        for wd in self.watchdogs.values():
+            wd.forget_arrivals()
         self._reschedule = True
         self._deadline = now
         self._next_log = now + self.status_log_interval
@@ -280,7 +289,12 @@ class Scan:
 
     def deliver(self, channel: Channel, batch: wire.Batch) -> None:
         """Queue a batch that did not come through a socket (the in-process runtime)."""
-        self.writes.put(channel, batch)
+        self._queue(channel, batch)
+
+    def _queue(self, ch: Channel, batch: wire.Batch) -> None:
+        q = self.writes.put(ch, batch)
+        if q.watchdog:
+            q.arrived = self.clock()  # a heartbeat: when it came (see _apply)
         self.queued_writes = len(self.writes)
 
     @property
@@ -302,6 +316,8 @@ class Scan:
             log.info("clock mode %s -> %s", self.mode.name.lower(), mode.name.lower())
             self.mode = mode
             self._reschedule = True
+            for wd in self.watchdogs.values():
+                wd.forget_arrivals()  # the beats count in cycles until the next one
             if mode != ClockMode.MANUAL:
                 self._pending_cycles = 0
                 self._ack_waiting(wire.Result.NOT_RUN)
@@ -553,9 +569,13 @@ class Scan:
         if self._reschedule:
             self._deadline = now
             self._reschedule = False
+        timed = self.mode == ClockMode.REALTIME
+        expiry = self._watchdogs_due(now) if timed else None
         step = self.period / (self.scale if self.mode == ClockMode.SCALED else 1.0)
         if now < self._deadline:
-            return self._deadline  # writes that arrived meanwhile wait for the cycle
+            # writes that arrived meanwhile wait for the cycle; a watchdog that runs out
+            # before it trips then
+            return self._deadline if expiry is None else min(self._deadline, expiry)
         due = int((now - self._deadline) / step) + 1
         if due > 1:
             self.overruns += due - 1
@@ -575,7 +595,27 @@ class Scan:
                 self._ack_due()
                 self._publish()
         self._deadline += due * step
+        if timed:  # (the cycles applied beats: when the next one runs out now)
+            expiry = self._watchdogs_due(now)
+            if expiry is not None:
+                return min(self._deadline, expiry)
         return self._deadline
+
+    def _watchdogs_due(self, now: float) -> float | None:
+        """Trip the watchdogs whose heartbeat ran out at ``now`` by the wall clock (between
+        cycles: the stop is commanded now, the next cycle steps it) and publish their
+        state at once; when the next of the others runs out (None: none is timed so)."""
+        nearest: float | None = None
+        for wd in self.watchdogs.values():
+            if wd.due(now):
+                self._refill = True
+                self._dirty = True
+                self._publish()
+                continue
+            expiry = wd.expiry()
+            if expiry is not None and (nearest is None or expiry < nearest):
+                nearest = expiry
+        return nearest
 
     # -- cycles -----------------------------------------------------------------------------
     def _run_cycle(self) -> None:
@@ -673,8 +713,7 @@ class Scan:
             elif kind == wire.Kind.WRITE:
                 batch = ch.assembler.feed(data)
                 if batch is not None:
-                    self.writes.put(ch, batch)
-                    self.queued_writes = len(self.writes)
+                    self._queue(ch, batch)
             elif kind == wire.Kind.STOP and ch.number == CONTROL:
                 log.info("stop requested: programmed stop of every group")
                 self.request_stop()
@@ -749,8 +788,15 @@ class Scan:
                 return
             updates.append((tags[slot], value))
         before = self._pending_cycles
+        # a heartbeat applied with the realtime clock counts from when it came, not from
+        # the cycle that applies it (see safety.watchdog)
+        arrived = (
+            arriving_at(q.arrived)
+            if q.arrived and self.mode == ClockMode.REALTIME
+            else contextlib.nullcontext()
+        )
         try:
-            with writing_as(batch.client):
+            with writing_as(batch.client), arrived:
                 self.image.write_many(updates)
         except TagAccessError as exc:
             self._snapshot_op = None

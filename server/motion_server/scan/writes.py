@@ -160,6 +160,9 @@ class Queued:
     taken: bool = False
     #: applied, or refused: done with
     settled: bool = False
+    #: when the scan received it (monotonic seconds; 0: not known): a heartbeat's
+    #: arrival, by which a watchdog times out with the wall clock
+    arrived: float = 0.0
 
     @property
     def client(self) -> str:
