@@ -6,7 +6,8 @@ The scan is served with a clock of its own (``Scan.rebase(now, clock)``), advanc
 hand. First principles: period 1 ms, T = 10 ms. A beat received at 0.4 ms is applied by
 the cycle due at 1 ms (tick k) and runs out at 0.4 + 10 = 10.4 ms, while the count of
 cycles would trip in the cycle due at 1 + 10 = 11 ms. The group stop ramps Axis1 from 10
-mm/s at 5,000 mm/s², 5 mm/s a cycle: at rest after two cycles.
+mm/s at its maximum deceleration, 5,000 mm/s², 5 mm/s a cycle: at rest after two
+cycles.
 """
 
 from __future__ import annotations
@@ -21,48 +22,16 @@ from motion_server.scan import Scan
 from motion_server.scan.channel import MODBUS
 from motion_server.tagmap import ClockMode
 
+from .test_write_budget import SITE as WRITE_BUDGET_SITE
 from .test_write_budget import FakeChannel
 
-SITE = """
-[site]
-name = "watchdog_wall_clock"
-
-[controller]
-clock = "realtime"
-status_log_interval = 0.0
-
-[modbus]
-enabled = false
-
-[opcua]
-enabled = false
-
-[[groups]]
-name = "Group1"
-coarse_update_period_ms = 1.0
-axes = ["Axis1"]
-
-[[axes]]
-name = "Axis1"
-type = "virtual"
-max_velocity = 500.0
-max_acceleration = 5000.0
-max_deceleration = 5000.0
-
-[instructions]
-every_type = false
-
-[[instructions.instances]]
-name = "MAJ_1"
-type = "MAJ"
-operands = { Axis = 1, Speed = 10.0, AccelRate = 5000.0, DecelRate = 5000.0 }
-
-[[watchdogs]]
-name = "HMI1"
-timeout = 0.01
-group = "Group1"
-stop_mode = "fast_stop"
-"""
+#: write_budget's map (Axis1 and Axis2 at 1 ms, MAJ_1 on Axis1 at 10 mm/s, the watchdog
+#: HMI1 with T = 10 ms) on the realtime clock, the watchdog's stop a Fast Stop
+SITE = (
+    WRITE_BUDGET_SITE.format(budget="")
+    .replace('clock = "manual"', 'clock = "realtime"')
+    .replace('group = "Group1"\n', 'group = "Group1"\nstop_mode = "fast_stop"\n')
+)
 
 HMI = ClientInfo("modbus", "10.0.0.1", 50001, 1)
 
@@ -84,7 +53,7 @@ class Served:
         scan.ctl.servo_on(scan.ctl.axis(1))
         maj = scan.system["MAJ_1"]
         maj.inputs[maj.TRIGGER] = True
-        scan.cycle(10)  # (cycles run whatever the clock: 10 mm/s after 2)
+        scan.cycle(20)  # (cycles run whatever the clock: 10 mm/s at 1,000 mm/s² after 10)
         assert scan.ctl.axis(1).command_velocity == 10.0
         self.clock = Clock()
         scan.rebase(0.0, self.clock)
