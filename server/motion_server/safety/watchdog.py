@@ -53,8 +53,9 @@ _ARRIVED: ContextVar[float | None] = ContextVar("motion_server_beat_arrived", de
 
 @contextlib.contextmanager
 def arriving_at(when: float) -> Iterator[None]:
-    """The heartbeats written in this block arrived at ``when`` (``time.monotonic``
-    seconds): the scan says so while its clock is the wall clock."""
+    """The heartbeats written in this block arrived at ``when`` (seconds of the clock
+    the scan is served with, ``time.monotonic`` in its process): the scan says so while
+    its clock is the wall clock."""
     token = _ARRIVED.set(when)
     try:
         yield
@@ -120,7 +121,7 @@ class Watchdog:
         self.reset_input = False
         #: supervised sources: key -> (cycle of the last change, last value)
         self.beats: dict[str, tuple[int, int]] = {}
-        #: key -> when the scan received its last change (monotonic seconds), for the
+        #: key -> when the scan received its last change (its clock's seconds), for the
         #: sources whose last change came with the wall clock (:func:`arriving_at`)
         self.arrivals: dict[str, float] = {}
         self.stop: GroupStop | None = None
@@ -181,7 +182,7 @@ class Watchdog:
         self.fire(WatchdogEvent.BEAT)
 
     def expiry(self) -> float | None:
-        """When (monotonic seconds) the armed watchdog runs out T after the oldest
+        """When (the scan's clock) the armed watchdog runs out T after the oldest
         supervised beat, if every one came with the wall clock; else None (the count of
         cycles alone decides)."""
         if self.state != WatchdogState.ARMED or len(self.arrivals) != len(self.beats):

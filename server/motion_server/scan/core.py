@@ -792,7 +792,7 @@ class Scan:
         # the cycle that applies it (see safety.watchdog)
         arrived = (
             arriving_at(q.arrived)
-            if q.arrived and self.mode == ClockMode.REALTIME
+            if q.arrived is not None and self.mode == ClockMode.REALTIME
             else contextlib.nullcontext()
         )
         try:

@@ -160,9 +160,9 @@ class Queued:
     taken: bool = False
     #: applied, or refused: done with
     settled: bool = False
-    #: when the scan received it (monotonic seconds; 0: not known): a heartbeat's
-    #: arrival, by which a watchdog times out with the wall clock
-    arrived: float = 0.0
+    #: when the scan received it (``Scan.clock`` seconds; None: not noted): a
+    #: heartbeat's arrival, by which a watchdog times out with the wall clock
+    arrived: float | None = None
 
     @property
     def client(self) -> str:
