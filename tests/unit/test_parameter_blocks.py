@@ -235,6 +235,26 @@ def test_an_application_limit_beyond_the_system_one_is_refused(number: int, valu
     assert read(system, number)["Value"] == before
 
 
+@pytest.mark.parametrize(
+    ("number", "value"),
+    # the rig's 250 mm/s: stopping at 0.03 mm/s² takes 8,333 s, reaching it at 0.03 as
+    # long; JERK's rates of 3000 and 2000 over a jerk of 0.3 take 10,000 s (the kernel
+    # plans at most 7,600 s: a group stop from the Maximum Speed would be refused)
+    [(15, 0.03), (13, 0.03), (17, 0.3)],
+)
+def test_an_application_limit_that_makes_a_ramp_too_long_is_refused(
+    number: int, value: float
+) -> None:
+    system = rig()
+    before = read(system, number)["Value"]
+    out = write(system, number, value)
+    assert out["Error"] and out["ErrorID"] == ErrorCode.PARAMETER_OUT_OF_RANGE
+    assert read(system, number)["Value"] == before
+    # 250 / 0.0329 = 7,599 s: the longest stop the kernel plans, accepted
+    out = write(system, 15, 0.0329)
+    assert out["Done"] and not out["Error"]
+
+
 def test_a_lowered_max_velocity_judges_the_next_plcopen_command() -> None:
     """MC_MoveVelocity at 150 mm/s: accepted under the System 250, refused (ErrorID 13)
     once MaxVelocityAppl is 100; 100 itself is accepted."""

@@ -316,12 +316,15 @@ def test_non_finite_settings(tmp_path: Path, setting: str, field: str) -> None:
         ("max_velocity", "-1", "-1 is outside 1.175494e-38..3.402823e+38"),
         ("max_deceleration", "5e-324", "4.940656e-324 is outside 1.175494e-38..3.402823e+38"),
         ("max_deceleration", "1e-12", "stopping from max_velocity takes 1e+15 s"),
+        # 1,000 mm/s (the default) at 0.1 mm/s²: 10,000 s, beyond the 7,600 s the kernel
+        # plans (a group stop from the Maximum Speed would be refused)
+        ("max_deceleration", "0.1", "takes 1e+04 s at 0.1; at most 7600 s"),
         ("max_acceleration", "0.001", "reaching max_velocity takes 1e+06 s"),
         ("max_jerk", "1e-3", "reaching the largest rate takes 1e+07 s"),
         ("rollover", "1e-320", "is outside 0 or 1.175494e-38..3.402823e+38"),
     ],
 )
-def test_limits_beyond_a_real_or_beyond_a_day(
+def test_limits_beyond_a_real_or_beyond_what_the_kernel_plans(
     tmp_path: Path, field: str, value: str, reason: str
 ) -> None:
     path = write(tmp_path, SITE.replace('name = "B"\n', f'name = "B"\n{field} = {value}\n'))

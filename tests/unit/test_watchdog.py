@@ -13,7 +13,7 @@ from __future__ import annotations
 import pytest
 
 from motion_server import config
-from motion_server.kernel import AxisState
+from motion_server.kernel import AxisState, ErrorCode, MotionError, ProgrammedStopMode
 from motion_server.runtime import Runtime
 from motion_server.safety import ClientInfo, writing_as
 from motion_server.safety.watchdog import WATCHDOG_FAULT, WatchdogState
@@ -247,3 +247,31 @@ def test_per_connection_trip_timing_counts_from_the_silent_connection() -> None:
     assert not rt.image.read("HMI1.Fault")
     rt.cycle()
     assert rt.image.read("HMI1.Fault")
+
+
+def test_a_stop_the_kernel_refuses_becomes_a_hard_disable(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The limits keep every group stop a plan the kernel takes (a ramp of at most
+    MAX_DURATION); should one still be refused, the watchdog must stop the group anyway:
+    the drives go off at once (Hard Disable), one error line says why, the scan goes on."""
+    rt = runtime()
+    ax = rt.ctl.axis(1)
+    jogging(rt)
+    group_stop = rt.ctl.group_stop
+
+    def refusing(ref: int | str, forced: object = None, owner: object = None) -> object:
+        if forced != ProgrammedStopMode.HARD_DISABLE:
+            raise MotionError(ErrorCode.PROFILE_FAILED, "the profile would last too long")
+        return group_stop(ref, forced, owner)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rt.ctl, "group_stop", refusing)
+    beat(rt, 1)
+    rt.cycle(T_CYCLES + 1)
+    assert rt.image.read("HMI1.State") == WatchdogState.STOPPING
+    assert rt.image.read("HMI1.Trips") == 1
+    assert ax.state == AxisState.AXIS_READY and not ax.drive_enabled
+    assert "HMI1" in caplog.text and "Hard Disable instead" in caplog.text
+    tick = rt.ctl.tick
+    rt.cycle(5)
+    assert rt.ctl.tick == tick + 5  # the scan goes on

@@ -49,6 +49,7 @@ from ..kernel import (
 from ..kernel.cam_tables import MAX_CAM_POINTS, CamTableConfig
 from ..kernel.config import MAX_PERIOD, MIN_PERIOD
 from ..kernel.enums import HomeDirection, HomeMode, HomeSequence
+from ..kernel.trapezoid import MAX_DURATION
 from ..safety.passwords import parse_hash
 from .checks import Problem, duplicates, number_clashes, operand_problem, period_problems
 
@@ -69,9 +70,10 @@ NAME_MAX = 40
 REAL_MAX = 3.4028234663852886e38
 REAL_MIN = 1.1754943508222875e-38
 #: the longest time a limit may imply: reaching max_velocity at max_acceleration, stopping
-#: from it at max_deceleration, reaching either rate at max_jerk. A day is beyond any
-#: machine; more is a rate in the wrong units (and a stop the profile generator cannot plan)
-MAX_RAMP_TIME = 86400.0
+#: from it at max_deceleration, reaching either rate at max_jerk. The longest profile the
+#: kernel plans (about two hours, beyond any machine; more is a rate in the wrong units): a
+#: limit beyond it would make a group stop from max_velocity a plan the kernel refuses
+MAX_RAMP_TIME = MAX_DURATION
 #: feedback counts per position unit: the Logix Conversion Constant range (MOTION-RM003)
 MIN_COUNTS_PER_UNIT = 1e-12
 MAX_COUNTS_PER_UNIT = 1e12

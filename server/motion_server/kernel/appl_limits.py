@@ -22,7 +22,9 @@ from dataclasses import replace
 from enum import StrEnum
 
 from .axis import Axis
+from .config import AxisConfig
 from .errors import ErrorCode, MotionError
+from .trapezoid import MAX_DURATION
 
 
 class Limit(StrEnum):
@@ -46,7 +48,9 @@ def system_limit(ax: Axis, limit: Limit) -> float:
 
 def set_application_limit(ax: Axis, limit: Limit, value: float) -> None:
     """Set an application limit: finite, above 0 and at most the system limit (for jerk,
-    0 means unlimited and is allowed only when the system jerk is unlimited too).
+    0 means unlimited and is allowed only when the system jerk is unlimited too), and not
+    making a ramp longer than the kernel plans (a deceleration so low that a stop from the
+    Maximum Speed would last over :data:`~.trapezoid.MAX_DURATION`: the site map's bound).
     MotionError 13 otherwise, and the limit stays as it was."""
     value = float(value)
     top = system_limit(ax, limit)
@@ -63,10 +67,34 @@ def set_application_limit(ax: Axis, limit: Limit, value: float) -> None:
         )
     cfg = ax.config
     if limit == Limit.VELOCITY:
-        ax.config = replace(cfg, max_velocity=value)
+        new = replace(cfg, max_velocity=value)
     elif limit == Limit.ACCELERATION:
-        ax.config = replace(cfg, max_acceleration=value)
+        new = replace(cfg, max_acceleration=value)
     elif limit == Limit.DECELERATION:
-        ax.config = replace(cfg, max_deceleration=value)
+        new = replace(cfg, max_deceleration=value)
     else:
-        ax.config = replace(cfg, max_jerk=value)
+        new = replace(cfg, max_jerk=value)
+    too_long = _too_long(new)
+    if too_long is not None:
+        raise MotionError(
+            ErrorCode.PARAMETER_OUT_OF_RANGE,
+            f"{limit.value} {value!r} of {ax.name}: {too_long}",
+        )
+    ax.config = new
+
+
+def _too_long(cfg: AxisConfig) -> str | None:
+    """What ramp the limits of ``cfg`` make longer than the kernel plans
+    (:data:`~.trapezoid.MAX_DURATION`, the site map's bound too), or None: a group stop
+    from the Maximum Speed must stay a plan the kernel takes."""
+    ramps = [
+        (cfg.max_velocity / cfg.max_acceleration, "reaching the maximum velocity"),
+        (cfg.max_velocity / cfg.max_deceleration, "stopping from the maximum velocity"),
+    ]
+    if cfg.max_jerk:
+        rate = max(cfg.max_acceleration, cfg.max_deceleration)
+        ramps.append((rate / cfg.max_jerk, "reaching the largest rate"))
+    for t, what in ramps:
+        if not t <= MAX_DURATION:
+            return f"{what} would take {t:.3g} s (at most {MAX_DURATION:g} s)"
+    return None

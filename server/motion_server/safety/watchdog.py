@@ -33,6 +33,7 @@ live in the Safety folder. Rules:
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 from collections.abc import Iterator
 from contextvars import ContextVar
@@ -40,10 +41,19 @@ from enum import IntEnum
 
 from ..config import WatchdogSection
 from ..instructions.logix.mgs import FORCED, MGSStopMode
-from ..kernel import AxisType, Controller, GroupStop, TransitionError
+from ..kernel import (
+    AxisType,
+    Controller,
+    GroupStop,
+    MotionError,
+    ProgrammedStopMode,
+    TransitionError,
+)
 from ..tagmap.codec import Value
 from ..tagmap.image import Getter, Setter
 from .client import current_client
+
+log = logging.getLogger("motion_server.watchdog")
 
 #: AxisFault bit of a watchdog trip (communication loss)
 WATCHDOG_FAULT = 1 << 2
@@ -242,7 +252,21 @@ class Watchdog:
 
     def trip(self) -> None:
         self.trips += 1
-        self.stop = self.ctl.group_stop(self.group.number, FORCED[self.stop_mode], owner=self)
+        try:
+            self.stop = self.ctl.group_stop(self.group.number, FORCED[self.stop_mode], owner=self)
+        except MotionError as exc:
+            # a ramp the kernel refuses (the limits forbid it; kept as a last guard): the
+            # stop must still happen, so the drives go off at once and the axes coast
+            log.error(
+                "watchdog %s: the %s of %s was refused (%s); Hard Disable instead",
+                self.name,
+                self.stop_mode.name.lower(),
+                self.group.name,
+                exc,
+            )
+            self.stop = self.ctl.group_stop(
+                self.group.number, ProgrammedStopMode.HARD_DISABLE, owner=self
+            )
         self.fire(WatchdogEvent.EXPIRE)
 
     # -- tags -----------------------------------------------------------------------------
