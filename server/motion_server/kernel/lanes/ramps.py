@@ -6,6 +6,7 @@ None of them reads another axis, so they step first, before any follower.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 from operator import attrgetter, is_, itemgetter
 from typing import Any, ClassVar
@@ -116,6 +117,65 @@ class PlanLane(Lane):
     def _set_members(self, members: list[Process], axes: list[Axis]) -> None:
         super()._set_members(members, axes)
         self._rows = np.arange(len(members), dtype=np.intp)
+
+    #: the floats :meth:`_request_head` and the profile's request make, per ramp
+    ROW_WIDTH: ClassVar[int]
+
+    @staticmethod
+    def _request_head(p: Process, ax: Axis) -> tuple[float, ...]:
+        """What :meth:`_planned` reads of ``p`` before its profile's request."""
+        raise NotImplementedError
+
+    @staticmethod
+    def _planned(rows: np.ndarray) -> list[np.ndarray]:
+        """The ``FIELDS`` of m ramps not planned yet from their rows (``ROW_WIDTH``
+        each: :meth:`_request_head`, then the request), the plans built in one pass."""
+        raise NotImplementedError
+
+    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
+        """The joining members' ``FIELDS`` as arrays: those of a batch admitted alone
+        (``admit_batch``) as they are; else the plans not built yet (ramps commanded since
+        the last step) built in one pass (:meth:`_planned`), the others loaded one by
+        one."""
+        columns = batch_of(self, joining)
+        if columns is not None:
+            return columns
+        requested: list[int] = []
+        requests: list[float] = []
+        add = requests.extend
+        head = self._request_head
+        rows: list[tuple[Any, ...]] = []
+        for k, (p, ax) in enumerate(joining):
+            request = p.profile.request  # type: ignore[attr-defined]
+            if request is None:
+                rows.append(self._load(p, ax))
+                continue
+            requested.append(k)
+            add(head(p, ax))
+            add(request)
+        if not requested:
+            return None  # every plan built already: row by row, as before
+        m = len(requested)
+        width = self.ROW_WIDTH
+        # (the floats packed as doubles, bit for bit: five times faster than numpy's
+        # conversion of a list; read-only columns, which the rebuild concatenates)
+        packed = np.frombuffer(struct.pack(f"{width * m}d", *requests)).reshape(m, width)
+        planned = self._planned(packed)
+        if not rows:
+            return planned
+        # both kinds: place each column's rows where their members are
+        n = len(joining)
+        at = np.array(requested, dtype=np.intp)
+        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
+        columns = []
+        for j, f in enumerate(self.FIELDS):
+            width_f = self.WIDTHS.get(f)
+            dtype = self.DTYPES.get(f, float)
+            col = np.empty((n,) if width_f is None else (n, width_f), dtype=dtype)
+            col[at] = planned[j]
+            col[others] = np.array([r[j] for r in rows], dtype=dtype)
+            columns.append(col)
+        return columns
 
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
@@ -291,45 +351,15 @@ class ProfileLane(PlanLane):
             plan.landing,
         )
 
-    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        """The joining members' ``FIELDS`` as arrays: those of a batch admitted alone
-        (:meth:`admit_batch`) as they are; else the velocity targets not planned yet
-        (jogs commanded since the last step) planned in one pass
-        (:func:`..move_plan.velocity_plans`), the others loaded one by one."""
-        columns = batch_of(self, joining)
-        if columns is not None:
-            return columns
-        requested: list[int] = []
-        requests: list[float] = []
-        add = requests.extend
-        rows: list[tuple[Any, ...]] = []
-        for k, (p, ax) in enumerate(joining):
-            prof = p.profile  # type: ignore[attr-defined]
-            request = prof.request
-            if request is None:
-                rows.append(self._load(p, ax))
-                continue
-            requested.append(k)
-            add((ax.base, prof._dt, p.position, p.velocity, p.acceleration))
-            add(request)
-        if not requested:
-            return None  # every plan built already: row by row, as before
-        n = len(joining)
-        planned = self._planned(np.array(requests, dtype=float).reshape(len(requested), 10))
-        if not rows:
-            return planned
-        # both kinds: place each column's rows where their members are
-        at = np.array(requested, dtype=np.intp)
-        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
-        columns = []
-        for j, f in enumerate(self.FIELDS):
-            width = self.WIDTHS.get(f)
-            dtype = self.DTYPES.get(f, float)
-            col = np.empty((n,) if width is None else (n, width), dtype=dtype)
-            col[at] = planned[j]
-            col[others] = np.array([r[j] for r in rows], dtype=dtype)
-            columns.append(col)
-        return columns
+    #: what :meth:`_planned` reads of a ramp not planned yet: base, dt, position,
+    #: velocity, acceleration, then the profile's request (the plan's start position and
+    #: velocity, the target, the acceleration and the deceleration)
+    ROW_WIDTH = 10
+
+    @staticmethod
+    def _request_head(p: Process, ax: Axis) -> tuple[float, ...]:
+        prof = p.profile  # type: ignore[attr-defined]
+        return (ax.base, prof._dt, p.position, p.velocity, p.acceleration)
 
     @staticmethod
     def _planned(requests: np.ndarray) -> list[np.ndarray]:

@@ -13,7 +13,6 @@ targets (ruckig's) and fallbacks stay in Python.
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -25,7 +24,7 @@ from ..scurve import SEGMENTS, SCurveProfile
 from ..scurve_plan import TARGET, jerk_plan_row, jerk_plans
 from ..state import AxisArrays
 from .base import Compose
-from .batches import admit_rows, batch_of, spread
+from .batches import admit_rows, spread
 from .ramps import PlanLane
 
 #: the per-segment fields of a plan (one row of SEGMENTS values per member)
@@ -100,6 +99,15 @@ class SCurveLane(PlanLane):
             plan.end_velocity,
         )
 
+    #: what :meth:`_planned` reads of a ramp not planned yet: base, cycles, dt,
+    #: position, velocity, acceleration, then the profile's request (10 floats)
+    ROW_WIDTH = 16
+
+    @staticmethod
+    def _request_head(p: Process, ax: Axis) -> tuple[float, ...]:
+        prof = p.profile  # type: ignore[attr-defined]
+        return (ax.base, prof.cycles, prof._dt, p.position, p.velocity, p.acceleration)
+
     @staticmethod
     def _planned(cols: np.ndarray) -> list[np.ndarray]:
         """The ``FIELDS`` of m ramps not planned yet, from their rows (base, cycles, dt,
@@ -135,48 +143,6 @@ class SCurveLane(PlanLane):
             *plan, (done, end, end_pos) = jerk_plan_row(dt, request)
             rows.append((cycles, dt, done, *plan, x, v, a, end, end_pos, request[TARGET]))
         admit_rows(self, joining, spread(self, base, rows, which))
-
-    def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
-        """The joining members' ``FIELDS`` as arrays: those of a batch admitted alone
-        (:meth:`admit_batch`) as they are; else the plans not built yet (ramps commanded
-        since the last step) built in one pass (:func:`..scurve_plan.jerk_plans`), the
-        others loaded one by one."""
-        columns = batch_of(self, joining)
-        if columns is not None:
-            return columns
-        requested: list[int] = []
-        requests: list[float] = []
-        add = requests.extend
-        rows: list[tuple[Any, ...]] = []
-        for k, (p, ax) in enumerate(joining):
-            prof = p.profile  # type: ignore[attr-defined]
-            request = prof.request
-            if request is None:
-                rows.append(self._load(p, ax))
-                continue
-            requested.append(k)
-            add((ax.base, prof.cycles, prof._dt, p.position, p.velocity, p.acceleration))
-            add(request)
-        if not requested:
-            return None  # every plan built already: row by row, as before
-        m = len(requested)
-        # (the floats packed as doubles, bit for bit: five times faster than numpy's
-        # conversion of a list; read-only columns, which the rebuild concatenates)
-        planned = self._planned(np.frombuffer(struct.pack(f"{16 * m}d", *requests)).reshape(m, 16))
-        if not rows:
-            return planned
-        # both kinds: place each column's rows where their members are
-        n = len(joining)
-        at = np.array(requested, dtype=np.intp)
-        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
-        columns = []
-        for j, f in enumerate(self.FIELDS):
-            width = self.WIDTHS.get(f)
-            col = np.empty((n,) if width is None else (n, width))
-            col[at] = planned[j]
-            col[others] = np.array([r[j] for r in rows], dtype=float)
-            columns.append(col)
-        return columns
 
     def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
         """A jog that reaches its velocity, its axis's only process with nothing
