@@ -121,6 +121,16 @@ def scans() -> st.SearchStrategy[list[list[tuple[str, dict[str, Any], bool]]]]:
     return scan_plans(ORDER, POOLS, 5)
 
 
+def write_scan(system: MotionSystem, cycle: list[tuple[str, dict[str, Any], bool]]) -> None:
+    """One cycle of a plan (:func:`scan_plans`) written to ``system``'s instances before
+    it runs, what changed before it forgotten."""
+    for name, values, rung in cycle:
+        inst = system[name]
+        inst.inputs.update(values)
+        inst.inputs[inst.TRIGGER] = rung
+    system.changed_outputs.clear()
+
+
 def bits(x: float) -> bytes:
     return struct.pack("<d", x)
 
@@ -158,11 +168,7 @@ def test_a_scan_with_batches_acts_as_one_instance_at_a_time(
     batched, alone = build(True, lanes), build(False, lanes)
     for k, cycle in enumerate(plan + [[]] * 3):
         for system in (batched, alone):
-            for name, values, rung in cycle:
-                inst = system[name]
-                inst.inputs.update(values)
-                inst.inputs[inst.TRIGGER] = rung
-            system.changed_outputs.clear()
+            write_scan(system, cycle)
         batched.cycle()
         alone.cycle()
         same(batched, alone, (k, cycle))

@@ -33,7 +33,7 @@ from motion_server.kernel import (
 )
 from motion_server.kernel.cams import CamProcess, MasterDirection
 
-from .test_scan_batch import processes, same_scan, scan_plans
+from .test_scan_batch import processes, same_scan, scan_plans, write_scan
 
 L = 0  # SegmentType linear
 #: profile 1: slope 1/2 over 0..100, flat to 200; 2: y = x over 0..100; 3: the same
@@ -121,11 +121,7 @@ def test_a_scan_with_cam_batches_acts_as_one_instance_at_a_time(
         for system in (batched, alone):
             if k < len(wheel):
                 system.ctl.set_feedback_input(system.ctl.axis(7), wheel[k])
-            for name, values, rung in cycle:
-                inst = system[name]
-                inst.inputs.update(values)
-                inst.inputs[inst.TRIGGER] = rung
-            system.changed_outputs.clear()
+            write_scan(system, cycle)
         batched.cycle()
         alone.cycle()
         same(batched, alone, (k, cycle))
