@@ -24,24 +24,17 @@ from hypothesis import strategies as st
 
 from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
 from motion_server.kernel.cam_batch import CamStart, start_position_cams
-from motion_server.kernel.cam_profile import CamProfile, compute_profile
 from motion_server.kernel.cams import CamMode, CamProcess
-from motion_server.kernel.enums import AbortReason, MasterReference, ProcessKind
+from motion_server.kernel.enums import AbortReason, MasterReference
 from motion_server.kernel.gearing import GearProcess, GearTerm
 from motion_server.kernel.lanes.cams import CamLane
-from motion_server.kernel.processes import JogProcess, Process
-from motion_server.kernel.profiles import Limits
+from motion_server.kernel.processes import Process
 from motion_server.scan import statecodec
+
+from .test_cam_batch_start import jog, profiles
 
 AXES = 20
 ARRAYS = ("cmd_pos", "cmd_vel", "cmd_acc", "act_pos", "act_vel")
-
-
-def profiles() -> list[CamProfile]:
-    return [
-        compute_profile((0.0, 90.0, 180.0, 360.0), (0.0, 20.0, 180.0, 360.0), [1, 1, 1, 1]),
-        compute_profile((0.0, 30.0, 60.0), (0.0, 10.0, 10.0), [0, 1, 0]),
-    ]
 
 
 def controller(lanes: bool) -> Controller:
@@ -55,14 +48,6 @@ def controller(lanes: bool) -> Controller:
     for ax in ctl.axes:
         ctl.servo_on(ax)
     return ctl
-
-
-def jog(ctl: Controller, number: int, speed: float) -> None:
-    ctl.start(
-        ctl.axis(number),
-        lambda v, a: JogProcess(0.002, speed, Limits(abs(speed), 5000.0, 5000.0), v, a),
-        replace=(ProcessKind.JOG,),
-    )
 
 
 def gear(ctl: Controller, slave: int, master: int, source: MasterReference) -> None:
