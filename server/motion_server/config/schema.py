@@ -46,6 +46,7 @@ from ..kernel import (
     GroupConfig,
     ProgrammedStopMode,
 )
+from ..kernel.appl_limits import long_ramps
 from ..kernel.cam_tables import MAX_CAM_POINTS, CamTableConfig
 from ..kernel.config import MAX_PERIOD, MIN_PERIOD
 from ..kernel.enums import HomeDirection, HomeMode, HomeSequence
@@ -878,17 +879,9 @@ def _cam_problems(c: CamSection) -> list[Problem]:
 
 def _ramp_problems(a: AxisSection) -> list[Problem]:
     """Limits that imply a ramp longer than :data:`MAX_RAMP_TIME`."""
-    ramps = [
-        ("max_acceleration", a.max_velocity / a.max_acceleration, "reaching max_velocity"),
-        ("max_deceleration", a.max_velocity / a.max_deceleration, "stopping from max_velocity"),
-    ]
-    if a.max_jerk:
-        rate = max(a.max_acceleration, a.max_deceleration)
-        ramps.append(("max_jerk", rate / a.max_jerk, "reaching the largest rate"))
     return [
         ((name,), f"{what} takes {t:.3g} s at {getattr(a, name):g}; at most {MAX_RAMP_TIME:g} s")
-        for name, t, what in ramps
-        if t > MAX_RAMP_TIME
+        for name, t, what in long_ramps(a)
     ]
 
 

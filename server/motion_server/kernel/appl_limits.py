@@ -20,9 +20,9 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from enum import StrEnum
+from typing import Protocol
 
 from .axis import Axis
-from .config import AxisConfig
 from .errors import ErrorCode, MotionError
 from .trapezoid import MAX_DURATION
 
@@ -74,27 +74,41 @@ def set_application_limit(ax: Axis, limit: Limit, value: float) -> None:
         new = replace(cfg, max_deceleration=value)
     else:
         new = replace(cfg, max_jerk=value)
-    too_long = _too_long(new)
-    if too_long is not None:
+    too_long = long_ramps(new)
+    if too_long:
+        _field, t, what = too_long[0]
         raise MotionError(
             ErrorCode.PARAMETER_OUT_OF_RANGE,
-            f"{limit.value} {value!r} of {ax.name}: {too_long}",
+            f"{limit.value} {value!r} of {ax.name}: {what} would take {t:.3g} s "
+            f"(at most {MAX_DURATION:g} s)",
         )
     ax.config = new
 
 
-def _too_long(cfg: AxisConfig) -> str | None:
-    """What ramp the limits of ``cfg`` make longer than the kernel plans
-    (:data:`~.trapezoid.MAX_DURATION`, the site map's bound too), or None: a group stop
-    from the Maximum Speed must stay a plan the kernel takes."""
+class RampLimits(Protocol):
+    """Axis maxima: a kernel ``AxisConfig`` or a site map's axis section."""
+
+    @property
+    def max_velocity(self) -> float: ...
+    @property
+    def max_acceleration(self) -> float: ...
+    @property
+    def max_deceleration(self) -> float: ...
+    @property
+    def max_jerk(self) -> float: ...
+
+
+def long_ramps(limits: RampLimits) -> list[tuple[str, float, str]]:
+    """(field, seconds, what) of each ramp the maxima imply that lasts longer than the
+    kernel plans (:data:`~.trapezoid.MAX_DURATION`): reaching max_velocity, stopping
+    from it (a group stop from the Maximum Speed must stay a plan the kernel takes),
+    reaching the larger rate at max_jerk. The site map is judged by the same bound."""
+    v = limits.max_velocity
     ramps = [
-        (cfg.max_velocity / cfg.max_acceleration, "reaching the maximum velocity"),
-        (cfg.max_velocity / cfg.max_deceleration, "stopping from the maximum velocity"),
+        ("max_acceleration", v / limits.max_acceleration, "reaching max_velocity"),
+        ("max_deceleration", v / limits.max_deceleration, "stopping from max_velocity"),
     ]
-    if cfg.max_jerk:
-        rate = max(cfg.max_acceleration, cfg.max_deceleration)
-        ramps.append((rate / cfg.max_jerk, "reaching the largest rate"))
-    for t, what in ramps:
-        if not t <= MAX_DURATION:
-            return f"{what} would take {t:.3g} s (at most {MAX_DURATION:g} s)"
-    return None
+    if limits.max_jerk:
+        rate = max(limits.max_acceleration, limits.max_deceleration)
+        ramps.append(("max_jerk", rate / limits.max_jerk, "reaching the largest rate"))
+    return [(field, t, what) for field, t, what in ramps if not t <= MAX_DURATION]

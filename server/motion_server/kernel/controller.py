@@ -63,7 +63,7 @@ from .processes import Pending, Process, ProcessFactory, StopRamp
 from .redefine import shift_coordinates
 from .scurve import FALLBACKS
 from .state import AxisArrays, Index, MasterArrays, compact
-from .stop_plan import power_off_axes, stop_axes
+from .stop_plan import power_off_axes, something_to_stop, stop_axes
 
 #: a redefined position may be at most this many encoder counts from zero (float64 holds
 #: every integer up to 2**53: beyond, positions could not be quantised to single counts)
@@ -73,7 +73,6 @@ __all__ = ["ConfigError", "Controller", "Pending", "ProcessFactory", "StatusArra
 
 #: a ramped stop mode (as a plain int: hashed in C) -> what follows the ramp
 _AFTER_RAMP = {int(mode): action for mode, action in AFTER_FAST_STOP.items()}
-_SERVO_CONTROL = AxisState.SERVO_CONTROL
 #: an axis's programmed stop mode, read without a Python call per axis
 _PROGRAMMED_STOP_MODE = attrgetter("config.programmed_stop_mode")
 _CONFIG = attrgetter("config")
@@ -103,12 +102,6 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     v = a.view()
     v.flags.writeable = False
     return v
-
-
-def _something_to_stop(ax: Axis) -> bool:
-    """A group stop has something to replace on ``ax``: a process (a ramp still a row of
-    the stop lane too), a buffered command or a preloaded cam."""
-    return bool(ax.processes) or ax.buffered is not None or bool(ax.preloaded_cams)
 
 
 class Controller:
@@ -532,7 +525,7 @@ class Controller:
             axes
             and not self.mdsc.linked
             and g.axes[: len(axes)] == axes
-            and (self.arrays.axis_state[g.motion_idx] == _SERVO_CONTROL_INT).all()
+            and self._all_in_servo_control(g)
         ):
             self._power_off(g, ProgrammedStopMode.HARD_SHUTDOWN)
             rest = g.axes[len(axes) :]
@@ -863,6 +856,10 @@ class Controller:
             at = kept[g.number] = compact(g.motion_idx)
         return at
 
+    def _all_in_servo_control(self, g: MotionGroup) -> bool:
+        """Every driven axis of ``g`` is in Servo Control (one array comparison)."""
+        return bool((self.arrays.axis_state[self._group_at(g)] == _SERVO_CONTROL_INT).all())
+
     def _all_ramping(
         self, g: MotionGroup, forced: ProgrammedStopMode | None
     ) -> list[AfterStop] | None:
@@ -873,7 +870,7 @@ class Controller:
         forced_action = None if forced is None else _AFTER_RAMP.get(int(forced))
         if forced is not None and forced_action is None:
             return None  # (a forced Hard Disable or Hard Shutdown: no state to read)
-        if not (self.arrays.axis_state[self._group_at(g)] == _SERVO_CONTROL_INT).all():
+        if not self._all_in_servo_control(g):
             return None
         axes = self._motion_axes[g.number]
         if forced_action is not None:
@@ -895,7 +892,7 @@ class Controller:
         ``g`` and all are in Servo Control (and, for a shutdown, no MDAC link is left to
         break); else None."""
         axes = self._motion_axes[g.number]
-        if not axes or not (self.arrays.axis_state[g.motion_idx] == _SERVO_CONTROL).all():
+        if not axes or not self._all_in_servo_control(g):
             return None
         if forced is None:
             modes = {int(ax.config.programmed_stop_mode) for ax in axes}
@@ -969,7 +966,7 @@ class Controller:
             elif mode == ProgrammedStopMode.HARD_DISABLE:
                 self.servo_off(ax)
             elif ax.state == AxisState.SERVO_CONTROL:
-                if _something_to_stop(ax):
+                if something_to_stop(ax):
                     self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = AFTER_FAST_STOP[mode]
                 g.after_stops = True
@@ -993,7 +990,7 @@ class Controller:
         idx = np.array([ax.index for ax in axes], dtype=np.intp)
         if not stop_axes(self.motion, axes, owner, idx=idx):
             for ax, action in ramping:
-                if _something_to_stop(ax):
+                if something_to_stop(ax):
                     self.stop(ax, None, ax.config.max_deceleration, 0.0, owner, bounded=True)
                 ax.after_stop = action
                 g.after_stops = True

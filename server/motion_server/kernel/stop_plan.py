@@ -704,6 +704,15 @@ def _idle(axes: Sequence[Axis]) -> bool:
     )
 
 
+def something_to_stop(ax: Axis) -> bool:
+    """A stop has something to replace on ``ax``: a process (a ramp still a row of the
+    stop lane too, not made for this), a buffered command or a preloaded cam. An axis
+    without any is at rest: a ramp from rest would end at once and move nothing."""
+    return bool(
+        ax._processes or ax.stop_rows is not None or ax.buffered is not None or ax.preloaded_cams
+    )
+
+
 def stop_axes(
     motion: Motion,
     axes: Sequence[Axis],
@@ -743,11 +752,7 @@ def stop_axes(
     # MGS of a group already stopped): the ramp from rest a stop makes them is done at
     # once, moves nothing and is dropped by the next composition, so none is made (a
     # group of 256 such axes: about 2 ms of ramps made and composed in the cycle)
-    work = [
-        k
-        for k, ax in enumerate(axes)
-        if ax._processes or ax.stop_rows is not None or ax.buffered is not None or ax.preloaded_cams
-    ]
+    work = [k for k, ax in enumerate(axes) if something_to_stop(ax)]
     vs = [0.0] * n
     accels = [0.0] * n
     for k in work:
