@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from motion_server.config import load
 from motion_server.instructions import MotionSystem
 from motion_server.instructions.schema import Kind, TagType
+from motion_server.instructions.status import LogixBit
 
 SITE = load(None, {})
 NAMES = [inst.name for inst in SITE.instances()]
@@ -113,7 +114,7 @@ def test_idle_instances_are_not_called() -> None:
     assert system.awake() == []
 
 
-def test_a_running_instance_stays_awake_until_it_is_done() -> None:
+def test_a_running_instance_is_followed_until_it_is_done() -> None:
     system = build(sleep=True)
     mso, maj, mas = (system.instances[n] for n in ("MSO_1", "MAJ_1", "MAS_1"))
     for inst, ops in ((mso, {"Axis": 1}), (maj, {"Axis": 1, "Speed": 10.0})):
@@ -125,7 +126,8 @@ def test_a_running_instance_stays_awake_until_it_is_done() -> None:
         system.cycle()
     assert maj.outputs["IP"] and not maj.outputs["EN"]
     system.cycle(10)
-    assert system.awake() == [maj]  # rung low, EN clear, but the jog goes on: polled
+    # rung low, EN clear, but the jog goes on: parked on it (its state read each cycle)
+    assert system.awake() == [] and system.parked() == [maj]
     mas.inputs["Axis"] = 1
     mas.inputs["StopType"] = 0  # all motion
     mas.inputs["Execute"] = True
@@ -134,7 +136,7 @@ def test_a_running_instance_stays_awake_until_it_is_done() -> None:
     # the stop ends the jog: the MAJ that started it no longer shows IP
     system.cycle(2000)
     assert not maj.outputs["IP"] and not mas.outputs["IP"]
-    assert system.awake() == []
+    assert system.awake() == [] and system.parked() == []
 
 
 def test_mc_power_follows_an_axis_switched_on_by_another_instruction() -> None:
@@ -152,3 +154,81 @@ def test_mc_power_follows_an_axis_switched_on_by_another_instruction() -> None:
     system.cycle()
     # MC_Power's Status follows the axis (its latched Axis 2) though Enable is low
     assert power.outputs["Status"]
+
+
+def pulse_on(system: MotionSystem, name: str, **operands: Any) -> None:
+    """Write ``operands`` and raise ``name``'s rung; it stays high."""
+    inst = system.instances[name]
+    for key, v in operands.items():
+        inst.inputs[key] = v
+    inst.inputs[inst.TRIGGER] = True
+
+
+def test_a_parked_instance_is_not_called_until_a_write_or_its_end() -> None:
+    system = build(sleep=True)
+    maj = system.instances["MAJ_1"]
+    system.ctl.servo_on(system.ctl.axis(1))
+    pulse_on(system, "MAJ_1", Axis=1, Speed=10.0)  # the rung held high
+    system.cycle(2)
+    assert system.parked() == [maj] and maj.outputs["IP"] and maj.outputs["EN"]
+    calls: list[str] = []
+    scan, update = maj.scan, maj.update
+    maj.scan = lambda: (calls.append("scan"), scan())[1]  # type: ignore[method-assign]
+    maj.update = lambda: (calls.append("update"), update())[1]  # type: ignore[method-assign]
+    system.cycle(60)  # (the default AccelRate: 10 mm/s reached within 100 ms)
+    assert calls == [] and maj.outputs["IP"]  # jogging on, nothing to do
+    assert system.ctl.axis(1).command_velocity == 10.0
+    maj.inputs["Execute"] = False  # the write wakes it: the low rung clears EN
+    system.cycle()
+    assert calls == ["scan", "update"] and not maj.outputs["EN"] and maj.outputs["IP"]
+    assert system.parked() == [maj]  # waiting on the jog again, the rung low and steady
+
+
+def test_a_group_stop_ends_the_parked_instances_in_its_cycle() -> None:
+    """A jog and a gear parked, rungs held high; the group stop aborts both: IP clears in
+    the cycle of the stop, the FLAGS word with it, exactly as when every instance is
+    called every cycle; then both sleep (their rungs steady)."""
+    a, b = build(sleep=True), build(sleep=False)
+    for system in (a, b):
+        for axis in (1, 2):
+            system.ctl.servo_on(system.ctl.axis(axis))
+        pulse_on(system, "MAJ_1", Axis=1, Speed=50.0)
+        pulse_on(system, "MAG_1", SlaveAxis=2, MasterAxis=1, Ratio=0.5)
+    for c in range(30):
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c}")
+    maj, mag = a.instances["MAJ_1"], a.instances["MAG_1"]
+    assert set(a.parked()) == {maj, mag} and maj.outputs["IP"] and mag.outputs["IP"]
+    for system in (a, b):
+        pulse_on(system, "MGS_1", Group=1, StopMode=1)  # Fast Stop of Group1
+    a.cycle()
+    b.cycle()
+    same(a, b, "the cycle of the stop")
+    for inst in (maj, mag):
+        assert not inst.outputs["IP"] and inst.outputs["DN"] and inst.outputs["EN"]
+        assert inst.outputs["FLAGS"] & (1 << LogixBit.IP.value) == 0
+    assert a.parked() == [] and maj not in a.awake() and mag not in a.awake()
+    for c in range(200):
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c} after the stop")
+
+
+def test_only_instances_that_wait_on_nothing_but_their_process_park() -> None:
+    """A type parks (``PARKS``) only if its scan, update and poll are those whose
+    parked state :meth:`ProcessInstruction.end_parked` knows: a type that follows more
+    than its process's state (a cam's SEGMENT) or overrides them must say False."""
+    from motion_server.instructions.base import LogixInstruction
+    from motion_server.instructions.logix.mdsc import SpeedControlledMotion
+    from motion_server.instructions.logix_common import ProcessInstruction
+    from motion_server.instructions.registry import catalog
+
+    parking = {name for name, cls in catalog().items() if getattr(cls, "PARKS", False)}
+    assert {"MAJ", "MAM", "MAG", "MAS"} <= parking
+    assert not parking & {"MAPC", "MATC"}
+    for name in parking:
+        cls = catalog()[name]
+        assert issubclass(cls, ProcessInstruction), name
+        assert cls.scan is LogixInstruction.scan and cls.update is LogixInstruction.update
+        assert cls.poll in (ProcessInstruction.poll, SpeedControlledMotion.poll), name

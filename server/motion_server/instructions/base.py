@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 
 from ..kernel import Axis, Controller, ErrorCode, MotionError, TransitionError
 from ..kernel.group import MotionGroup
+from ..kernel.processes import Process
 from .judging import judge_of
 from .schema import Kind, Operand, StatusField, TagType, coerce
 from .status import LOGIX_STATUS, PLCOPEN_STATUS, LogixBit
@@ -261,6 +262,20 @@ class Instruction:
     def poll(self) -> None:
         """Follow the processes this instance started (after the kernel step)."""
 
+    def parked_on(self) -> Process | None:
+        """The process this instance does nothing but wait on, or None: until that
+        process leaves ACTIVE or an operand is written, :meth:`scan` and :meth:`update`
+        would change nothing. Its system then checks only the process's state each
+        cycle (see :class:`~.system.MotionSystem`). Asked after :meth:`update` of an
+        instance that is not asleep; the default (None) calls it every cycle."""
+        return None
+
+    def end_parked(self) -> bool:
+        """:meth:`update` of this instance, parked on a process that has now left
+        ACTIVE; True if it is asleep after it (see :meth:`parked_on`)."""
+        self.update()
+        return self.asleep()
+
     def asleep(self) -> bool:
         """True when, until an operand is written, neither :meth:`scan` nor :meth:`update`
         would change anything: no trigger edge to come, no process to follow, no output
@@ -311,6 +326,8 @@ _AC = 1 << LogixBit.AC.value
 #: no error code
 _RISING = RungEvent.RISING
 _NO_STATUS: dict[str, Any] = {}
+_ENDED_PC: dict[str, Any] = {"IP": False, "PC": True}
+_ENDED_NO_PC: dict[str, Any] = {"IP": False, "PC": False}
 _RISING_STATUS: dict[str, Any] = {"EN": True, "DN": False, "ER": False, "PC": False, "ERR": 0,
                                   "EXERR": 0}  # fmt: skip
 
@@ -411,12 +428,36 @@ class LogixInstruction(Instruction):
         if out["IP"] or out["AC"]:
             self.poll()
 
+    def rung_steady(self) -> bool:
+        """:meth:`scan` does nothing until a write changes the rung: it is steady, high
+        (EN held: no edge to come) or low with EN already cleared; no rising status
+        owed."""
+        if self._rising:
+            return False
+        rung = bool(self.inputs[self.TRIGGER])
+        return rung == self._last_trigger and (rung or not self.outputs["EN"])
+
     def asleep(self) -> bool:
-        # scan returns at once (rung false, EN clear) and update has no process to poll
+        # update has no process to poll and scan nothing to do
         out = self.outputs
-        return not (
-            self.inputs[self.TRIGGER] or self._last_trigger or out["EN"] or out["IP"] or out["AC"]
-        )
+        return not (out["IP"] or out["AC"]) and self.rung_steady()
+
+    def clear_ip(self, pc: bool | None = None) -> None:
+        """``set_bits(IP=False)``, or ``set_bits(IP=False, PC=pc)``, for the end of a
+        process: the FLAGS word follows from the one kept (one bit or two changed), not
+        from every bit read back."""
+        if self._rising:
+            self.set_bits(IP=False) if pc is None else self.set_bits(IP=False, PC=pc)
+            return
+        out = self.outputs
+        flags = out.get("FLAGS", 0) & ~_IP
+        if pc is None:
+            out["IP"] = False
+        else:
+            out.write(_ENDED_PC if pc else _ENDED_NO_PC)
+            flags = (flags | _PC) if pc else (flags & ~_PC)
+        if out.get("FLAGS") != flags:
+            out["FLAGS"] = flags
 
 
 # -- PLCopen -------------------------------------------------------------------------------

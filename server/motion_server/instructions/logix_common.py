@@ -40,6 +40,10 @@ class ProcessInstruction(LogixInstruction):
     superseded, stopped, shut down or faulted."""
 
     SETS_PC: ClassVar[bool] = True
+    #: while its process runs, the instance only waits for it to end (:meth:`parked_on`):
+    #: True where ``scan``, ``update`` and ``poll`` are these (a subclass that follows
+    #: more than the process's state, as a cam's SEGMENT, says False)
+    PARKS: ClassVar[bool] = True
 
     def __init__(self, *args: object, **kwargs: object) -> None:
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
@@ -69,6 +73,35 @@ class ProcessInstruction(LogixInstruction):
             extra = {k: v for k, v in status.items() if k not in ("DN", "IP", "PC")}
             self.started(process, extra)
 
+    def parked_on(self) -> Process | None:
+        """The running process, when nothing but its end can change this instance:
+        IP set, no MDAC link shown (AC), the rung steady (no edge to come, EN already
+        cleared on a low rung), no rising status owed."""
+        p = self.process
+        if p is None or p.state is not _ACTIVE or not self.PARKS:
+            return None
+        out = self.outputs
+        if not out["IP"] or out["AC"] or not self.rung_steady():
+            return None
+        return p
+
+    def end_parked(self) -> bool:
+        """:meth:`update` of this instance parked on its process (:meth:`parked_on`),
+        now that the process has left ACTIVE; True if the instance is asleep after it.
+        While parked, nothing but the process changed (IP set, AC and TrackingMaster
+        clear, the rung steady: a write would have woken it): so IP clears, PC follows
+        a completion and the instance sleeps, without the full update and the sleep
+        test (a group stop ending 256 jogs in one cycle). A process in error takes the
+        full update."""
+        p = self.process
+        state = None if p is None else p.state
+        if state is None or state is _ERROR or state is _ACTIVE or self._rising:
+            self.update()
+            return self.asleep()
+        self.process = None
+        self.clear_ip(self.SETS_PC if state is _DONE else None)
+        return True
+
     def poll(self) -> None:
         p = self.process
         if p is None:
@@ -77,10 +110,10 @@ class ProcessInstruction(LogixInstruction):
         if state == _ACTIVE:
             return
         if state == _DONE:
-            self.set_bits(IP=False, PC=self.SETS_PC)
+            self.clear_ip(self.SETS_PC)
         elif state == _ERROR:
             self.outputs["ERR"] = p.error_code
             self.set_bits(IP=False, ER=True)
         else:
-            self.set_bits(IP=False)
+            self.clear_ip()
         self.process = None

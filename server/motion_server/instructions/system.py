@@ -9,12 +9,17 @@ and logs each one with its traceback.
 
 from __future__ import annotations
 
+from operator import attrgetter
 from typing import Any
 
-from ..kernel import Controller, MotionError
+from ..kernel import Controller, MotionError, ProcessState
+from ..kernel.processes import Process
 from .base import Instruction
 from .registry import instruction_type
 from .scan_pass import scan_pass
+
+_ACTIVE = ProcessState.ACTIVE
+_STATE = attrgetter("state")
 
 
 class MotionSystem:
@@ -28,8 +33,13 @@ class MotionSystem:
     An instance that is asleep (:meth:`Instruction.asleep`: nothing can change until an
     operand is written) is left out of both calls, so idle instances cost nothing; a write
     to its operands, or for those that follow the axis state any change of it, wakes it.
-    The awake ones keep the instances' order. ``sleep=False`` calls every instance every
-    cycle (the reference the sleeping is tested against).
+    The awake ones keep the instances' order. An instance that only waits for its
+    process to end (:meth:`Instruction.parked_on`: a MAJ jogging, a MAG geared) is
+    parked: each cycle, after the kernel step, its system reads that process's state, and
+    wakes it when the process has left ACTIVE (it is then updated in the same cycle, as
+    it would have been) or when an operand is written. So 256 jogging MAJ cost 256 reads
+    of a state a cycle, not 256 scans and updates. ``sleep=False`` calls every instance
+    every cycle (the reference the sleeping and the parking are tested against).
 
     The instances that fire in one scan hand their axis commands to the kernel together
     where their types allow it (:mod:`.scan_pass`: MAJ's jogs, MAG's gears), with the
@@ -50,6 +60,8 @@ class MotionSystem:
         self._awake: list[Instruction] = []
         #: instances whose operands were written since they were last called
         self._woken: set[Instruction] = set()
+        #: instances parked on their running process (:meth:`Instruction.parked_on`)
+        self._parked: dict[Instruction, Process] = {}
         self._state_watchers: list[Instruction] = []
         self._states_seen = -1
         self._wired = 0
@@ -57,6 +69,10 @@ class MotionSystem:
         self.changed_outputs: set[str] = set()
         #: (instance name, exception) of instances that raised, for the host to log
         self.internal_errors: list[tuple[str, BaseException]] = []
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        state.setdefault("_parked", {})  # (a snapshot of a system that parked none)
+        self.__dict__.update(state)
 
     def add(self, type_name: str, name: str, defaults: dict[str, Any] | None = None) -> Instruction:
         if name in self.instances:
@@ -89,6 +105,9 @@ class MotionSystem:
         for _ in range(count):
             self.scan_instructions()
             ctl.step()
+            if self._woken:
+                self._wake()  # (operands written since the scan: those parked woken)
+            ended = self._unpark_ended() if self._parked else None
             awake = self._wake()
             for inst in awake:
                 try:
@@ -96,9 +115,47 @@ class MotionSystem:
                 except Exception as exc:
                     self._contain(inst, exc)
             if self.sleep:
-                keep = [inst for inst in awake if not inst.asleep()]
-                if len(keep) != len(awake):
-                    self._awake = keep
+                self._rest(awake)
+            if ended:
+                self._woken.update(ended)  # (scanned from the next cycle on)
+
+    def _rest(self, awake: list[Instruction]) -> None:
+        """After the update: the instances of ``awake`` that are asleep leave the
+        awake list, those that only wait on their process are parked."""
+        keep: list[Instruction] = []
+        parked = self._parked
+        for inst in awake:
+            if inst.asleep():
+                continue
+            p = inst.parked_on()
+            if p is None:
+                keep.append(inst)
+            else:
+                parked[inst] = p
+        if len(keep) != len(awake):
+            self._awake = keep
+
+    def _unpark_ended(self) -> list[Instruction]:
+        """Update the parked instances whose process left ACTIVE (in this cycle's scan
+        or step), here rather than among the awake ones (each writes only its own
+        outputs: the order does not matter). Returns those that are not asleep after
+        it, to wake once this cycle's update is over (a group stop ending 256 jogs:
+        no other pass over them)."""
+        parked = self._parked
+        states = list(map(_STATE, parked.values()))  # (no Python call per process)
+        if states.count(_ACTIVE) == len(states):
+            return []
+        ended = [inst for inst, p in parked.items() if p.state is not _ACTIVE]
+        awake: list[Instruction] = []
+        for inst in ended:
+            del parked[inst]
+            try:
+                if not inst.end_parked():
+                    awake.append(inst)
+            except Exception as exc:
+                self._contain(inst, exc)
+                awake.append(inst)
+        return awake
 
     def scan_instructions(self) -> None:
         """The first half of :meth:`cycle`, before the kernel steps: in run mode, every
@@ -110,6 +167,11 @@ class MotionSystem:
     def awake(self) -> list[Instruction]:
         """The instances the next cycle calls (all of them with ``sleep=False``)."""
         return list(self._wake())
+
+    def parked(self) -> list[Instruction]:
+        """The instances parked on their running process, in the instances' order."""
+        self._wake()
+        return [inst for inst in self.instances.values() if inst in self._parked]
 
     def _wake(self) -> list[Instruction]:
         """The awake instances, with those woken since the last call merged in (in order)."""
@@ -125,6 +187,10 @@ class MotionSystem:
             woken.update(self._state_watchers)
         if woken:
             if self.sleep:
+                parked = self._parked
+                if parked:
+                    for inst in woken:
+                        parked.pop(inst, None)
                 woken.update(self._awake)
                 self._awake = [inst for inst in self.instances.values() if inst in woken]
             else:

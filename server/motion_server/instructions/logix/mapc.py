@@ -86,6 +86,7 @@ class CamInstruction(ProcessInstruction):
     """A Logix cam (MAPC, MATC): SEGMENT follows the cam while it is in process."""
 
     OUTPUTS = (SEGMENT,)
+    PARKS = False  # SEGMENT follows the cam every cycle
 
     def poll(self) -> None:
         p = self.process

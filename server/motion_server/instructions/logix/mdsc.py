@@ -218,6 +218,14 @@ class SpeedControlledMotion(ProcessInstruction):
             raise
         self.started(p, tracking_status(p))
 
+    def parked_on(self) -> Process | None:
+        """As a process instruction's, for a time-driven process only (a master-driven
+        one's TrackingMaster changes while it runs)."""
+        p = super().parked_on()
+        if p is None or isinstance(p, MasterDrivenProcess) or self.outputs["TrackingMaster"]:
+            return None
+        return p
+
     def poll(self) -> None:
         super().poll()
         self._track()
