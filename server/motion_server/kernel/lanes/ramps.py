@@ -145,10 +145,12 @@ class PlanLane(Lane):
         add = requests.extend
         head = self._request_head
         rows: list[tuple[Any, ...]] = []
+        loaded: list[int] = []  # (the positions of ``rows``)
         for k, (p, ax) in enumerate(joining):
             request = p.profile.request  # type: ignore[attr-defined]
             if request is None:
                 rows.append(self._load(p, ax))
+                loaded.append(k)
                 continue
             requested.append(k)
             add(head(p, ax))
@@ -166,7 +168,8 @@ class PlanLane(Lane):
         # both kinds: place each column's rows where their members are
         n = len(joining)
         at = np.array(requested, dtype=np.intp)
-        others = np.setdiff1d(np.arange(n, dtype=np.intp), at)
+        # (not numpy's setdiff1d: its first call imports numpy.ma, 10 ms in a cycle)
+        others = np.array(loaded, dtype=np.intp)
         columns = []
         for j, f in enumerate(self.FIELDS):
             width_f = self.WIDTHS.get(f)
