@@ -36,6 +36,10 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``mapc``: ``cam`` commanded through the instruction, one MAPC instance per slave
   (Continuous, Immediate, on its master's command position, the cam table's profile in
   slot 1 as MCCP computes it), all executed in the same scan (100 steps).
+- ``mas``: from ``steady``, MAS (stop all motion, at each axis's maximum deceleration)
+  on every axis, one instance per axis, all executed in the same scan: the stops as one
+  batch (``Controller.stop_many``), what an HMI stopping every axis by its own MAS makes
+  the controller do (100 steps).
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
@@ -291,6 +295,11 @@ MAPC_SETUP, MAPC_COMMAND = instructions(
                "MasterReference": MasterReference.COMMAND},
 )  # fmt: skip
 
+#: MAS (all motion, the maximum deceleration) on every axis, through the instruction
+MAS_SETUP, MAS_COMMAND = instructions(
+    "MAS", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "StopType": 0}
+)
+
 
 def mapc_setup(ctl: Controller) -> None:
     """Masters jogging, the cam table's profile calculated into slot 1 (what MCCP leaves:
@@ -335,6 +344,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "maj": (lambda c: (gear(c, False), MAJ_SETUP(c)), MAJ_COMMAND, 100),
     "mag": (lambda c: (jog(c), MAG_SETUP(c)), MAG_COMMAND, 60),
     "mapc": (mapc_setup, MAPC_COMMAND, 100),
+    "mas": (lambda c: (geared(c), MAS_SETUP(c)), MAS_COMMAND, 100),
 }
 
 

@@ -2,16 +2,17 @@
 (``instructions/scan_pass.py``) against the same scans executed instance by instance.
 
 Two systems get the same writes: one scans with batches (the default), the other with
-``batch=False`` (every instance alone, as before the batches). MAJ and MAG instances are
-mixed with MAM, MAS and MGS (which always execute alone, so they cut a batch) in one fixed
-order; random scans fire random subsets with random, partly invalid operands: two
-instances on one axis, a MAG whose master is a slave geared in the same scan, loops of
-gears, Merge, S-curve and master units (executed alone), a negative ratio, axes that do
-not exist or cannot move, and rates so small that the kernel refuses the plan of one jog
-in the middle of a batch. After every cycle both systems must show the same outputs on
-every instance, mark the same instances changed and command the same position, velocity
-and acceleration, bit for bit, with the same processes (their planned attributes) on
-every axis, lanes on and off.
+``batch=False`` (every instance alone, as before the batches). MAJ, MAG and MAS
+instances are mixed with MAM and MGS (which always execute alone, so they cut a batch)
+in one fixed order; random scans fire random subsets with random, partly invalid
+operands: two instances on one axis, a MAG whose master is a slave geared in the same
+scan, loops of gears, Merge, S-curve and master units (executed alone), a negative ratio,
+stops of some kinds or with a jerk (executed alone), axes that do not exist or cannot
+move, and rates so small that the kernel refuses the plan of one jog or stop in the
+middle of a batch. After every cycle both systems must show the same outputs on every
+instance, mark the same instances changed and command the same position, velocity and
+acceleration, bit for bit, with the same processes (their planned attributes and
+owners) on every axis, lanes on and off.
 """
 
 from __future__ import annotations
@@ -64,13 +65,21 @@ POOLS: dict[str, dict[str, list[Any]]] = {
         "AccelRate": [100.0, 50.0, 0.0],
         "AccelUnits": [0, 1],
     },
-    "MAS": {"Axis": AXES, "StopType": [0, 1, 2]},
+    "MAS": {
+        "Axis": AXES,
+        "StopType": [0, 0, 1, 2],
+        "ChangeDecel": [0, 0, 1],
+        "DecelRate": RATES,
+        "DecelUnits": [0, 0, 1],
+        "ChangeDecelJerk": [0, 0, 0, 1],
+    },
     "MGS": {"Group": [1, 1, 2], "StopMode": [0, 1]},
 }
 #: the instances in scan order: runs of one type, cut by the others
 ORDER = [
     ("MAJ1", "MAJ"), ("MAJ2", "MAJ"), ("MAJ3", "MAJ"), ("MAG1", "MAG"), ("MAG2", "MAG"),
-    ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAJ5", "MAJ"), ("MAG4", "MAG"),
+    ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAS2", "MAS"), ("MAS3", "MAS"),
+    ("MAJ5", "MAJ"), ("MAG4", "MAG"),
     ("MAM1", "MAM"), ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MAJ7", "MAJ"),
     ("MAJ8", "MAJ"),
 ]  # fmt: skip
@@ -136,7 +145,15 @@ def bits(x: float) -> bytes:
 
 
 def processes(p: list[Process]) -> list[list[tuple[str, str]]]:
-    return [digest(q) for q in p]
+    """Each process's digest, the lane it is in by its type: what a lane keeps of its
+    own (a flag that a rebuild is due) depends on how it holds the process (a stop's
+    ramps are rows of the stop lane when planned as a batch, members one by one), not
+    on what the process commands."""
+    out = []
+    for q in p:
+        kept = [(k, v) for k, v in digest(q) if not k.startswith("lane.")]
+        out.append([*kept, ("lane", type(q.lane).__name__)])
+    return out
 
 
 def same_scan(batched: MotionSystem, alone: MotionSystem, when: object) -> None:
@@ -151,6 +168,12 @@ def same_scan(batched: MotionSystem, alone: MotionSystem, when: object) -> None:
         for field in ("command_position", "command_velocity", "command_acceleration"):
             assert bits(getattr(a, field)) == bits(getattr(b, field)), (when, a.name, field)
         assert processes(a.processes) == processes(b.processes), (when, a.name)
+        assert owners(a.processes) == owners(b.processes), (when, a.name)
+
+
+def owners(p: list[Process]) -> list[str]:
+    """Who owns each process: an instance by its name, anything else by its type."""
+    return [getattr(q.owner, "name", type(q.owner).__name__) for q in p]
 
 
 def same(batched: MotionSystem, alone: MotionSystem, when: object) -> None:
@@ -359,3 +382,50 @@ def test_an_instance_that_raises_while_writing_its_status_is_contained() -> None
     assert out["MAJ2"]["ER"] and out["MAJ2"]["ERR"] == ErrorCode.INTERNAL_ERROR
     for name in ("MAJ1", "MAJ3"):
         assert out[name]["DN"] and out[name]["IP"] and not out[name]["ER"], name
+
+
+def test_stops_of_one_scan_are_planned_in_one_call() -> None:
+    """MAJ1..3 jog axes 1..3 at 50 units/s, MAG1 gears axis 5 to axis 1. Then MAS1..3
+    stop all motion of axes 1, 2 and 5 in one scan (MAS2 at 250 units/s² of its own):
+    one ``stop_many`` with the three, planned as one batch, and outputs and motion as
+    one by one. 50 units/s at 400 and 250 units/s² take 125 and 200 ms: after 100
+    cycles of 2 ms, every MAS has completed (PC) and the three axes rest."""
+    systems = [build(batch, True) for batch in (True, False)]
+    calls: list[tuple[int, bool]] = []
+    ctl = systems[0].ctl
+    stop_many = ctl.stop_many
+
+    def spy(axes: Any, decelerations: Any, owners: Any) -> Any:
+        calls.append((len(axes), ctl._stops_as_batch(axes, decelerations)))
+        return stop_many(axes, decelerations, owners)
+
+    ctl.stop_many = spy  # type: ignore[method-assign]
+    for system in systems:
+        for k, name in enumerate(("MAJ1", "MAJ2", "MAJ3")):
+            system[name].inputs.update({"Axis": k + 1, "Speed": 50.0, "Execute": True})
+        system["MAG1"].inputs.update({"SlaveAxis": 5, "MasterAxis": 1, "Execute": True})
+    for k in range(60):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("start", k))
+    stops = {
+        "MAS1": {"Axis": 1},
+        "MAS2": {"Axis": 2, "ChangeDecel": 1, "DecelRate": 250.0},
+        "MAS3": {"Axis": 5},
+    }
+    for system in systems:
+        fire(system, stops)
+    same(systems[0], systems[1], "the cycle of the stops")
+    assert calls == [(3, True)]
+    for name in stops:
+        out = systems[0][name].outputs
+        assert out["DN"] and out["IP"] and not out["PC"], name
+    for k in range(100):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("stopping", k))
+    for name in stops:
+        assert systems[0][name].outputs["PC"] and not systems[0][name].outputs["IP"], name
+    for n in (1, 2, 5):
+        ax = systems[0].ctl.axis(n)
+        assert ax.command_velocity == 0.0 and not ax.processes, n

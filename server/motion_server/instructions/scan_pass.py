@@ -3,12 +3,12 @@ the kernel in one call per kind.
 
 Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel process:
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
-can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams)
-and whose trigger rose are latched, judged and checked one by one, as their own ``scan``
-does, but their kernel commands are queued; the queue goes to the kernel in one call per
-kind (``Controller.start_jogs``, ``Controller.start_gears``,
-``kernel.cam_batch.start_position_cams``) and then every instance writes its status from
-the process it got.
+can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams,
+MAS -> stops) and whose trigger rose are latched, judged and checked one by one, as their
+own ``scan`` does, but their kernel commands are queued; the queue goes to the kernel in
+one call per kind (``Controller.start_jogs``, ``Controller.start_gears``,
+``kernel.cam_batch.start_position_cams``, ``Controller.stop_many``) and then every
+instance writes its status from the process it got.
 
 The observable result is exactly that of scanning one by one (tested against it, every
 output and the kernel's arrays after every cycle). That holds because a queued command
@@ -27,8 +27,9 @@ over:
   limits change, keeping the order;
 - an instance that decides to execute alone (a MAJ with Merge, master-driven or under a
   pending MDAC reassignment; a MAPC with a schedule other than Immediate, a master
-  direction other than both ways, or a cam preloaded on its slave) hands the queue over
-  first and runs its own ``execute``.
+  direction other than both ways, or a cam preloaded on its slave; a MAS that stops
+  less than all motion, changes the jerk, has a homing to end or nothing moving) hands
+  the queue over first and runs its own ``execute``.
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
@@ -86,6 +87,7 @@ class BatchKind(IntEnum):
     JOG = 0
     GEAR = 1
     POSITION_CAM = 2
+    STOP = 3
 
 
 #: the process kind each batch starts (how a refused batch finds what it started)
@@ -93,6 +95,7 @@ _PROCESS_KIND: dict[BatchKind, ProcessKind] = {
     BatchKind.JOG: ProcessKind.JOG,
     BatchKind.GEAR: ProcessKind.GEAR,
     BatchKind.POSITION_CAM: ProcessKind.POSITION_CAM,
+    BatchKind.STOP: ProcessKind.STOP,
 }
 _NO_STATUS: dict[str, Any] = {}
 #: the processes a new gear supersedes (MAG)
@@ -177,6 +180,8 @@ class Batch:
                     started = ctl.start_jogs(axes, [job[1] for job in jobs], limits, owners)
                 elif kind is BatchKind.POSITION_CAM:
                     started = start_position_cams(ctl, jobs)  # type: ignore[arg-type]
+                elif kind is BatchKind.STOP:
+                    started = ctl.stop_many(axes, [job[1] for job in jobs], owners)
                 else:
                     started = ctl.start_gears(
                         axes,
@@ -223,7 +228,7 @@ def _new_process(ax: Axis, owner: object, before: Process | None, kind: BatchKin
     """The process of ``kind`` that ``owner`` started on ``ax`` in a refused batch."""
     pk = _PROCESS_KIND[kind]
     for p in ax.processes:
-        if p.owner is owner and p.kind == pk and p is not before and p.active:
+        if p.owner is owner and p.kind == pk and p is not before and _started(p):
             return p
     raise LookupError(f"no {pk.name} of {owner!r} on {ax.name}")
 
@@ -236,10 +241,17 @@ def _started_count(
     for k, ax in enumerate(axes):
         owner, old = owners[k], before[k]
         if not any(
-            p.owner is owner and p.kind == kind and p is not old and p.active for p in ax.processes
+            p.owner is owner and p.kind == kind and p is not old and _started(p)
+            for p in ax.processes
         ):
             return k
     raise LookupError("a batch raised but every command in it started")
+
+
+def _started(p: Process) -> bool:
+    """``p``, found on its axis after a batch raised, is one the batch started: active,
+    or a stop ramp (one from rest is done at once; it stays until the next step)."""
+    return p.active or p.kind == ProcessKind.STOP
 
 
 class BatchInstruction(LogixInstruction):

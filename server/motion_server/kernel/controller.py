@@ -748,6 +748,57 @@ class Controller:
         assert isinstance(ramp, StopRamp)
         return ramp
 
+    def stop_many(
+        self, axes: Sequence[Axis], decelerations: Sequence[float], owners: Sequence[object]
+    ) -> list[StopRamp]:
+        """``stop(axes[k], None, decelerations[k], owner=owners[k])`` for every k in
+        order (MAS stopping all motion, executed on many axes in one scan): the same
+        ramps, the same state. When the axes are distinct, of one group with fast lanes,
+        in Servo Control, each with something to stop, and no MDAC link exists, their
+        ramps are planned as one batch (:func:`.stop_plan.stop_axes`, the group stop's,
+        without its bound at the Maximum Speed) and each ramp's object made for its
+        owner; else, or if the batch would refuse one, one by one (which raises where
+        the loop raises)."""
+        n = len(axes)
+        if len(decelerations) != n or len(owners) != n:
+            raise ValueError("one deceleration and one owner per axis")
+        if n and self._stops_as_batch(axes, decelerations):
+            group = axes[0].group
+            at = {ax.index: k for k, ax in enumerate(self._motion_axes[group])}
+            # in group order (the ramps of distinct axes do not depend on each other)
+            order = sorted(range(n), key=lambda k: at[axes[k].index])
+            batch = [axes[k] for k in order]
+            dec = np.array([decelerations[k] for k in order], dtype=float)
+            unbounded = np.full(n, math.inf)
+            if stop_axes(self.motion, batch, None, maxima=(dec, unbounded)):
+                ramps: list[StopRamp] = [cast(StopRamp, None)] * n
+                for k in order:
+                    r = axes[k].processes[0]  # (a row of the stop lane: its object made)
+                    assert isinstance(r, StopRamp)
+                    r.owner = owners[k]
+                    ramps[k] = r
+                return ramps
+        return [
+            self.stop(ax, None, d, owner=o)
+            for ax, d, o in zip(axes, decelerations, owners, strict=True)
+        ]
+
+    def _stops_as_batch(self, axes: Sequence[Axis], decelerations: Sequence[float]) -> bool:
+        """:meth:`stop_many` can plan these stops as one batch (see there)."""
+        if not self.lanes_enabled or self.mdsc.linked:
+            return False
+        group = axes[0].group
+        if len({ax.index for ax in axes}) != len(axes) or any(ax.group != group for ax in axes):
+            return False
+        if not all(d > 0.0 and math.isfinite(d) for d in decelerations):
+            return False
+        return all(
+            ax.state == AxisState.SERVO_CONTROL
+            and ax.type != AxisType.FEEDBACK_ONLY
+            and something_to_stop(ax)
+            for ax in axes
+        )
+
     def group_stop(
         self, ref: int | str, forced: ProgrammedStopMode | None = None, owner: object = None
     ) -> GroupStop:

@@ -12,15 +12,17 @@ operand its mode does not use is not judged).
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from ...kernel import AbortReason, AxisType, ErrorCode, MotionError, ProcessKind
+from ...kernel.processes import Process
 from ..base import Gate, gate
 from ..dynamics import AccelUnits, JerkUnits, rate
 from ..dynamics import jerk as jerk_of
-from ..logix_common import ProcessInstruction
+from ..logix_common import STARTED_ACTIVE, ProcessInstruction
 from ..operands import AXIS
 from ..registry import register
+from ..scan_pass import Batch, BatchKind
 from ..schema import Operand, Quantity, TagType
 
 
@@ -82,6 +84,40 @@ class MAS(ProcessInstruction):
         Operand("DecelJerk", TagType.REAL, 100.0, minimum=0.0, quantity=Quantity.JERK),
         Operand("JerkUnits", TagType.DINT, 0, enum=JerkUnits),
     )
+
+    BATCH = BatchKind.STOP
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the stop returned as (axis, deceleration)
+        for ``Controller.stop_many``: a stop of all motion, without a jerk, on an axis
+        with motion to stop and no homing to end. Any other executes alone (its own
+        path: a homing ended, DN and PC at once, a stop of some kinds, a jerk)."""
+        op = self.op
+        if int(op["StopType"]) != StopType.ALL or int(op["ChangeDecelJerk"]) == YesNo.YES:
+            return None
+        ax = self.axis()
+        number = ax.number
+        if number in batch.axes:
+            batch.flush()  # a second stop of the axis: it sees the first one
+        if (
+            ax.type == AxisType.FEEDBACK_ONLY
+            or ax.index in self.ctl.homing.jobs
+            or ax.homing_armed is not None
+            or not ax.servo_on
+            or not ax.active()
+        ):
+            return None
+        cfg = ax.config
+        decel = cfg.max_deceleration
+        if int(op["ChangeDecel"]) == YesNo.YES:
+            decel = rate(self, ax, "DecelRate", "DecelUnits", cfg.max_deceleration)
+        return (ax, decel), (number,)
+
+    def batch_started(self, process: Process) -> None:
+        self.started_active(process, STARTED_ACTIVE)
+
+    def batch_refused(self) -> None:
+        """The kernel refused the stop (a ramp too long): nothing to undo."""
 
     def execute(self) -> None:
         ax = self.axis()
