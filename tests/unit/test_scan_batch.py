@@ -2,9 +2,9 @@
 (``instructions/scan_pass.py``) against the same scans executed instance by instance.
 
 Two systems get the same writes: one scans with batches (the default), the other with
-``batch=False`` (every instance alone, as before the batches). MAJ, MAG and MAS
-instances are mixed with MAM and MGS (which always execute alone, so they cut a batch)
-in one fixed order; random scans fire random subsets with random, partly invalid
+``batch=False`` (every instance alone, as before the batches). MAJ, MAG, MAS and
+MC_Stop instances are mixed with MAM and MGS (which always execute alone, so they cut a
+batch) in one fixed order; random scans fire random subsets with random, partly invalid
 operands: two instances on one axis, a MAG whose master is a slave geared in the same
 scan, loops of gears, Merge, S-curve and master units (executed alone), a negative ratio,
 stops of some kinds or with a jerk (executed alone), axes that do not exist or cannot
@@ -74,12 +74,13 @@ POOLS: dict[str, dict[str, list[Any]]] = {
         "ChangeDecelJerk": [0, 0, 0, 1],
     },
     "MGS": {"Group": [1, 1, 2], "StopMode": [0, 1]},
+    "MC_Stop": {"Axis": AXES, "Deceleration": RATES, "Jerk": [0.0, 0.0, 0.0, 100.0]},
 }
 #: the instances in scan order: runs of one type, cut by the others
 ORDER = [
     ("MAJ1", "MAJ"), ("MAJ2", "MAJ"), ("MAJ3", "MAJ"), ("MAG1", "MAG"), ("MAG2", "MAG"),
-    ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAS2", "MAS"), ("MAS3", "MAS"),
-    ("MAJ5", "MAJ"), ("MAG4", "MAG"),
+    ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAS2", "MAS"), ("MC_Stop1", "MC_Stop"),
+    ("MAS3", "MAS"), ("MC_Stop2", "MC_Stop"), ("MAJ5", "MAJ"), ("MAG4", "MAG"),
     ("MAM1", "MAM"), ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MAJ7", "MAJ"),
     ("MAJ8", "MAJ"),
 ]  # fmt: skip
@@ -385,11 +386,12 @@ def test_an_instance_that_raises_while_writing_its_status_is_contained() -> None
 
 
 def test_stops_of_one_scan_are_planned_in_one_call() -> None:
-    """MAJ1..3 jog axes 1..3 at 50 units/s, MAG1 gears axis 5 to axis 1. Then MAS1..3
-    stop all motion of axes 1, 2 and 5 in one scan (MAS2 at 250 units/s² of its own):
-    one ``stop_many`` with the three, planned as one batch, and outputs and motion as
-    one by one. 50 units/s at 400 and 250 units/s² take 125 and 200 ms: after 100
-    cycles of 2 ms, every MAS has completed (PC) and the three axes rest."""
+    """MAJ1..3 jog axes 1..3 at 50 units/s, MAG1 gears axis 5 to axis 1. Then MAS1, MAS2,
+    MC_Stop1 and MAS3 stop all motion of axes 1, 2, 3 and 5 in one scan (MAS2 at 250
+    units/s² of its own, MC_Stop1 at 300): one ``stop_many`` with the four, planned as
+    one batch, and outputs and motion as one by one. 50 units/s at 400, 250 and 300
+    units/s² take 125, 200 and 167 ms: after 100 cycles of 2 ms, every MAS has completed
+    (PC), MC_Stop1 is Done and holds axis 3 Stopping (Execute high), the axes rest."""
     systems = [build(batch, True) for batch in (True, False)]
     calls: list[tuple[int, bool]] = []
     ctl = systems[0].ctl
@@ -411,21 +413,27 @@ def test_stops_of_one_scan_are_planned_in_one_call() -> None:
     stops = {
         "MAS1": {"Axis": 1},
         "MAS2": {"Axis": 2, "ChangeDecel": 1, "DecelRate": 250.0},
+        "MC_Stop1": {"Axis": 3, "Deceleration": 300.0},
         "MAS3": {"Axis": 5},
     }
+    masses = ("MAS1", "MAS2", "MAS3")
     for system in systems:
         fire(system, stops)
     same(systems[0], systems[1], "the cycle of the stops")
-    assert calls == [(3, True)]
-    for name in stops:
+    assert calls == [(4, True)]
+    for name in masses:
         out = systems[0][name].outputs
         assert out["DN"] and out["IP"] and not out["PC"], name
+    mc_stop = systems[0]["MC_Stop1"].outputs
+    assert mc_stop["Busy"] and mc_stop["Active"] and not mc_stop["Done"]
     for k in range(100):
         for system in systems:
             system.cycle()
         same(systems[0], systems[1], ("stopping", k))
-    for name in stops:
+    for name in masses:
         assert systems[0][name].outputs["PC"] and not systems[0][name].outputs["IP"], name
-    for n in (1, 2, 5):
+    assert mc_stop["Done"] and not mc_stop["Busy"]
+    assert systems[0].ctl.axis(3).stop_latch is systems[0]["MC_Stop1"]
+    for n in (1, 2, 3, 5):
         ax = systems[0].ctl.axis(n)
         assert ax.command_velocity == 0.0 and not ax.processes, n

@@ -56,7 +56,7 @@ from ..kernel import (
 from ..kernel.cam_batch import start_position_cams
 from ..kernel.power import TRANSITIONS
 from ..kernel.processes import Process
-from .base import Instruction, LogixInstruction, OperandError
+from .base import Instruction, LogixInstruction, OperandError, PLCopenBlock
 from .judging import judge_of
 
 if TYPE_CHECKING:
@@ -196,11 +196,12 @@ class Batch:
                 for i in range(k):
                     self._started(owners[i], _new_process(axes[i], owners[i], before[i], kind))
                 refused = owners[k]
-                refused.batch_refused()
                 if isinstance(exc, MotionError):
                     refused.fail(exc.code)
+                    refused.batch_refused()
                 else:
-                    if refused._rising:
+                    refused.batch_refused()
+                    if getattr(refused, "_rising", False):
                         refused._write_status(_NO_STATUS)
                     if self.contain is None:
                         raise
@@ -275,7 +276,8 @@ class BatchInstruction(LogixInstruction):
         raise NotImplementedError
 
     def batch_refused(self) -> None:
-        """The kernel refused this instance's queued command (before its error shows)."""
+        """The kernel refused this instance's queued command: what is left to do once
+        its error shows (a kernel error; an unexpected one: before it is contained)."""
 
 
 def scan_pass(
@@ -306,7 +308,10 @@ def scan_pass(
             queue = Batch(inst.ctl, contain)
         elif queue.kind is not kind:
             queue.flush()  # the other kind's commands first, before this one's checks
-        _rise(inst, kind, queue)  # type: ignore[arg-type]
+        if isinstance(inst, LogixInstruction):
+            _rise(inst, kind, queue)  # type: ignore[arg-type]
+        else:
+            _rise_block(inst, kind, queue)  # type: ignore[arg-type]
     if queue is not None:
         queue.flush()
 
@@ -317,18 +322,21 @@ _UNKNOWN = object()
 
 
 def _kind_of(cls: type[Instruction]) -> BatchKind | None:
-    """``cls.BATCH`` if the type scans as :class:`LogixInstruction` does and the
-    ``batch_job`` it has stands for the ``execute`` it has (a subclass that changes
-    either is scanned alone)."""
+    """``cls.BATCH`` if the ``batch_job`` the type has stands for the ``execute`` it has,
+    and it scans as :class:`LogixInstruction` does, or, a PLCopen block, as
+    :class:`PLCopenBlock` does or as the class that wrote its ``batch_job`` says (a
+    subclass that changes any of them is scanned alone)."""
     kind = getattr(cls, "BATCH", None)
-    if (
-        kind is None
-        or cls.scan is not LogixInstruction.scan
-        or cls.validate is not Instruction.validate
-    ):
+    if kind is None or cls.validate is not Instruction.validate:
         return None
-    owners = {name: _defined_by(cls, name) for name in ("batch_job", "execute")}
-    return kind if owners["batch_job"] is owners["execute"] else None
+    owners = {name: _defined_by(cls, name) for name in ("batch_job", "execute", "scan")}
+    if owners["batch_job"] is not owners["execute"]:
+        return None
+    if issubclass(cls, LogixInstruction):
+        return kind if cls.scan is LogixInstruction.scan else None
+    if issubclass(cls, PLCopenBlock) and owners["scan"] in (PLCopenBlock, owners["batch_job"]):
+        return kind
+    return None
 
 
 def _defined_by(cls: type, name: str) -> type | None:
@@ -336,6 +344,38 @@ def _defined_by(cls: type, name: str) -> type | None:
         if name in vars(base):
             return base
     return None
+
+
+def _rise_block(inst: Instruction, kind: BatchKind, queue: Batch) -> None:
+    """The rising edge of a PLCopen block (``PLCopenBlock.scan``), its command queued
+    when ``batch_job`` plans one. Anything else (a verdict against an operand, a
+    command the block executes alone or the kernel refuses at once) is the block's own
+    scan, after the queue is handed over: it judges, executes and fails as it always
+    does. A queued block writes its status once its command started
+    (``batch_started``)."""
+    block: Any = inst
+    block.latch()
+    try:
+        key = judge_of(type(inst)).judge(inst)
+        planned = block.batch_job(queue, key)
+    except Exception:
+        planned = None  # (judged again, and shown, by the scan below)
+    if planned is None:
+        queue.flush()
+        try:
+            inst.scan()
+        except Exception as exc:
+            if queue.contain is None:
+                raise
+            queue.contain(inst, exc)
+        return
+    # PLCopenBlock.scan's rising edge, up to the execution
+    block._last_trigger = True
+    block.outputs["ErrorID"] = 0
+    block.on_restart()
+    block.latch()
+    job, axes = planned
+    queue.add(kind, block, job, axes)
 
 
 def _rise(inst: BatchInstruction, kind: BatchKind, queue: Batch) -> None:

@@ -8,11 +8,15 @@ beyond the axis's maximum is limited to it: a stop is never refused for braking 
 
 from __future__ import annotations
 
+from typing import Any
+
 from ...kernel import ProcessState
+from ...kernel.processes import Process
 from ..base import BlockEvent
 from ..operands import AXIS, plcopen_dynamics
 from ..plcopen_common import MotionBlock
 from ..registry import register
+from ..scan_pass import Batch, BatchKind
 
 
 @register
@@ -21,15 +25,46 @@ class MC_Stop(MotionBlock):
     DESCRIPTION = "Stop the axis and hold it in Stopping while Execute is high"
     OPERANDS = (AXIS, *plcopen_dynamics(with_velocity=False))
 
+    BATCH = BatchKind.STOP
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the stop returned as (axis,
+        deceleration) for ``Controller.stop_many``; None for a jerk-limited stop (it
+        executes alone). Raises what ``execute`` raises before its command."""
+        ax = self.axis()
+        number = ax.number
+        if number in batch.axes:
+            batch.flush()  # a second stop of the axis: it sees the first one
+        self.ctl.require_motion(ax)
+        decel, jerk = self.stop_dynamics(ax)
+        if jerk != 0.0:
+            return None
+        return (ax, decel), (number,)
+
+    def batch_started(self, process: Process) -> None:
+        """The rest of ``execute`` and of the rising edge's scan."""
+        self._started(process)
+        self._publish()
+        self._release_if_idle()
+
+    def batch_refused(self) -> None:
+        """The kernel refused the stop (its error set): the end of the scan."""
+        self._publish()
+        self._release_if_idle()
+
     def execute(self) -> None:
         ax = self.axis()
         self.ctl.require_motion(ax)
         decel, jerk = self.stop_dynamics(ax)
-        self.process = self.ctl.stop(ax, None, decel, jerk, owner=self)
-        ax.stop_latch = self
+        self._started(self.ctl.stop(ax, None, decel, jerk, owner=self))
+
+    def _started(self, process: Process) -> None:
+        """Follow the stop ``process`` of the axis, latched Stopping by this block."""
+        self.process = process
+        self.axis().stop_latch = self
         self.fire(BlockEvent.START)
         self.active = True
-        if self.process.state == ProcessState.DONE:
+        if process.state == ProcessState.DONE:
             self.fire(BlockEvent.COMPLETE)
 
     def poll(self) -> None:
