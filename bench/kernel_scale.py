@@ -39,7 +39,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``mas``: from ``steady``, MAS (stop all motion, at each axis's maximum deceleration)
   on every axis, one instance per axis, all executed in the same scan: the stops as one
   batch (``Controller.stop_many``), what an HMI stopping every axis by its own MAS makes
-  the controller do (100 steps).
+  the controller do (100 steps);
+- ``mc_stop``: the same with MC_Stop (Deceleration 1,000 mm/s², Jerk 0) on every axis:
+  its stops join the same batch (100 steps).
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
@@ -299,6 +301,10 @@ MAPC_SETUP, MAPC_COMMAND = instructions(
 MAS_SETUP, MAS_COMMAND = instructions(
     "MAS", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "StopType": 0}
 )
+#: MC_Stop (1,000 mm/s², no jerk) on every axis, through the block
+MC_STOP_SETUP, MC_STOP_COMMAND = instructions(
+    "MC_Stop", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "Deceleration": RATE}
+)
 
 
 def mapc_setup(ctl: Controller) -> None:
@@ -345,6 +351,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "mag": (lambda c: (jog(c), MAG_SETUP(c)), MAG_COMMAND, 60),
     "mapc": (mapc_setup, MAPC_COMMAND, 100),
     "mas": (lambda c: (geared(c), MAS_SETUP(c)), MAS_COMMAND, 100),
+    "mc_stop": (lambda c: (geared(c), MC_STOP_SETUP(c)), MC_STOP_COMMAND, 100),
 }
 
 

@@ -4,9 +4,9 @@ the kernel in one call per kind.
 Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel process:
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
 can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams,
-MAS -> stops) and whose trigger rose are latched, judged and checked one by one, as their
-own ``scan`` does, but their kernel commands are queued; the queue goes to the kernel in
-one call per kind (``Controller.start_jogs``, ``Controller.start_gears``,
+MAS and MC_Stop -> stops) and whose trigger rose are latched, judged and checked one by
+one, as their own ``scan`` does, but their kernel commands are queued; the queue goes to
+the kernel in one call per kind (``Controller.start_jogs``, ``Controller.start_gears``,
 ``kernel.cam_batch.start_position_cams``, ``Controller.stop_many``) and then every
 instance writes its status from the process it got.
 
@@ -28,8 +28,9 @@ over:
 - an instance that decides to execute alone (a MAJ with Merge, master-driven or under a
   pending MDAC reassignment; a MAPC with a schedule other than Immediate, a master
   direction other than both ways, or a cam preloaded on its slave; a MAS that stops
-  less than all motion, changes the jerk, has a homing to end or nothing moving) hands
-  the queue over first and runs its own ``execute``.
+  less than all motion, changes the jerk, has a homing to end or nothing moving; an
+  MC_Stop with a jerk) hands the queue over first and runs its own ``execute`` (a
+  PLCopen block, its own ``scan``).
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
