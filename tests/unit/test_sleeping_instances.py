@@ -232,3 +232,25 @@ def test_only_instances_that_wait_on_nothing_but_their_process_park() -> None:
         assert issubclass(cls, ProcessInstruction), name
         assert cls.scan is LogixInstruction.scan and cls.update is LogixInstruction.update
         assert cls.poll in (ProcessInstruction.poll, SpeedControlledMotion.poll), name
+
+
+def test_parked_instances_round_trip_through_a_snapshot() -> None:
+    """A system restored from its state keeps its parked instances on the restored
+    processes: a group stop then ends them as it ends the original's."""
+    from motion_server.scan import statecodec
+
+    a = build(sleep=True)
+    for axis in (1, 2):
+        a.ctl.servo_on(a.ctl.axis(axis))
+    pulse_on(a, "MAJ_1", Axis=1, Speed=50.0)
+    pulse_on(a, "MAG_1", SlaveAxis=2, MasterAxis=1, Ratio=0.5)
+    a.cycle(30)
+    b = statecodec.loads(statecodec.dumps(a))
+    assert [i.name for i in b.parked()] == [i.name for i in a.parked()] == ["MAG_1", "MAJ_1"]
+    for system in (a, b):
+        pulse_on(system, "MGS_1", Group=1, StopMode=1)
+    for c in range(100):
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c} after the stop")
+    assert b.parked() == [] and not b.instances["MAJ_1"].outputs["IP"]
