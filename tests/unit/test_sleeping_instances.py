@@ -215,7 +215,7 @@ def test_a_group_stop_ends_the_parked_instances_in_its_cycle() -> None:
         same(a, b, f"cycle {c} after the stop")
 
 
-def test_only_instances_that_wait_on_nothing_but_their_process_park() -> None:
+def test_only_logix_instances_that_wait_on_nothing_but_their_process_park() -> None:
     """A type parks (``PARKS``) only if its scan, update and poll are those whose
     parked state :meth:`ProcessInstruction.end_parked` knows: a type that follows more
     than its process's state (a cam's SEGMENT) or overrides them must say False."""
@@ -254,3 +254,51 @@ def test_parked_instances_round_trip_through_a_snapshot() -> None:
         b.cycle()
         same(a, b, f"cycle {c} after the stop")
     assert b.parked() == [] and not b.instances["MAJ_1"].outputs["IP"]
+
+
+def test_a_plcopen_move_parks_while_busy_and_sleeps_on_its_held_done() -> None:
+    """MC_MoveRelative with Execute held high (PLCopen holds Done until it falls):
+    parked while the move runs, Done shown in the cycle the move ends, then asleep
+    while Execute stays high; Execute low releases Done in the next cycle, exactly as
+    with every instance called every cycle."""
+    a, b = build(sleep=True), build(sleep=False)
+    move = {"Axis": 1, "Distance": 5.0, "Velocity": 50.0, "Acceleration": 1000.0,
+            "Deceleration": 1000.0}  # fmt: skip
+    for system in (a, b):
+        system.ctl.servo_on(system.ctl.axis(1))
+        pulse_on(system, "MC_MoveRelative_1", **move)
+    block = a.instances["MC_MoveRelative_1"]
+    parked = done = 0
+    for c in range(200):  # 5 units at 50 units/s, 1,000 units/s²: 150 ms, 75 cycles
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c}")
+        parked += block in a.parked()
+        done += bool(block.outputs["Done"])
+    assert parked > 50 and done > 100 and block.outputs["Done"]
+    assert a.awake() == [] and a.parked() == []  # Done held: nothing left to call
+    for system in (a, b):
+        system.instances["MC_MoveRelative_1"].inputs["Execute"] = False
+    for c in range(3):
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c} after Execute fell")
+    assert not block.outputs["Done"] and not block.outputs["Busy"]
+
+
+def test_only_plcopen_blocks_that_show_nothing_while_busy_park() -> None:
+    """MotionBlock.parked_on and PLCopenBlock's held terminal state apply only to types
+    whose scan, update, poll and publish are the shared ones: a block that shows more
+    (InVelocity, InGear, InSync) or drops a latch in its scan is called every cycle."""
+    from motion_server.instructions.base import PLCopenBlock, _holds_terminal
+    from motion_server.instructions.plcopen_common import MotionBlock, _parks
+    from motion_server.instructions.registry import catalog
+
+    blocks = {n: c for n, c in catalog().items() if issubclass(c, MotionBlock)}
+    parking = {n for n, c in blocks.items() if _parks(c)}
+    assert {"MC_MoveAbsolute", "MC_MoveRelative", "MC_MoveAdditive", "MC_Halt"} <= parking
+    assert not parking & {"MC_MoveVelocity", "MC_GearIn", "MC_CamIn", "MC_Stop"}
+    plcopen = {n: c for n, c in catalog().items() if issubclass(c, PLCopenBlock)}
+    holding = {n for n, c in plcopen.items() if _holds_terminal(c)}
+    assert {"MC_MoveAbsolute", "MC_GearIn", "MC_CamIn"} <= holding
+    assert not holding & {"MC_Stop", "MC_Power", "MC_MoveVelocity"}

@@ -560,10 +560,16 @@ class PLCopenBlock(Instruction):
         self._publish()
 
     def asleep(self) -> bool:
-        # idle with Execute low: scan returns at once and update has nothing to follow
-        return (
-            not (self.inputs[self.TRIGGER] or self._last_trigger) and self.state == BlockState.IDLE
-        )
+        # idle with Execute low: scan returns at once and update has nothing to follow.
+        # Done, Error or CommandAborted already shown with Execute held high (PLCopen
+        # holds them until it falls): scan and update publish the same outputs again,
+        # where the type's are these (publish_extra reads only the state then)
+        ex = bool(self.inputs[self.TRIGGER])
+        if ex != self._last_trigger:
+            return False
+        if not ex:
+            return self.state == BlockState.IDLE
+        return self.state in _TERMINAL and self._shown and _holds_terminal(type(self))
 
     def on_restart(self) -> None:
         """A new rising edge arrived (before the operands are latched)."""
@@ -586,6 +592,13 @@ class PLCopenBlock(Instruction):
 
     def publish_extra(self) -> None:
         """Set block-specific outputs (InVelocity, InGear ...) from the state."""
+
+
+def _holds_terminal(cls: type[PLCopenBlock]) -> bool:
+    """A terminal state shown changes nothing while Execute stays high: ``cls`` scans
+    and updates as :class:`PLCopenBlock` does (MC_Stop's scan also drops its latch,
+    MC_Power follows the axis: they do not)."""
+    return cls.scan is PLCopenBlock.scan and cls.update is PLCopenBlock.update
 
 
 # -- PLCopen, Enable-style -----------------------------------------------------------------

@@ -9,8 +9,22 @@ from typing import ClassVar
 from ..kernel import Axis, ErrorCode, Limits, MotionError, Pending, ProcessState
 from ..kernel.controller import ProcessFactory
 from ..kernel.processes import Process
-from .base import BlockEvent, PLCopenBlock
+from .base import BlockEvent, BlockState, PLCopenBlock
 from .schema import Operand, TagType
+
+_ACTIVE = ProcessState.ACTIVE
+_BUSY = BlockState.BUSY
+
+
+def _parks(cls: type[MotionBlock]) -> bool:
+    """Blocks of ``cls`` change nothing while their process runs (see
+    :meth:`MotionBlock.parked_on`)."""
+    return (
+        cls.scan is PLCopenBlock.scan
+        and cls.update is PLCopenBlock.update
+        and cls.poll is MotionBlock.poll
+        and cls.publish_extra is PLCopenBlock.publish_extra
+    )
 
 
 class BufferMode(IntEnum):
@@ -117,6 +131,24 @@ class MotionBlock(PLCopenBlock):
                 raise self.out_of_range(
                     name, f"{name} {value:g} is beyond the slave's {what} {maximum:g}"
                 )
+
+    def parked_on(self) -> Process | None:
+        """The running process of a block that only waits for its end: Busy, not
+        buffered, Execute steady, where the type's scan, update, poll and publish are
+        these (a block that shows more while it runs, InVelocity, InGear, InSync, does
+        not park)."""
+        p = self.process
+        if (
+            p is None
+            or p.state is not _ACTIVE
+            or self.state is not _BUSY
+            or self.pending is not None
+            or not self.active
+            or bool(self.inputs[self.TRIGGER]) != self._last_trigger
+            or not _parks(type(self))
+        ):
+            return None
+        return p
 
     def begin(self, ax: Axis, make: ProcessFactory) -> None:
         mode = int(self.op.get("BufferMode", BufferMode.ABORTING))
