@@ -302,3 +302,32 @@ def test_only_plcopen_blocks_that_show_nothing_while_busy_park() -> None:
     holding = {n for n, c in plcopen.items() if _holds_terminal(c)}
     assert {"MC_MoveAbsolute", "MC_GearIn", "MC_CamIn"} <= holding
     assert not holding & {"MC_Stop", "MC_Power", "MC_MoveVelocity"}
+
+
+def test_a_parked_move_velocity_wakes_when_an_override_takes_its_speed() -> None:
+    """MC_MoveVelocity at speed with InVelocity shown parks on its jog. MC_SetOverride
+    at 50 % re-plans the jog (no longer at speed): InVelocity drops in that very cycle,
+    and rises again once the jog reaches the new speed, exactly as with every instance
+    called every cycle."""
+    a, b = build(sleep=True), build(sleep=False)
+    run = {"Axis": 1, "Velocity": 100.0, "Acceleration": 1000.0, "Deceleration": 1000.0}
+    for system in (a, b):
+        system.ctl.servo_on(system.ctl.axis(1))
+        pulse_on(system, "MC_MoveVelocity_1", **run)
+    block = a.instances["MC_MoveVelocity_1"]
+    for c in range(100):  # 100 units/s at 1,000 units/s²: 0.1 s, 50 cycles
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c}")
+    assert a.parked() == [block] and block.outputs["InVelocity"]
+    for system in (a, b):
+        system.instances["MC_SetOverride_1"].inputs.update({"Axis": 1, "VelFactor": 0.5})
+        system.instances["MC_SetOverride_1"].inputs["Enable"] = True
+    shown = []
+    for c in range(100):
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c} with the override")
+        shown.append(bool(block.outputs["InVelocity"]))
+    assert shown[0] is False and shown[-1] is True  # left its speed, then reached 50
+    assert a.ctl.axis(1).command_velocity == 50.0 and a.parked() == [block]

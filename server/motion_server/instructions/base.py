@@ -142,6 +142,9 @@ class Instruction:
     #: outputs that follow the power state of an axis even while the instance is idle:
     #: its system wakes it whenever an axis changes state (see :meth:`asleep`)
     FOLLOWS_AXIS_STATE: ClassVar[bool] = False
+    #: an attribute of the process an instance is parked on (:meth:`parked_on`) whose
+    #: falling wakes it too (MC_MoveVelocity: ``at_speed``, which InVelocity shows)
+    PARKED_WATCH: ClassVar[str | None] = None
 
     def __init__(self, name: str, ctl: Controller, defaults: dict[str, Any] | None = None) -> None:
         self.name = name

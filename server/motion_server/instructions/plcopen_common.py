@@ -133,10 +133,15 @@ class MotionBlock(PLCopenBlock):
                 )
 
     def parked_on(self) -> Process | None:
-        """The running process of a block that only waits for its end: Busy, not
-        buffered, Execute steady, where the type's scan, update, poll and publish are
-        these (a block that shows more while it runs, InVelocity, InGear, InSync, does
-        not park)."""
+        """The running process of a block that only waits for its end (see
+        :meth:`running`), where the type's scan, update, poll and publish are these (a
+        block that shows more while it runs, InVelocity, InGear, InSync, parks only if
+        it says when)."""
+        return self.running() if _parks(type(self)) else None
+
+    def running(self) -> Process | None:
+        """The block's process while the block is Busy with it, not buffered, Execute
+        steady; else None."""
         p = self.process
         if (
             p is None
@@ -145,7 +150,6 @@ class MotionBlock(PLCopenBlock):
             or self.pending is not None
             or not self.active
             or bool(self.inputs[self.TRIGGER]) != self._last_trigger
-            or not _parks(type(self))
         ):
             return None
         return p

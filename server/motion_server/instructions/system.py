@@ -62,6 +62,8 @@ class MotionSystem:
         self._woken: set[Instruction] = set()
         #: instances parked on their running process (:meth:`Instruction.parked_on`)
         self._parked: dict[Instruction, Process] = {}
+        #: those of them woken too when an attribute of it falls (``PARKED_WATCH``)
+        self._watched: dict[Instruction, str] = {}
         self._state_watchers: list[Instruction] = []
         self._states_seen = -1
         self._wired = 0
@@ -72,6 +74,7 @@ class MotionSystem:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         state.setdefault("_parked", {})  # (a snapshot of a system that parked none)
+        state.setdefault("_watched", {})
         self.__dict__.update(state)
 
     def add(self, type_name: str, name: str, defaults: dict[str, Any] | None = None) -> Instruction:
@@ -132,23 +135,30 @@ class MotionSystem:
                 keep.append(inst)
             else:
                 parked[inst] = p
+                if inst.PARKED_WATCH is not None:
+                    self._watched[inst] = inst.PARKED_WATCH
         if len(keep) != len(awake):
             self._awake = keep
 
     def _unpark_ended(self) -> list[Instruction]:
         """Update the parked instances whose process left ACTIVE (in this cycle's scan
-        or step), here rather than among the awake ones (each writes only its own
+        or step), or whose watched attribute of it fell, here rather than among the
+        awake ones (each writes only its own
         outputs: the order does not matter). Returns those that are not asleep after
         it, to wake once this cycle's update is over (a group stop ending 256 jogs:
         no other pass over them)."""
         parked = self._parked
+        watched = self._watched
         states = list(map(_STATE, parked.values()))  # (no Python call per process)
-        if states.count(_ACTIVE) == len(states):
+        fallen = [i for i, name in watched.items() if not getattr(parked[i], name)]
+        if states.count(_ACTIVE) == len(states) and not fallen:
             return []
         ended = [inst for inst, p in parked.items() if p.state is not _ACTIVE]
+        ended += [inst for inst in fallen if parked[inst].state is _ACTIVE]
         awake: list[Instruction] = []
         for inst in ended:
             del parked[inst]
+            watched.pop(inst, None)
             try:
                 if not inst.end_parked():
                     awake.append(inst)
@@ -189,8 +199,10 @@ class MotionSystem:
             if self.sleep:
                 parked = self._parked
                 if parked:
+                    watched = self._watched
                     for inst in woken:
                         parked.pop(inst, None)
+                        watched.pop(inst, None)
                 woken.update(self._awake)
                 self._awake = [inst for inst in self.instances.values() if inst in woken]
             else:

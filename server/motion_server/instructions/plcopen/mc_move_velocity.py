@@ -16,6 +16,7 @@ from typing import Any
 
 from ...kernel import Controller, JogProcess
 from ...kernel.processes import Process
+from ..base import PLCopenBlock
 from ..operands import AXIS, plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, MotionBlock
 from ..registry import register
@@ -80,6 +81,28 @@ class MC_MoveVelocity(MotionBlock):
 
     def on_restart(self) -> None:
         self._in_velocity_seen = False
+
+    #: InVelocity follows the jog's ``at_speed``: a parked block wakes when it falls
+    PARKED_WATCH = "at_speed"
+
+    def parked_on(self) -> Process | None:
+        """The jog, once at speed with InVelocity as it stays (shown while Execute is
+        high, reset when low): until the jog leaves its speed (a new speed, an
+        override) or ends, or an operand is written, nothing changes."""
+        p = self.running()
+        cls = type(self)
+        if (
+            not isinstance(p, JogProcess)
+            or not p.at_speed
+            or bool(self.outputs["InVelocity"]) != bool(self.inputs[self.TRIGGER])
+            or not self._in_velocity_seen
+            or cls.update is not MC_MoveVelocity.update
+            or cls.publish_extra is not MC_MoveVelocity.publish_extra
+            or cls.scan is not PLCopenBlock.scan
+            or cls.poll is not MotionBlock.poll
+        ):
+            return None
+        return p
 
     def update(self) -> None:
         super().update()
