@@ -10,12 +10,14 @@ per axis with its trigger held high, in four scenes:
 - ``move``: MC_MoveAbsolute to 1,000 mm at 100 mm/s on every axis (Busy);
 - ``done``: MC_MoveRelative of 5 mm on every axis, done (Done held by Execute);
 - ``velocity``: MC_MoveVelocity at 100 mm/s on every axis (InVelocity);
+- ``gear``: the 128 virtual axes jogging at 100 mm/s (kernel jogs, no instance), an
+  MC_GearIn (ratio 1:2) on each servo axis to its master (InGear);
 - ``idle``: the same axes, no instance triggered (the floor).
 
 Median over ``--cycles`` cycles after the scene is set up. Run it with
 ``PYTHONPATH=<checkout>/server`` to compare versions side by side.
 
-    python bench/waiting_instances.py [--cycles 300] [--scenes maj move done velocity idle]
+    python bench/waiting_instances.py [--cycles 300] [--scenes maj move done velocity gear idle]
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import time
 from typing import Any
 
 from motion_server.instructions import MotionSystem
-from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
+from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig, Limits
 
 AXES = 256
 RATE = 1000.0
@@ -41,6 +43,8 @@ SCENES: dict[str, tuple[str | None, dict[str, Any], int]] = {
                                  "Acceleration": RATE, "Deceleration": RATE}, 200),
     "velocity": ("MC_MoveVelocity", {"Velocity": 100.0, "Acceleration": RATE,
                                      "Deceleration": RATE}, 200),
+    "gear": ("MC_GearIn", {"RatioNumerator": 1.0, "RatioDenominator": 2.0,
+                           "Acceleration": RATE, "Deceleration": RATE}, 400),
     "idle": (None, {}, 10),
 }  # fmt: skip
 
@@ -62,8 +66,16 @@ def controller() -> Controller:
 def measure(scene: str, cycles: int) -> tuple[float, int]:
     """Median CPU µs per cycle, and how many instances the system still calls."""
     kind, operands, setup = SCENES[scene]
-    system = MotionSystem(controller())
-    if kind is not None:
+    ctl = controller()
+    system = MotionSystem(ctl)
+    half = AXES // 2
+    if kind == "MC_GearIn":
+        ctl.start_jogs(ctl.axes[:half], [100.0] * half, Limits(100.0, RATE, RATE))
+        for k in range(1, half + 1):
+            inst = system.add(kind, f"I{k}", {})
+            inst.inputs.update({"Slave": half + k, "Master": k, **operands})
+            inst.inputs[inst.TRIGGER] = True
+    elif kind is not None:
         for k in range(1, AXES + 1):
             inst = system.add(kind, f"I{k}", {})
             inst.inputs.update({"Axis": k, **operands})

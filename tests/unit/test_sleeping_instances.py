@@ -331,3 +331,29 @@ def test_a_parked_move_velocity_wakes_when_an_override_takes_its_speed() -> None
         shown.append(bool(block.outputs["InVelocity"]))
     assert shown[0] is False and shown[-1] is True  # left its speed, then reached 50
     assert a.ctl.axis(1).command_velocity == 50.0 and a.parked() == [block]
+
+
+def test_a_locked_gear_in_parks_until_another_command_aborts_it() -> None:
+    """MC_GearIn of Axis2 to Axis1 (jogging) parks once InGear shows; MC_Halt of Axis2
+    aborts the gear: CommandAborted and InGear cleared in that cycle, as with every
+    instance called every cycle."""
+    a, b = build(sleep=True), build(sleep=False)
+    for system in (a, b):
+        for axis in (1, 2):
+            system.ctl.servo_on(system.ctl.axis(axis))
+        pulse_on(system, "MAJ_1", Axis=1, Speed=20.0)
+        pulse_on(system, "MC_GearIn_1", Slave=2, Master=1, RatioNumerator=1.0,
+                 RatioDenominator=2.0, Acceleration=1000.0, Deceleration=1000.0)  # fmt: skip
+    gear = a.instances["MC_GearIn_1"]
+    for c in range(200):
+        a.cycle()
+        b.cycle()
+        same(a, b, f"cycle {c}")
+    assert gear.outputs["InGear"] and gear in a.parked()
+    for system in (a, b):
+        pulse_on(system, "MC_Halt_1", Axis=2, Deceleration=1000.0)
+    a.cycle()
+    b.cycle()
+    same(a, b, "the cycle of the halt")
+    assert gear.outputs["CommandAborted"] and not gear.outputs["InGear"]
+    assert gear not in a.parked()

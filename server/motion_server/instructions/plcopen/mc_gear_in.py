@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from ...kernel.gearing import GearProcess, GearTerm, MasterSource, catch_up, check_master
 from ...kernel.processes import Process
+from ..base import PLCopenBlock
 from ..operands import plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, MCSource, MotionBlock
 from ..registry import register
@@ -100,3 +101,20 @@ class MC_GearIn(MotionBlock):
         self.outputs["InGear"] = bool(
             self.outputs["Busy"] and isinstance(p, GearProcess) and p.active and p.locked
         )
+
+    def parked_on(self) -> Process | None:
+        """The gear, once locked with InGear shown: a gear stays locked until it ends,
+        so until then, or an operand is written, nothing changes."""
+        p = self.running()
+        cls = type(self)
+        if (
+            not isinstance(p, GearProcess)
+            or not p.locked
+            or not self.outputs["InGear"]
+            or cls.publish_extra is not MC_GearIn.publish_extra
+            or cls.scan is not PLCopenBlock.scan
+            or cls.update is not PLCopenBlock.update
+            or cls.poll is not MotionBlock.poll
+        ):
+            return None
+        return p
