@@ -754,11 +754,11 @@ class Controller:
         """``stop(axes[k], None, decelerations[k], owner=owners[k])`` for every k in
         order (MAS stopping all motion, executed on many axes in one scan): the same
         ramps, the same state. When the axes are distinct, of one group with fast lanes,
-        in Servo Control, each with something to stop, and no MDAC link exists, their
-        ramps are planned as one batch (:func:`.stop_plan.stop_axes`, the group stop's,
-        without its bound at the Maximum Speed) and each ramp's object made for its
-        owner; else, or if the batch would refuse one, one by one (which raises where
-        the loop raises)."""
+        in Servo Control, each with something to stop and no cam preloaded, and no MDAC
+        link exists, their ramps are planned as one batch (:func:`.stop_plan.stop_axes`,
+        the group stop's, without its bound at the Maximum Speed) and each ramp's object
+        made for its owner; else, or if the batch would refuse one, one by one (which
+        raises where the loop raises)."""
         n = len(axes)
         if len(decelerations) != n or len(owners) != n:
             raise ValueError("one deceleration and one owner per axis")
@@ -796,6 +796,7 @@ class Controller:
             ax.state == AxisState.SERVO_CONTROL
             and ax.type != AxisType.FEEDBACK_ONLY
             and something_to_stop(ax)
+            and not ax.preloaded_cams
             for ax in axes
         )
 
