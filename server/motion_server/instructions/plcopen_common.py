@@ -16,15 +16,19 @@ _ACTIVE = ProcessState.ACTIVE
 _BUSY = BlockState.BUSY
 
 
+def follows_as(cls: type[PLCopenBlock], owner: type[PLCopenBlock]) -> bool:
+    """``cls`` scans, updates, polls and publishes as ``owner`` does (what a block's
+    ``parked_on`` relies on: a subclass that changes one of them does not park)."""
+    return all(
+        getattr(cls, name) is getattr(owner, name)
+        for name in ("scan", "update", "poll", "publish_extra")
+    )
+
+
 def _parks(cls: type[MotionBlock]) -> bool:
     """Blocks of ``cls`` change nothing while their process runs (see
     :meth:`MotionBlock.parked_on`)."""
-    return (
-        cls.scan is PLCopenBlock.scan
-        and cls.update is PLCopenBlock.update
-        and cls.poll is MotionBlock.poll
-        and cls.publish_extra is PLCopenBlock.publish_extra
-    )
+    return follows_as(cls, MotionBlock)
 
 
 class BufferMode(IntEnum):

@@ -17,9 +17,8 @@ from __future__ import annotations
 
 from ...kernel.gearing import GearProcess, GearTerm, MasterSource, catch_up, check_master
 from ...kernel.processes import Process
-from ..base import PLCopenBlock
 from ..operands import plcopen_dynamics
-from ..plcopen_common import BUFFER_MODE, MCSource, MotionBlock
+from ..plcopen_common import BUFFER_MODE, MCSource, MotionBlock, follows_as
 from ..registry import register
 from ..schema import Kind, Operand, Quantity, StatusField, TagType
 
@@ -106,15 +105,11 @@ class MC_GearIn(MotionBlock):
         """The gear, once locked with InGear shown: a gear stays locked until it ends,
         so until then, or an operand is written, nothing changes."""
         p = self.running()
-        cls = type(self)
         if (
             not isinstance(p, GearProcess)
             or not p.locked
             or not self.outputs["InGear"]
-            or cls.publish_extra is not MC_GearIn.publish_extra
-            or cls.scan is not PLCopenBlock.scan
-            or cls.update is not PLCopenBlock.update
-            or cls.poll is not MotionBlock.poll
+            or not follows_as(type(self), MC_GearIn)
         ):
             return None
         return p

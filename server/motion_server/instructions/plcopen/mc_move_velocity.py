@@ -16,9 +16,8 @@ from typing import Any
 
 from ...kernel import Controller, JogProcess
 from ...kernel.processes import Process
-from ..base import PLCopenBlock
 from ..operands import AXIS, plcopen_dynamics
-from ..plcopen_common import BUFFER_MODE, MotionBlock
+from ..plcopen_common import BUFFER_MODE, MotionBlock, follows_as
 from ..registry import register
 from ..schema import Operand, Quantity, StatusField, TagType
 
@@ -90,16 +89,12 @@ class MC_MoveVelocity(MotionBlock):
         high, reset when low): until the jog leaves its speed (a new speed, an
         override) or ends, or an operand is written, nothing changes."""
         p = self.running()
-        cls = type(self)
         if (
             not isinstance(p, JogProcess)
             or not p.at_speed
             or bool(self.outputs["InVelocity"]) != bool(self.inputs[self.TRIGGER])
             or not self._in_velocity_seen
-            or cls.update is not MC_MoveVelocity.update
-            or cls.publish_extra is not MC_MoveVelocity.publish_extra
-            or cls.scan is not PLCopenBlock.scan
-            or cls.poll is not MotionBlock.poll
+            or not follows_as(type(self), MC_MoveVelocity)
         ):
             return None
         return p
