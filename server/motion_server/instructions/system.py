@@ -42,9 +42,10 @@ class MotionSystem:
     every cycle (the reference the sleeping and the parking are tested against).
 
     The instances that fire in one scan hand their axis commands to the kernel together
-    where their types allow it (:mod:`.scan_pass`: MAJ's jogs, MAG's gears), with the
-    result of scanning them one by one; ``batch=False`` scans every instance alone (the
-    reference the batches are tested against).
+    where their types allow it (:mod:`.scan_pass`: MAJ's jogs, MAG's gears, MAPC's cams,
+    the stops of MAS and MC_Stop), with the result of scanning them one by one;
+    ``batch=False`` scans every instance alone (the reference the batches are tested
+    against).
     """
 
     #: rising edges handed to the kernel in batches (a class default, so that a system
@@ -108,10 +109,9 @@ class MotionSystem:
         for _ in range(count):
             self.scan_instructions()
             ctl.step()
-            if self._woken:
-                self._wake()  # (operands written since the scan: those parked woken)
-            ended = self._unpark_ended() if self._parked else None
+            # (first: an instance written or woken since the scan leaves the parked ones)
             awake = self._wake()
+            ended = self._unpark_ended() if self._parked else None
             for inst in awake:
                 try:
                     inst.update()

@@ -208,6 +208,11 @@ class Watchdog:
         self.trip()
         return True
 
+    def _forget_beats(self) -> None:
+        """No supervised source has beaten yet (a reset, the latch cleared)."""
+        self.beats.clear()
+        self.arrivals.clear()
+
     def forget_arrivals(self) -> None:
         """The clock stopped following the wall clock (or starts again): the beats'
         arrival times no longer count, the count of cycles does."""
@@ -223,8 +228,7 @@ class Watchdog:
         """The explicit reset: clear the latch and the axes' watchdog faults."""
         if self.state == WatchdogState.FAULTED:
             self.ctl.fault_reset_axes([ax for ax in self.group.axes if ax.fault & WATCHDOG_FAULT])
-            self.beats.clear()
-            self.arrivals.clear()
+            self._forget_beats()
         self.fire(WatchdogEvent.RESET)
 
     # -- the cycle ------------------------------------------------------------------------
@@ -246,8 +250,7 @@ class Watchdog:
             self.state == WatchdogState.FAULTED
             and not (self.ctl.arrays.fault[self.group.idx] & WATCHDOG_FAULT).any()
         ):  # (the group's AxisFault words read as one array: every cycle while latched)
-            self.beats.clear()
-            self.arrivals.clear()
+            self._forget_beats()
             self.fire(WatchdogEvent.CLEARED)
 
     def trip(self) -> None:

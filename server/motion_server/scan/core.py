@@ -606,15 +606,18 @@ class Scan:
         cycles: the stop is commanded now, the next cycle steps it) and publish their
         state at once; when the next of the others runs out (None: none is timed so)."""
         nearest: float | None = None
+        tripped = False
         for wd in self.watchdogs.values():
             if wd.due(now):
-                self._refill = True
-                self._dirty = True
-                self._publish()
+                tripped = True
                 continue
             expiry = wd.expiry()
             if expiry is not None and (nearest is None or expiry < nearest):
                 nearest = expiry
+        if tripped:  # (once, however many tripped)
+            self._refill = True
+            self._dirty = True
+            self._publish()
         return nearest
 
     # -- cycles -----------------------------------------------------------------------------
