@@ -41,7 +41,10 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   batch (``Controller.stop_many``), what an HMI stopping every axis by its own MAS makes
   the controller do (100 steps);
 - ``mc_stop``: the same with MC_Stop (Deceleration 1,000 mm/s², Jerk 0) on every axis:
-  its stops join the same batch (100 steps).
+  its stops join the same batch (100 steps);
+- ``mc_halt``: the same with MC_Halt (Deceleration 1,000 mm/s², Jerk 0, aborting): its
+  halts are one batch too (``stop_many`` with ``halt``: ramps that are not Stopping,
+  made as objects), 100 steps.
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
@@ -305,6 +308,10 @@ MAS_SETUP, MAS_COMMAND = instructions(
 MC_STOP_SETUP, MC_STOP_COMMAND = instructions(
     "MC_Stop", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "Deceleration": RATE}
 )
+#: MC_Halt (1,000 mm/s², no jerk, aborting) on every axis, through the block
+MC_HALT_SETUP, MC_HALT_COMMAND = instructions(
+    "MC_Halt", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "Deceleration": RATE}
+)
 
 
 def mapc_setup(ctl: Controller) -> None:
@@ -352,6 +359,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "mapc": (mapc_setup, MAPC_COMMAND, 100),
     "mas": (lambda c: (geared(c), MAS_SETUP(c)), MAS_COMMAND, 100),
     "mc_stop": (lambda c: (geared(c), MC_STOP_SETUP(c)), MC_STOP_COMMAND, 100),
+    "mc_halt": (lambda c: (geared(c), MC_HALT_SETUP(c)), MC_HALT_COMMAND, 100),
 }
 
 

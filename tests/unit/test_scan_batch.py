@@ -2,13 +2,13 @@
 (``instructions/scan_pass.py``) against the same scans executed instance by instance.
 
 Two systems get the same writes: one scans with batches (the default), the other with
-``batch=False`` (every instance alone, as before the batches). MAJ, MAG, MAS and
-MC_Stop instances are mixed with MAM and MGS (which always execute alone, so they cut a
-batch) in one fixed order; random scans fire random subsets with random, partly invalid
+``batch=False`` (every instance alone, as before the batches). MAJ, MAG, MAS, MC_Stop
+and MC_Halt instances are mixed with MAM and MGS (which always execute alone, so they cut
+a batch) in one fixed order; random scans fire random subsets with random, partly invalid
 operands: two instances on one axis, a MAG whose master is a slave geared in the same
 scan, loops of gears, Merge, S-curve and master units (executed alone), a negative ratio,
-stops of some kinds or with a jerk (executed alone), axes that do not exist or cannot
-move, and rates so small that the kernel refuses the plan of one jog or stop in the
+stops of some kinds or with a jerk, buffered halts (executed alone), axes that do not
+exist or cannot move, and rates so small that the kernel refuses the plan of one jog or stop in the
 middle of a batch. After every cycle both systems must show the same outputs on every
 instance, mark the same instances changed and command the same position, velocity and
 acceleration, bit for bit, with the same processes (their planned attributes and
@@ -25,7 +25,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from motion_server.instructions import MotionSystem, instruction_type
-from motion_server.kernel import AxisConfig, AxisType, Controller, ErrorCode, GroupConfig
+from motion_server.kernel import (
+    AxisConfig,
+    AxisType,
+    Controller,
+    ErrorCode,
+    GroupConfig,
+    PLCopenState,
+)
 from motion_server.kernel.processes import Process
 
 from .test_instruction_fast_paths import digest
@@ -75,14 +82,20 @@ POOLS: dict[str, dict[str, list[Any]]] = {
     },
     "MGS": {"Group": [1, 1, 2], "StopMode": [0, 1]},
     "MC_Stop": {"Axis": AXES, "Deceleration": RATES, "Jerk": [0.0, 0.0, 0.0, 100.0]},
+    "MC_Halt": {
+        "Axis": AXES,
+        "Deceleration": RATES,
+        "Jerk": [0.0, 0.0, 0.0, 100.0],
+        "BufferMode": [0, 0, 0, 1],
+    },
 }
 #: the instances in scan order: runs of one type, cut by the others
 ORDER = [
     ("MAJ1", "MAJ"), ("MAJ2", "MAJ"), ("MAJ3", "MAJ"), ("MAG1", "MAG"), ("MAG2", "MAG"),
     ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAS2", "MAS"), ("MC_Stop1", "MC_Stop"),
-    ("MAS3", "MAS"), ("MC_Stop2", "MC_Stop"), ("MAJ5", "MAJ"), ("MAG4", "MAG"),
-    ("MAM1", "MAM"), ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MAJ7", "MAJ"),
-    ("MAJ8", "MAJ"),
+    ("MAS3", "MAS"), ("MC_Stop2", "MC_Stop"), ("MC_Halt1", "MC_Halt"), ("MC_Halt2", "MC_Halt"),
+    ("MAJ5", "MAJ"), ("MAG4", "MAG"), ("MAM1", "MAM"), ("MC_Halt3", "MC_Halt"),
+    ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MAJ7", "MAJ"), ("MAJ8", "MAJ"),
 ]  # fmt: skip
 
 
@@ -383,6 +396,68 @@ def test_an_instance_that_raises_while_writing_its_status_is_contained() -> None
     assert out["MAJ2"]["ER"] and out["MAJ2"]["ERR"] == ErrorCode.INTERNAL_ERROR
     for name in ("MAJ1", "MAJ3"):
         assert out[name]["DN"] and out[name]["IP"] and not out[name]["ER"], name
+
+
+def test_halts_of_one_scan_are_planned_in_one_call() -> None:
+    """MAJ1..3 jog axes 1..3 at 50 units/s (reached at 500 units/s² in 100 ms), MAG1
+    gears axis 5 to axis 1. Then MC_Halt1
+    and MC_Halt2 halt axes 1 and 2 in one scan (Deceleration 250, and 500 limited to
+    the axes' maximum of 400 units/s²): one ``stop_many`` with both halts, planned as
+    one batch, and outputs and motion as one by one. The axes halt in DiscreteMotion,
+    not Stopping. 50 units/s at 250 and 400 units/s² take 200 and 125 ms: after 110
+    cycles of 2 ms both halts are Done and the axes rest; axis 5 stays geared to axis
+    1; a new MAJ on axis 1 is accepted (nothing holds it Stopping)."""
+    systems = [build(batch, True) for batch in (True, False)]
+    calls: list[tuple[int, bool]] = []
+    ctl = systems[0].ctl
+    stop_many = ctl.stop_many
+
+    def spy(axes: Any, decelerations: Any, owners: Any, halt: bool = False) -> Any:
+        calls.append((len(axes), ctl._stops_as_batch(axes, decelerations)))
+        assert halt
+        return stop_many(axes, decelerations, owners, halt=halt)
+
+    ctl.stop_many = spy  # type: ignore[method-assign]
+    for system in systems:
+        for k, name in enumerate(("MAJ1", "MAJ2", "MAJ3")):
+            system[name].inputs.update(
+                {"Axis": k + 1, "Speed": 50.0, "AccelRate": 500.0, "Execute": True}
+            )
+        system["MAG1"].inputs.update({"SlaveAxis": 5, "MasterAxis": 1, "Execute": True})
+    for k in range(60):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("start", k))
+    halts = {
+        "MC_Halt1": {"Axis": 1, "Deceleration": 250.0},
+        "MC_Halt2": {"Axis": 2, "Deceleration": 500.0},
+    }
+    for system in systems:
+        fire(system, halts)
+    same(systems[0], systems[1], "the cycle of the halts")
+    assert calls == [(2, True)]
+    for name, n in (("MC_Halt1", 1), ("MC_Halt2", 2)):
+        out = systems[0][name].outputs
+        assert out["Busy"] and out["Active"] and not out["Done"], name
+        ax = systems[0].ctl.axis(n)
+        assert ax.plcopen_state == PLCopenState.DISCRETE_MOTION and not ax.stopping, n
+    for k in range(110):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("halting", k))
+    for name, n in (("MC_Halt1", 1), ("MC_Halt2", 2)):
+        out = systems[0][name].outputs
+        assert out["Done"] and not out["Busy"], name
+        ax = systems[0].ctl.axis(n)
+        assert ax.command_velocity == 0.0 and ax.plcopen_state == PLCopenState.STANDSTILL
+    assert systems[0].ctl.axis(3).command_velocity == 50.0  # not halted
+    assert systems[0].ctl.axis(5).plcopen_state == PLCopenState.SYNCHRONIZED_MOTION
+    for system in systems:
+        system["MAJ1"].inputs["Execute"] = False
+        system.cycle()
+        fire(system, {"MAJ1": {"Axis": 1, "Speed": 20.0}})
+    same(systems[0], systems[1], "a jog after the halts")
+    assert systems[0]["MAJ1"].outputs["IP"] and not systems[0]["MAJ1"].outputs["ER"]
 
 
 def test_stops_of_one_scan_are_planned_in_one_call() -> None:

@@ -137,6 +137,16 @@ def apply(ctl: Controller, cmd: Command, started: list[Process], stops: list[Any
                 batch = bool(axes) and ctl._stops_as_batch(axes, decels)
                 event(f"stops planned as one batch: {batch}")
             started.extend(ctl.stop_many(axes, decels, [f"MAS{a.number}" for a in axes]))
+        elif name == "halts":
+            # MC_Halt (aborting, no jerk) on the moving axes between n and m, in one scan
+            lo, hi = sorted((n, m))
+            axes = [a for a in ctl.axes[lo : hi + 1] if a.active()]
+            decels = [400.0 + abs(x) + 50.0 * k for k in range(len(axes))]
+            if ctl.lanes_enabled:
+                batch = bool(axes) and ctl._stops_as_batch(axes, decels)
+                event(f"halts planned as one batch: {batch}")
+            owners = [f"MC_Halt{a.number}" for a in axes]
+            started.extend(ctl.stop_many(axes, decels, owners, halt=True))
         elif name == "off":
             ctl.servo_off(ax)
         elif name == "on":
@@ -299,7 +309,7 @@ def test_a_group_in_servo_control_stops_in_one_batch_as_axis_by_axis(
 @settings(max_examples=150, deadline=None)
 @given(
     before=scans(MOVING, 4),
-    stop=command(("many",)),
+    stop=command(("many", "halts")),
     after=st.lists(st.tuples(st.lists(command(NAMES), max_size=3), st.integers(1, 40)),
                    max_size=3),
 )  # fmt: skip
@@ -309,8 +319,10 @@ def test_stops_of_many_axes_in_one_call_equal_the_stops_one_by_one(
     after: list[tuple[list[Command], int]],
 ) -> None:
     """MAS stopping all motion on many axes in one scan (``Controller.stop_many``, one
-    batch with the lanes) against ``Controller.stop`` axis by axis (the reference): the
-    same ramps, owners and state, bit for bit, after every cycle."""
+    batch with the lanes) against ``Controller.stop`` axis by axis (the reference), and
+    MC_Halt halting them (``stop_many`` with ``halt``) against MC_Halt's ``start`` of a
+    ramp that is not Stopping, axis by axis: the same ramps, owners and state, bit for
+    bit, after every cycle."""
     run_side_by_side([ProgrammedStopMode.FAST_STOP] * N_AXES, before, stop, after)
 
 

@@ -4,11 +4,12 @@ the kernel in one call per kind.
 Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel process:
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
 can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams,
-MAS and MC_Stop -> stops) and whose trigger rose are latched, judged and checked one by
-one, as their own ``scan`` does, but their kernel commands are queued; the queue goes to
-the kernel in one call per kind (``Controller.start_jogs``, ``Controller.start_gears``,
-``kernel.cam_batch.start_position_cams``, ``Controller.stop_many``) and then every
-instance writes its status from the process it got.
+MAS and MC_Stop -> stops, MC_Halt -> halts) and whose trigger rose are latched, judged
+and checked one by one, as their own ``scan`` does, but their kernel commands are
+queued; the queue goes to the kernel in one call per kind (``Controller.start_jogs``,
+``Controller.start_gears``, ``kernel.cam_batch.start_position_cams``,
+``Controller.stop_many``) and then every instance writes its status from the process
+it got.
 
 The observable result is exactly that of scanning one by one (tested against it, every
 output and the kernel's arrays after every cycle). That holds because a queued command
@@ -29,8 +30,8 @@ over:
   pending MDAC reassignment; a MAPC with a schedule other than Immediate, a master
   direction other than both ways, or a cam preloaded on its slave; a MAS that stops
   less than all motion, changes the jerk, has a homing to end or nothing moving; an
-  MC_Stop with a jerk) hands the queue over first and runs its own ``execute`` (a
-  PLCopen block, its own ``scan``).
+  MC_Stop with a jerk; an MC_Halt with a jerk or buffered) hands the queue over first
+  and runs its own ``execute`` (a PLCopen block, its own ``scan``).
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
@@ -89,6 +90,7 @@ class BatchKind(IntEnum):
     GEAR = 1
     POSITION_CAM = 2
     STOP = 3
+    HALT = 4
 
 
 #: the process kind each batch starts (how a refused batch finds what it started)
@@ -97,6 +99,7 @@ _PROCESS_KIND: dict[BatchKind, ProcessKind] = {
     BatchKind.GEAR: ProcessKind.GEAR,
     BatchKind.POSITION_CAM: ProcessKind.POSITION_CAM,
     BatchKind.STOP: ProcessKind.STOP,
+    BatchKind.HALT: ProcessKind.STOP,
 }
 _NO_STATUS: dict[str, Any] = {}
 #: the processes a new gear supersedes (MAG)
@@ -183,6 +186,8 @@ class Batch:
                     started = start_position_cams(ctl, jobs)  # type: ignore[arg-type]
                 elif kind is BatchKind.STOP:
                     started = ctl.stop_many(axes, [job[1] for job in jobs], owners)
+                elif kind is BatchKind.HALT:
+                    started = ctl.stop_many(axes, [job[1] for job in jobs], owners, halt=True)
                 else:
                     started = ctl.start_gears(
                         axes,

@@ -749,7 +749,11 @@ class Controller:
         return ramp
 
     def stop_many(
-        self, axes: Sequence[Axis], decelerations: Sequence[float], owners: Sequence[object]
+        self,
+        axes: Sequence[Axis],
+        decelerations: Sequence[float],
+        owners: Sequence[object],
+        halt: bool = False,
     ) -> list[StopRamp]:
         """``stop(axes[k], None, decelerations[k], owner=owners[k])`` for every k in
         order (MAS stopping all motion, executed on many axes in one scan): the same
@@ -758,7 +762,12 @@ class Controller:
         link exists, their ramps are planned as one batch (:func:`.stop_plan.stop_axes`,
         the group stop's, without its bound at the Maximum Speed) and each ramp's object
         made for its owner; else, or if the batch would refuse one, one by one (which
-        raises where the loop raises)."""
+        raises where the loop raises).
+
+        ``halt``: the halts of MC_Halt instead (aborting mode, no jerk), each
+        ``start(axes[k], lambda v, a: StopRamp(period, decelerations[k], 0.0, v, a,
+        owners[k], stopping=False), replace=None)``: the processes replaced are
+        superseded, not stopped, and the axis is not Stopping."""
         n = len(axes)
         if len(decelerations) != n or len(owners) != n:
             raise ValueError("one deceleration and one owner per axis")
@@ -770,7 +779,10 @@ class Controller:
             batch = [axes[k] for k in order]
             dec = np.array([decelerations[k] for k in order], dtype=float)
             unbounded = np.full(n, math.inf)
-            if stop_axes(self.motion, batch, None, maxima=(dec, unbounded)):
+            reason = AbortReason.SUPERSEDED if halt else AbortReason.STOPPED
+            if stop_axes(
+                self.motion, batch, None, reason, maxima=(dec, unbounded), stopping=not halt
+            ):
                 ramps: list[StopRamp] = [cast(StopRamp, None)] * n
                 for k in order:
                     r = axes[k].processes[0]  # (a row of the stop lane: its object made)
@@ -778,10 +790,26 @@ class Controller:
                     r.owner = owners[k]
                     ramps[k] = r
                 return ramps
+        if halt:
+            return [
+                self._halt(ax, d, o) for ax, d, o in zip(axes, decelerations, owners, strict=True)
+            ]
         return [
             self.stop(ax, None, d, owner=o)
             for ax, d, o in zip(axes, decelerations, owners, strict=True)
         ]
+
+    def _halt(self, ax: Axis, deceleration: float, owner: object) -> StopRamp:
+        """MC_Halt's trapezoidal halt of ``ax`` (aborting mode): a ramp to rest that
+        replaces every process, the axis not Stopping."""
+        dt = ax.period
+
+        def make(v: float, a: float) -> Process:
+            return StopRamp(dt, deceleration, 0.0, v, a, owner=owner, stopping=False)
+
+        ramp = self.motion.start(ax, make, replace=None)
+        assert isinstance(ramp, StopRamp)
+        return ramp
 
     def _stops_as_batch(self, axes: Sequence[Axis], decelerations: Sequence[float]) -> bool:
         """:meth:`stop_many` can plan these stops as one batch (see there)."""

@@ -93,13 +93,18 @@ def _column(get: Callable[[object], float], objects: Sequence[object]) -> np.nda
 
 
 def ramp(
-    dt: float, deceleration: float, velocity: float, owner: object, limits: Limits | None = None
+    dt: float,
+    deceleration: float,
+    velocity: float,
+    owner: object,
+    limits: Limits | None = None,
+    stopping: bool = True,
 ) -> StopRamp:
-    """``StopRamp(dt, deceleration, 0.0, velocity, acceleration, owner)`` for arguments
-    its constructor accepts (checked by the caller), without the constructor's calls: the
-    same attributes with the same values (``limits``: equal limits to share, if the
-    caller has them). A ramp from rest with no acceleration to inherit is done at once:
-    the caller finishes it."""
+    """``StopRamp(dt, deceleration, 0.0, velocity, acceleration, owner, stopping)`` for
+    arguments its constructor accepts (checked by the caller), without the constructor's
+    calls: the same attributes with the same values (``limits``: equal limits to share,
+    if the caller has them). A ramp from rest with no acceleration to inherit is done at
+    once: the caller finishes it."""
     if limits is None:
         limits = Limits.__new__(Limits)
         _set(limits, "velocity", max(abs(velocity), 1e-9) * 2.0)
@@ -124,7 +129,7 @@ def ramp(
     r.position = 0.0
     r.velocity = velocity
     r.acceleration = 0.0
-    r.stopping = True
+    r.stopping = stopping
     r.landing = None
     r.limits = limits
     r.profile = prof
@@ -536,6 +541,7 @@ def _stop_members(
     owner: object,
     reason: AbortReason,
     maxima: tuple[np.ndarray, np.ndarray] | None,
+    stopping: bool,
 ) -> bool:
     """:func:`stop_axes` for a batch :func:`_member_lanes` accepted: each axis has one
     process, a lane member the last step composed, so the controller's arrays already
@@ -582,8 +588,8 @@ def _stop_members(
     _clear(lanes, member_lanes)
     base = s.cmd_pos[idx]  # (a copy: the rows keep it)
     rowed = s.drive_on[at] & ((v_arr != 0.0) | (a_arr != 0.0))
-    if not motion.offers(axes[0].group):
-        rowed[:] = False
+    if not stopping or not motion.offers(axes[0].group):
+        rowed[:] = False  # (the rows stand for ramps that stop: a halt is an object)
     rows: StopRows | None = None
     every = bool(rowed.all())
     if every:
@@ -605,7 +611,9 @@ def _stop_members(
             ax._processes = []
             ax.stop_rows = rows
     else:
-        rows = _some_rowed(motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr)
+        rows = _some_rowed(
+            motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr, stopping
+        )
     _retire_order(motion, lanes, _rows_hold(lanes, rows if every else None))
     if rows is not None:
         s.busy[rows.at] = True
@@ -625,6 +633,7 @@ def _some_rowed(
     v_arr: np.ndarray,
     a_arr: np.ndarray,
     d_arr: np.ndarray,
+    stopping: bool,
 ) -> StopRows | None:
     """The ramps of :func:`_stop_members` when not all are rows (a ramp from rest, a
     drive off, a group without lanes): those built here, the others' rows returned."""
@@ -646,15 +655,17 @@ def _some_rowed(
         v = vs[k]
         key = (v, ds[k])
         limits = shared.get(key)
-        r = ramp(ax.period, ds[k], v, owner, limits)
+        r = ramp(ax.period, ds[k], v, owner, limits, stopping)
         if limits is None:
             shared[key] = r.limits
         if v == 0.0 and accels[k] == 0.0:
             r.state = _DONE
         ax._processes = [r]
         i = ax.index
-        busy[i] = r.state is _ACTIVE
+        busy[i] = active = r.state is _ACTIVE
         dirty.add(i)
+        if active:
+            motion.offer(ax)  # (a halt's: to its lane, as Motion.start offers it)
     if not rowed_axes:
         return None
     sel = np.flatnonzero(rowed)
@@ -721,6 +732,7 @@ def stop_axes(
     idx: np.ndarray | None = None,
     maxima: tuple[np.ndarray, np.ndarray] | None = None,
     at: Index | None = None,
+    stopping: bool = True,
 ) -> bool:
     """Replace every process of each of ``axes`` (driven axes in Servo Control, in
     group order, their MDAC links already broken) by a trapezoidal ramp to rest at its
@@ -731,7 +743,8 @@ def stop_axes(
     reads the axis's processes. The others (a ramp from rest, done at once; no lanes)
     are built here. ``idx``: the axes' array indices, ``maxima``: their maximum
     decelerations and velocities, ``at`` the indices as :func:`.state.compact` gives
-    them, if the caller has them.
+    them, if the caller has them. ``stopping=False``: the ramps of a halt (MC_Halt: the
+    axis is not Stopping), every one built here (the rows stand for ramps that stop).
 
     Returns False without having changed anything if an axis's ramp would be refused (a
     non-finite velocity, a deceleration out of range, a ramp too long): the caller then
@@ -745,7 +758,9 @@ def stop_axes(
     if member_lanes is not None:
         if at is None:
             at = compact(idx)
-        return _stop_members(motion, lanes, member_lanes, axes, idx, at, owner, reason, maxima)
+        return _stop_members(
+            motion, lanes, member_lanes, axes, idx, at, owner, reason, maxima, stopping
+        )
     lanes, emptied = _empty_lanes(motion, axes)
     n = len(axes)
     # the axes with something to stop. The others are at rest with nothing to stop (an
@@ -828,7 +843,7 @@ def stop_axes(
             ax.buffered = None
         v = vs[k]
         i = ax.index
-        if offered and not (v == 0.0 and accels[k] == 0.0) and drive_on.item(i):
+        if stopping and offered and not (v == 0.0 and accels[k] == 0.0) and drive_on.item(i):
             # a ramp the stop lane takes at once: a row, its object made when read
             rowed.append(k)
             rowed_axes.append(ax)
@@ -839,14 +854,16 @@ def stop_axes(
         d = ds[k]
         key = (v, d)
         limits = shared.get(key)
-        r = ramp(ax.period, d, v, owner, limits)
+        r = ramp(ax.period, d, v, owner, limits, stopping)
         if limits is None:
             shared[key] = r.limits
         if v == 0.0 and accels[k] == 0.0:
             r.state = _DONE
         ax.processes = [r]
-        busy[i] = r.state is _ACTIVE
+        busy[i] = active = r.state is _ACTIVE
         dirty.add(i)
+        if active:
+            motion.offer(ax)  # (a halt's: to its lane, as Motion.start offers it)
     _clear(lanes, emptied)
     if coupling:
         motion.coupling_changed()

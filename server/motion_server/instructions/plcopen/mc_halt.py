@@ -5,15 +5,22 @@ down and in StandStill once at rest, when Done is set. Another motion command ma
 over during the ramp (this block then reports CommandAborted). Refused while the axis is
 Stopping (ErrorID 78), as every motion command is. A Deceleration or Jerk beyond the
 axis's maximum is limited to it (a halt is never refused for braking too hard).
+
+Halts in the aborting modes without a Jerk, executed on many axes in the same scan, are
+planned as one batch (``Controller.stop_many`` with ``halt``); the others execute alone.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 from ...kernel import StopRamp
 from ...kernel.processes import Process
+from ..base import BlockEvent
 from ..operands import AXIS, plcopen_dynamics
-from ..plcopen_common import BUFFER_MODE, MotionBlock
+from ..plcopen_common import BUFFER_MODE, BufferMode, MotionBlock
 from ..registry import register
+from ..scan_pass import Batch, BatchKind
 
 
 @register
@@ -25,6 +32,38 @@ class MC_Halt(MotionBlock):
         *(op for op in plcopen_dynamics(with_velocity=False) if op.name != "Acceleration"),
         BUFFER_MODE,
     )
+
+    BATCH = BatchKind.HALT
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the halt returned as (axis,
+        deceleration) for ``Controller.stop_many``; None for a buffered or jerk-limited
+        halt (it executes alone). Raises what ``execute`` raises before its command."""
+        ax = self.axis()
+        number = ax.number
+        if number in batch.axes:
+            batch.flush()  # a second halt of the axis: it sees the first one
+        self.check_axis(ax)
+        decel, jerk = self.stop_dynamics(ax)
+        buffered = int(self.op.get("BufferMode", BufferMode.ABORTING)) == BufferMode.BUFFERED
+        if jerk != 0.0 or buffered:
+            return None
+        return (ax, decel), (number,)
+
+    def batch_started(self, process: Process) -> None:
+        """The rest of ``execute`` (``begin`` in the aborting modes) and of the rising
+        edge's scan."""
+        self.process = process
+        self.pending = None
+        self.fire(BlockEvent.START)
+        self.active = True
+        self._publish()
+
+    def batch_refused(self) -> None:
+        """The kernel refused the halt (its error set): ``begin`` left no process."""
+        self.process = None
+        self.pending = None
+        self._publish()
 
     def execute(self) -> None:
         ax = self.axis()
