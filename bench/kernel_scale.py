@@ -44,7 +44,10 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   its stops join the same batch (100 steps);
 - ``mc_halt``: the same with MC_Halt (Deceleration 1,000 mm/s², Jerk 0, aborting): its
   halts are one batch too (``stop_many`` with ``halt``: ramps that are not Stopping,
-  made as objects), 100 steps.
+  made as objects), 100 steps;
+- ``mc_velocity``: ``maj`` with MC_MoveVelocity (Velocity 100 mm/s, Acceleration and
+  Deceleration 1,000 mm/s², positive, aborting) on every master: its jogs start in one
+  ``start_jogs`` call that replaces every process (100 steps).
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
@@ -308,6 +311,14 @@ MAS_SETUP, MAS_COMMAND = instructions(
 MC_STOP_SETUP, MC_STOP_COMMAND = instructions(
     "MC_Stop", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "Deceleration": RATE}
 )
+#: MC_MoveVelocity on every master at 100 mm/s, 1000 mm/s² (the ``accel`` jog), aborting,
+#: through the block
+MC_VELOCITY_SETUP, MC_VELOCITY_COMMAND = instructions(
+    "MC_MoveVelocity",
+    lambda n: range(1, n // 2 + 1),
+    lambda n, k: {"Axis": k, "Velocity": SPEED, "Acceleration": RATE, "Deceleration": RATE,
+               "Direction": 1},
+)  # fmt: skip
 #: MC_Halt (1,000 mm/s², no jerk, aborting) on every axis, through the block
 MC_HALT_SETUP, MC_HALT_COMMAND = instructions(
     "MC_Halt", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "Deceleration": RATE}
@@ -360,6 +371,11 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "mas": (lambda c: (geared(c), MAS_SETUP(c)), MAS_COMMAND, 100),
     "mc_stop": (lambda c: (geared(c), MC_STOP_SETUP(c)), MC_STOP_COMMAND, 100),
     "mc_halt": (lambda c: (geared(c), MC_HALT_SETUP(c)), MC_HALT_COMMAND, 100),
+    "mc_velocity": (
+        lambda c: (gear(c, False), MC_VELOCITY_SETUP(c)),
+        MC_VELOCITY_COMMAND,
+        100,
+    ),
 }
 
 

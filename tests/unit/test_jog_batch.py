@@ -22,6 +22,7 @@ from motion_server.kernel import (
     GroupConfig,
     JogProcess,
     Limits,
+    MoveProcess,
     ProcessKind,
 )
 from motion_server.kernel.errors import MotionError
@@ -88,6 +89,7 @@ targets = st.one_of(
     rates=st.sampled_from([(1000.0, 1000.0), (500.0, 2000.0)]),
     jerk=st.sampled_from([0.0, 0.0, math.inf, 20_000.0]),
     steps=st.integers(1, 80),
+    aborting=st.booleans(),
 )
 def test_start_jogs_is_start_on_each_axis_in_order(
     axes: list[int],
@@ -97,8 +99,12 @@ def test_start_jogs_is_start_on_each_axis_in_order(
     rates: tuple[float, float],
     jerk: float,
     steps: int,
+    aborting: bool,
 ) -> None:
-    check_same(axes, targets, moving, overridden, rates, jerk, steps)
+    """MAJ's jogs (replacing a jog) and, ``aborting``, MC_MoveVelocity's (replacing
+    every process: the axes already moving run a move, which a jog of MAJ would not
+    replace)."""
+    check_same(axes, targets, moving, overridden, rates, jerk, steps, aborting)
 
 
 def test_jogs_from_rest_copied_from_the_first_keep_their_own_target_exactly() -> None:
@@ -118,15 +124,26 @@ def check_same(
     rates: tuple[float, float],
     jerk: float,
     steps: int,
+    aborting: bool = False,
 ) -> None:
     """``start_jogs`` on one controller, ``start`` in a loop on two others (lanes on,
-    lanes off) from the same state: the same errors, processes and motion."""
+    lanes off) from the same state: the same errors, processes and motion. ``aborting``:
+    the moving axes run a move and the jogs replace every process (``replace=None``)."""
+    replace = None if aborting else (ProcessKind.JOG,)
     limits = Limits(100.0, rates[0], rates[1], jerk)
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
                                                          ("ref", False))}  # fmt: skip
     for ctl in ctls.values():
-        # some axes already jogging (inherit their velocity), one maybe overridden
+        # some axes already jogging or moving (inherit their velocity), one maybe
+        # overridden
         for n in moving:
+            if aborting:
+                ctl.start(
+                    ctl.axis(n),
+                    lambda v, a: MoveProcess(PERIOD, 30.0, Limits(40.0, 800.0, 800.0), v, a),
+                    replace=None,
+                )
+                continue
             ctl.start(
                 ctl.axis(n),
                 lambda v, a: JogProcess(PERIOD, 40.0, Limits(40.0, 800.0, 800.0), v, a),
@@ -142,7 +159,7 @@ def check_same(
         chosen = [ctl.axis(n) for n in axes]
         if name == "batch":
             try:
-                ctl.start_jogs(chosen, targets[: len(axes)], limits, owners)
+                ctl.start_jogs(chosen, targets[: len(axes)], limits, owners, replace)
             except MotionError as exc:
                 errors[name] = (int(exc.code), -1)
         else:
@@ -151,7 +168,7 @@ def check_same(
                     ctl.start(
                         ax,
                         lambda v, a, t=target, o=owner: JogProcess(PERIOD, t, limits, v, a, o),
-                        replace=(ProcessKind.JOG,),
+                        replace=replace,
                     )
                 except MotionError as exc:
                     errors[name] = (int(exc.code), -1)

@@ -2,15 +2,16 @@
 (``instructions/scan_pass.py``) against the same scans executed instance by instance.
 
 Two systems get the same writes: one scans with batches (the default), the other with
-``batch=False`` (every instance alone, as before the batches). MAJ, MAG, MAS, MC_Stop
-and MC_Halt instances are mixed with MAM and MGS (which always execute alone, so they cut
-a batch) in one fixed order; random scans fire random subsets with random, partly invalid
-operands: two instances on one axis, a MAG whose master is a slave geared in the same
-scan, loops of gears, Merge, S-curve and master units (executed alone), a negative ratio,
-stops of some kinds or with a jerk, buffered halts (executed alone), axes that do not
-exist or cannot move, and rates so small that the kernel refuses the plan of one jog or stop in the
-middle of a batch. After every cycle both systems must show the same outputs on every
-instance, mark the same instances changed and command the same position, velocity and
+``batch=False`` (every instance alone, as before the batches). MAJ, MAG, MAS, MC_Stop,
+MC_Halt and MC_MoveVelocity instances are mixed with MAM and MGS (which always execute
+alone, so they cut a batch) in one fixed order; random scans fire random subsets with
+random, partly invalid operands: two instances on one axis, a MAG whose master is a
+slave geared in the same scan, loops of gears, Merge, S-curve and master units (executed
+alone), a negative ratio, stops of some kinds or with a jerk, buffered halts and jogs,
+the current direction (executed alone), axes that do not exist or cannot move, and
+rates so small that the kernel refuses the plan of one jog or stop in the middle of a
+batch. After every cycle both systems must show the same outputs on every instance,
+mark the same instances changed and command the same position, velocity and
 acceleration, bit for bit, with the same processes (their planned attributes and
 owners) on every axis, lanes on and off.
 """
@@ -88,6 +89,15 @@ POOLS: dict[str, dict[str, list[Any]]] = {
         "Jerk": [0.0, 0.0, 0.0, 100.0],
         "BufferMode": [0, 0, 0, 1],
     },
+    "MC_MoveVelocity": {
+        "Axis": AXES,
+        "Velocity": [5.0, 50.0, 50.0, 5000.0, 0.0],
+        "Acceleration": RATES,
+        "Deceleration": RATES,
+        "Jerk": [0.0, 0.0, 0.0, 100.0],
+        "Direction": [1, 1, 3, 4, 2],
+        "BufferMode": [0, 0, 0, 1],
+    },
 }
 #: the instances in scan order: runs of one type, cut by the others
 ORDER = [
@@ -95,7 +105,9 @@ ORDER = [
     ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAS2", "MAS"), ("MC_Stop1", "MC_Stop"),
     ("MAS3", "MAS"), ("MC_Stop2", "MC_Stop"), ("MC_Halt1", "MC_Halt"), ("MC_Halt2", "MC_Halt"),
     ("MAJ5", "MAJ"), ("MAG4", "MAG"), ("MAM1", "MAM"), ("MC_Halt3", "MC_Halt"),
-    ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MAJ7", "MAJ"), ("MAJ8", "MAJ"),
+    ("MC_MoveVelocity1", "MC_MoveVelocity"), ("MC_MoveVelocity2", "MC_MoveVelocity"),
+    ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MC_MoveVelocity3", "MC_MoveVelocity"),
+    ("MAJ7", "MAJ"), ("MAJ8", "MAJ"),
 ]  # fmt: skip
 
 
@@ -458,6 +470,51 @@ def test_halts_of_one_scan_are_planned_in_one_call() -> None:
         fire(system, {"MAJ1": {"Axis": 1, "Speed": 20.0}})
     same(systems[0], systems[1], "a jog after the halts")
     assert systems[0]["MAJ1"].outputs["IP"] and not systems[0]["MAJ1"].outputs["ER"]
+
+
+def test_velocity_blocks_of_one_scan_start_their_jogs_in_one_call() -> None:
+    """MAM1 moves axis 2 towards 25.5 units. Then MC_MoveVelocity1 and 2 ask axes 1 and
+    2 for 20 units/s, positive and negative, at 500 units/s² (aborting, the default): one
+    ``start_jogs`` call with both jogs, replacing every process (``replace=None``): the
+    move on axis 2 is aborted. Outputs and motion as one by one; InVelocity once both
+    are at speed: 20 units/s at 500 units/s² from rest is 40 ms, from axis 2's velocity
+    in the positive direction more, all within 100 cycles of 2 ms."""
+    systems = [build(batch, True) for batch in (True, False)]
+    calls: list[tuple[int, Any]] = []
+    ctl = systems[0].ctl
+    start_jogs = ctl.start_jogs
+
+    def spy(axes: Any, *args: Any, **kwargs: Any) -> Any:
+        calls.append((len(axes), kwargs.get("replace", "JOG")))
+        return start_jogs(axes, *args, **kwargs)
+
+    ctl.start_jogs = spy  # type: ignore[method-assign]
+    for system in systems:
+        system["MAM1"].inputs.update({"Axis": 2, "Position": 25.5, "Speed": 10.0})
+        system["MAM1"].inputs["Execute"] = True
+    for k in range(20):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("move", k))
+    assert systems[0].ctl.axis(2).command_velocity > 0.0
+    jog = {"Velocity": 20.0, "Acceleration": 500.0, "Deceleration": 400.0}
+    for system in systems:
+        fire(system, {
+            "MC_MoveVelocity1": {"Axis": 1, "Direction": 1, **jog},
+            "MC_MoveVelocity2": {"Axis": 2, "Direction": 3, **jog},
+        })  # fmt: skip
+    same(systems[0], systems[1], "the cycle of the jogs")
+    assert calls == [(2, None)]
+    assert systems[0]["MAM1"].outputs["IP"] is False
+    for k in range(100):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("jogging", k))
+    for name in ("MC_MoveVelocity1", "MC_MoveVelocity2"):
+        out = systems[0][name].outputs
+        assert out["Busy"] and out["Active"] and out["InVelocity"], name
+    assert systems[0].ctl.axis(1).command_velocity == 20.0
+    assert systems[0].ctl.axis(2).command_velocity == -20.0
 
 
 def test_stops_of_one_scan_are_planned_in_one_call() -> None:

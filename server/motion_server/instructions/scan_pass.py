@@ -4,7 +4,8 @@ the kernel in one call per kind.
 Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel process:
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
 can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams,
-MAS and MC_Stop -> stops, MC_Halt -> halts) and whose trigger rose are latched, judged
+MAS and MC_Stop -> stops, MC_Halt -> halts, MC_MoveVelocity -> jogs that abort every
+process) and whose trigger rose are latched, judged
 and checked one by one, as their own ``scan`` does, but their kernel commands are
 queued; the queue goes to the kernel in one call per kind (``Controller.start_jogs``,
 ``Controller.start_gears``, ``kernel.cam_batch.start_position_cams``,
@@ -30,8 +31,9 @@ over:
   pending MDAC reassignment; a MAPC with a schedule other than Immediate, a master
   direction other than both ways, or a cam preloaded on its slave; a MAS that stops
   less than all motion, changes the jerk, has a homing to end or nothing moving; an
-  MC_Stop with a jerk; an MC_Halt with a jerk or buffered) hands the queue over first
-  and runs its own ``execute`` (a PLCopen block, its own ``scan``).
+  MC_Stop with a jerk; an MC_Halt with a jerk or buffered; an MC_MoveVelocity buffered
+  or in the current direction) hands the queue over first and runs its own ``execute``
+  (a PLCopen block, its own ``scan``).
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
@@ -91,6 +93,8 @@ class BatchKind(IntEnum):
     POSITION_CAM = 2
     STOP = 3
     HALT = 4
+    #: jogs that replace every process (MC_MoveVelocity, aborting)
+    VELOCITY = 5
 
 
 #: the process kind each batch starts (how a refused batch finds what it started)
@@ -100,6 +104,7 @@ _PROCESS_KIND: dict[BatchKind, ProcessKind] = {
     BatchKind.POSITION_CAM: ProcessKind.POSITION_CAM,
     BatchKind.STOP: ProcessKind.STOP,
     BatchKind.HALT: ProcessKind.STOP,
+    BatchKind.VELOCITY: ProcessKind.JOG,
 }
 _NO_STATUS: dict[str, Any] = {}
 #: the processes a new gear supersedes (MAG)
@@ -156,12 +161,12 @@ class Batch:
         self.jobs, self.owners = [], []
         self.axes.clear()
         self.slaves.clear()
-        if kind is BatchKind.JOG:
+        if kind is BatchKind.JOG or kind is BatchKind.VELOCITY:
             # one call per run of equal limits, in order
             start = 0
             for k in range(1, len(jobs) + 1):
                 if k == len(jobs) or jobs[k][2] != jobs[start][2]:
-                    self._hand_over(BatchKind.JOG, jobs[start:k], owners[start:k])
+                    self._hand_over(kind, jobs[start:k], owners[start:k])
                     start = k
         else:
             assert kind is not None
@@ -182,6 +187,9 @@ class Batch:
                 if kind is BatchKind.JOG:
                     limits: Limits = jobs[0][2]
                     started = ctl.start_jogs(axes, [job[1] for job in jobs], limits, owners)
+                elif kind is BatchKind.VELOCITY:
+                    targets = [job[1] for job in jobs]
+                    started = ctl.start_jogs(axes, targets, jobs[0][2], owners, replace=None)
                 elif kind is BatchKind.POSITION_CAM:
                     started = start_position_cams(ctl, jobs)  # type: ignore[arg-type]
                 elif kind is BatchKind.STOP:

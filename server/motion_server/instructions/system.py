@@ -43,9 +43,9 @@ class MotionSystem:
 
     The instances that fire in one scan hand their axis commands to the kernel together
     where their types allow it (:mod:`.scan_pass`: MAJ's jogs, MAG's gears, MAPC's cams,
-    the stops of MAS and MC_Stop, the halts of MC_Halt), with the result of scanning them
-    one by one; ``batch=False`` scans every instance alone (the reference the batches are
-    tested against).
+    the stops of MAS and MC_Stop, the halts of MC_Halt, MC_MoveVelocity's jogs), with the
+    result of scanning them one by one; ``batch=False`` scans every instance alone (the
+    reference the batches are tested against).
     """
 
     #: rising edges handed to the kernel in batches (a class default, so that a system

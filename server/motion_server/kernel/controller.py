@@ -681,12 +681,14 @@ class Controller:
         targets: Sequence[float],
         limits: Limits,
         owners: Sequence[object] | None = None,
+        replace: Collection[ProcessKind] | None = (ProcessKind.JOG,),
     ) -> list[Process]:
         """Jogs on many axes in one call (MAJ or MC_MoveVelocity executed on N axes in
         one scan): ``start`` of ``JogProcess(period, targets[k], limits, v, a,
-        owners[k])`` replacing the jog of ``axes[k]``, for every k in order, the same
-        state, for less work per axis (:func:`.jog_batch.start_jogs`)."""
-        return start_jogs(self.motion, axes, targets, limits, owners)
+        owners[k])`` replacing the jog of ``axes[k]`` (``replace``: the kinds replaced,
+        None for every process), for every k in order, the same state, for less work per
+        axis (:func:`.jog_batch.start_jogs`)."""
+        return start_jogs(self.motion, axes, targets, limits, owners, replace)
 
     def start_gears(
         self,

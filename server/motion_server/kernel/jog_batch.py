@@ -32,7 +32,7 @@ constructor had to build or hand to ruckig) are started through ``Motion.start``
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from typing import Any
 
 import numpy as np
@@ -198,9 +198,12 @@ def start_jogs(
     targets: Sequence[float],
     limits: Limits,
     owners: Sequence[object] | None = None,
+    replace: Collection[ProcessKind] | None = _REPLACE,
 ) -> list[Process]:
     """Start a jog at ``targets[k]`` (signed velocity) on ``axes[k]``, owned by
-    ``owners[k]`` (None: no owner), for every k in order: the processes started."""
+    ``owners[k]`` (None: no owner), for every k in order: the processes started.
+    ``replace``: what each jog supersedes, as for ``Motion.start`` (another jog, as MAJ;
+    None: every process, MC_MoveVelocity's aborting mode)."""
     if len(targets) != len(axes) or (owners is not None and len(owners) != len(axes)):
         raise ValueError("one target (and one owner, if any) per axis")
     limits = limits.validated()
@@ -226,7 +229,7 @@ def start_jogs(
             ):
                 joining.admit()
                 started.append(
-                    motion.start(ax, _factory(ax.period, target, limits, owner), _REPLACE)
+                    motion.start(ax, _factory(ax.period, target, limits, owner), replace)
                 )
                 continue
             if last is not None and last[0] is target and last[1] == ax.period:
@@ -255,7 +258,7 @@ def start_jogs(
                     started.append(p)
                     continue
             joining.admit()
-            motion.start_from_rest(ax, procs, p, _REPLACE)
+            motion.start_from_rest(ax, procs, p, replace)
             started.append(p)
     finally:
         # (also when a jog is refused: those before it started, as in the loop)

@@ -7,6 +7,10 @@ CommandAborted when another aborting command (a move, MC_Stop, MC_Halt ...) take
 Velocity 0 is allowed: the axis ramps to rest and stays in ContinuousMotion.
 Direction: positive 1, negative 3, current 4 (the direction the axis moves in when the
 command starts; positive at rest). Shortest way (2) has no meaning here: ErrorID 13.
+
+Blocks in the aborting modes, positive or negative, executed on many axes in the same
+scan start their jogs in one ``Controller.start_jogs`` call (``replace=None``); the
+others (buffered, current direction) execute alone.
 """
 
 from __future__ import annotations
@@ -16,9 +20,11 @@ from typing import Any
 
 from ...kernel import Controller, JogProcess
 from ...kernel.processes import Process
+from ..base import BlockEvent
 from ..operands import AXIS, plcopen_dynamics
-from ..plcopen_common import BUFFER_MODE, MotionBlock, follows_as
+from ..plcopen_common import BUFFER_MODE, BufferMode, MotionBlock, follows_as
 from ..registry import register
+from ..scan_pass import Batch, BatchKind
 from ..schema import Operand, Quantity, StatusField, TagType
 
 
@@ -59,6 +65,42 @@ class MC_MoveVelocity(MotionBlock):
         super().__init__(name, ctl, defaults)
         #: InVelocity was published: with Execute low it is reset at the next scan
         self._in_velocity_seen = False
+
+    BATCH = BatchKind.VELOCITY
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the jog returned as (axis, signed
+        velocity, limits) for ``Controller.start_jogs``; None for a buffered block or
+        the current direction, which reads the velocity the jog inherits (it executes
+        alone). Raises what ``execute`` raises before its command."""
+        ax = self.axis()
+        number = ax.number
+        if number in batch.axes:
+            batch.flush()  # a second command on the axis: it sees the first one
+        self.check_axis(ax)
+        speed = float(self.op["Velocity"])
+        direction = VelocityDirection(int(self.op["Direction"]))
+        limits = self.limits(speed or ax.config.max_velocity)
+        buffered = int(self.op.get("BufferMode", BufferMode.ABORTING)) == BufferMode.BUFFERED
+        if direction == VelocityDirection.CURRENT or buffered:
+            return None
+        sign = -1.0 if direction == VelocityDirection.NEGATIVE else 1.0
+        return (ax, sign * speed, limits), (number,)
+
+    def batch_started(self, process: Process) -> None:
+        """The rest of ``execute`` (``begin`` in the aborting modes) and of the rising
+        edge's scan."""
+        self.process = process
+        self.pending = None
+        self.fire(BlockEvent.START)
+        self.active = True
+        self._publish()
+
+    def batch_refused(self) -> None:
+        """The kernel refused the jog (its error set): ``begin`` left no process."""
+        self.process = None
+        self.pending = None
+        self._publish()
 
     def execute(self) -> None:
         ax = self.axis()
