@@ -91,7 +91,7 @@ POOLS: dict[str, dict[str, list[Any]]] = {
     },
     "MC_MoveVelocity": {
         "Axis": AXES,
-        "Velocity": [5.0, 50.0, 50.0, 5000.0, 0.0],
+        "Velocity": [5.0, 50.0, 50.0, 5000.0, 0.0, -0.0],
         "Acceleration": RATES,
         "Deceleration": RATES,
         "Jerk": [0.0, 0.0, 0.0, 100.0],
@@ -515,6 +515,21 @@ def test_velocity_blocks_of_one_scan_start_their_jogs_in_one_call() -> None:
         assert out["Busy"] and out["Active"] and out["InVelocity"], name
     assert systems[0].ctl.axis(1).command_velocity == 20.0
     assert systems[0].ctl.axis(2).command_velocity == -20.0
+
+
+def test_velocity_blocks_with_zero_and_minus_zero_keep_their_signs() -> None:
+    """Two MC_MoveVelocity in one scan with equal operands but Velocity 0.0 and -0.0
+    (equal values, one key for the judge): their jogs' targets are +0.0 and -0.0, as
+    each block alone builds them (``sign * speed``), not one target worked out once."""
+    systems = [build(batch, True) for batch in (True, False)]
+    for system in systems:
+        fire(system, {
+            "MC_MoveVelocity1": {"Axis": 1, "Velocity": 0.0, "Direction": 1},
+            "MC_MoveVelocity2": {"Axis": 2, "Velocity": -0.0, "Direction": 1},
+        })  # fmt: skip
+    same(systems[0], systems[1], "the cycle of the jogs")
+    targets = [systems[0].ctl.axis(n).processes[0].target_velocity for n in (1, 2)]
+    assert [struct.pack("<d", t) for t in targets] == [bits(0.0), bits(-0.0)]
 
 
 def test_stops_of_one_scan_are_planned_in_one_call() -> None:

@@ -72,20 +72,35 @@ class MC_MoveVelocity(MotionBlock):
         """``execute`` up to the kernel command, the jog returned as (axis, signed
         velocity, limits) for ``Controller.start_jogs``; None for a buffered block or
         the current direction, which reads the velocity the jog inherits (it executes
-        alone). Raises what ``execute`` raises before its command."""
+        alone). Raises what ``execute`` raises before its command. The jog depends on
+        the operands' values (``key``) and the axis's maxima only: blocks with the same
+        values on axes with the same maxima work it out once (one target, the same
+        object: ``start_jogs`` copies a jog from rest to it)."""
         ax = self.axis()
         number = ax.number
         if number in batch.axes:
             batch.flush()  # a second command on the axis: it sees the first one
         self.check_axis(ax)
+        cfg = ax.config
+        memo = None
+        if key is not None:
+            memo = (MC_MoveVelocity, key, cfg.max_velocity, cfg.max_acceleration,
+                    cfg.max_deceleration, cfg.max_jerk)  # fmt: skip
+            planned = batch.plans.get(memo)
+            if planned is not None:
+                return (ax, *planned), (number,)
         speed = float(self.op["Velocity"])
         direction = VelocityDirection(int(self.op["Direction"]))
-        limits = self.limits(speed or ax.config.max_velocity)
+        limits = self.limits(speed or cfg.max_velocity)
         buffered = int(self.op.get("BufferMode", BufferMode.ABORTING)) == BufferMode.BUFFERED
         if direction == VelocityDirection.CURRENT or buffered:
             return None
         sign = -1.0 if direction == VelocityDirection.NEGATIVE else 1.0
-        return (ax, sign * speed, limits), (number,)
+        target = sign * speed
+        if memo is not None and speed > 0.0:
+            # (not a speed of zero: 0.0 and -0.0 are one key but give targets of two signs)
+            batch.plans[memo] = (target, limits)
+        return (ax, target, limits), (number,)
 
     def batch_started(self, process: Process) -> None:
         """The rest of ``execute`` (``begin`` in the aborting modes) and of the rising
