@@ -27,6 +27,7 @@ from motion_server.kernel import (
     ProgrammedStopMode,
 )
 from motion_server.kernel.appl_limits import Limit, set_application_limit
+from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference
 from motion_server.kernel.processes import Process
 
 from .test_stop_plan import (
@@ -247,6 +248,23 @@ def test_the_order_is_kept_when_the_rows_hold_the_whole_group() -> None:
         ctl.run(5)
     assert [ax.number for ax in g.order] == [ax.number for ax in ref.groups[0].order]
     assert np.array_equal(fast.cmd_pos, ref.cmd_pos)
+
+
+def test_the_composition_order_puts_masters_first_and_keeps_the_rest() -> None:
+    """``Motion.sort``: with no process reading a master (every axis jogging), the order is
+    the group's axes as configured; a gear on axis 1 reading axis 3 puts axis 3 first and
+    keeps the others in their configured order (3, 1, 2, 4, ...), as a depth-first visit
+    of the masters gives it."""
+    fast, _, _ = jogging_pair()
+    g = fast.groups[0]
+    fast.motion.sort()
+    assert g.order == g.axes
+    slave, master = fast.axes[0], fast.axes[2]
+    term = GearTerm(master.number, MasterReference.COMMAND, 1, 2)
+    fast.start(slave, lambda v, a: GearProcess(fast, slave, (term,), None, v, a), None)
+    fast.motion.sort()
+    numbers = [ax.number for ax in g.axes]
+    assert [ax.number for ax in g.order] == [3, 1, 2, *numbers[3:]]
 
 
 def test_commands_in_the_stops_scan_keep_it_off_the_arrays_path() -> None:

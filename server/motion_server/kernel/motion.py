@@ -12,6 +12,8 @@ fails while moving hands its velocity to a stop ramp.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Sequence
+from itertools import chain
+from operator import attrgetter
 
 from .axis import Axis
 from .enums import AbortReason, ProcessKind, ProcessState
@@ -24,6 +26,8 @@ from .state import AxisArrays
 
 # members read every cycle, as module constants (see .enums)
 _ACTIVE = ProcessState.ACTIVE
+_MASTERS = attrgetter("masters")
+_OWN_PROCESSES = attrgetter("_processes")
 _DONE = ProcessState.DONE
 _ERROR = ProcessState.ERROR
 
@@ -123,6 +127,13 @@ class Motion:
     def sort(self) -> None:
         """Order each group's axes so that masters compose before their slaves."""
         for g in self.groups:
+            if not any(map(_MASTERS, chain.from_iterable(map(_OWN_PROCESSES, g.axes)))):
+                # no process of the group reads a master (a group stopped, or at rest):
+                # every axis is placed where it stands, which the loop below gives, read
+                # in C-level passes (an axis whose ramp is a stop row has no process)
+                g.order = list(g.axes)
+                self.lanes[g.number].dirty = True
+                continue
             order: list[Axis] = []
             placed: set[int] = set()
             for ax in g.axes:
