@@ -11,6 +11,9 @@ loop passes at least every :data:`~motion_server.liveness.SCAN_BEAT` seconds eve
 nothing due (the manual clock waiting for a step), so the supervisor can tell an idle scan
 from a hung one (:mod:`motion_server.liveness`).
 
+Garbage: the start-up heap is frozen, and the collector runs between cycles, when the
+next one is far enough away (:mod:`.collector`), not inside them.
+
 Signals: SIGTERM runs the programmed stop of every group, then the process exits 0;
 SIGINT is left to the supervisor (a terminal's Ctrl-C reaches the whole process group,
 and the supervisor orders the stop). End of file on the control channel (the
@@ -38,6 +41,7 @@ from ..safety.retain import RetainError
 from ..scheduling import SCAN_RT_PRIORITY, Policy
 from ..tagmap.fields import ClockMode
 from .channel import CONTROL, Channel
+from .collector import IdleCollector
 from .core import Scan
 
 log = logging.getLogger("motion_server.scan")
@@ -105,9 +109,12 @@ def main() -> int:
         scan.attach_trend(map_ring(spec.trend_fd, spec.trend_size))
     priority = scan_policy()
     priority.follow(_realtime(scan.mode), scan.load)
-    # the start-up heap (the whole system) is never scanned by the collector again
+    # the start-up heap (the whole system) is never scanned by the collector again, and
+    # what is allocated later is collected between cycles (:mod:`.collector`)
     gc.collect()
     gc.freeze()
+    collector = IdleCollector()
+    collector.start()
     scan.start(time.monotonic())
     terminated = False
     while not scan.finished:
@@ -120,6 +127,7 @@ def main() -> int:
         priority.follow(_realtime(scan.mode), scan.load)
         if scan.finished:
             break
+        collector.between(None if wake is None else wake - time.monotonic())
         fds: list[int] = [wake_r, *(ch.fileno() for ch in scan.channels.values())]
         timeout = SCAN_BEAT if wake is None else min(SCAN_BEAT, max(0.0, wake - time.monotonic()))
         if timeout == 0.0:
@@ -137,5 +145,10 @@ def main() -> int:
     # what the supervisor has not taken yet (the retained state, STOPPED): before exiting
     if control is not None:
         control.drain(DRAIN_TIMEOUT)
-    log.info("scan stopped")
+    collector.stop()
+    log.info(
+        "scan stopped (garbage collections between cycles: %d, forced without time left: %d)",
+        collector.idle,
+        collector.forced,
+    )
     return 0
