@@ -410,6 +410,20 @@ def test_an_instance_that_raises_while_writing_its_status_is_contained() -> None
         assert out[name]["DN"] and out[name]["IP"] and not out[name]["ER"], name
 
 
+def set_moving(systems: list[MotionSystem], jog: dict[str, Any]) -> None:
+    """MAJ1..3 jog axes 1..3 at 50 units/s (with ``jog``'s operands too), MAG1 gears
+    axis 5 to axis 1; 60 cycles, the batched and the one-by-one system compared after
+    each."""
+    for system in systems:
+        for k, name in enumerate(("MAJ1", "MAJ2", "MAJ3")):
+            system[name].inputs.update({"Axis": k + 1, "Speed": 50.0, **jog, "Execute": True})
+        system["MAG1"].inputs.update({"SlaveAxis": 5, "MasterAxis": 1, "Execute": True})
+    for k in range(60):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("start", k))
+
+
 def test_halts_of_one_scan_are_planned_in_one_call() -> None:
     """MAJ1..3 jog axes 1..3 at 50 units/s (reached at 500 units/s² in 100 ms), MAG1
     gears axis 5 to axis 1. Then MC_Halt1
@@ -430,16 +444,7 @@ def test_halts_of_one_scan_are_planned_in_one_call() -> None:
         return stop_many(axes, decelerations, owners, halt=halt)
 
     ctl.stop_many = spy  # type: ignore[method-assign]
-    for system in systems:
-        for k, name in enumerate(("MAJ1", "MAJ2", "MAJ3")):
-            system[name].inputs.update(
-                {"Axis": k + 1, "Speed": 50.0, "AccelRate": 500.0, "Execute": True}
-            )
-        system["MAG1"].inputs.update({"SlaveAxis": 5, "MasterAxis": 1, "Execute": True})
-    for k in range(60):
-        for system in systems:
-            system.cycle()
-        same(systems[0], systems[1], ("start", k))
+    set_moving(systems, {"AccelRate": 500.0})
     halts = {
         "MC_Halt1": {"Axis": 1, "Deceleration": 250.0},
         "MC_Halt2": {"Axis": 2, "Deceleration": 500.0},
@@ -549,14 +554,7 @@ def test_stops_of_one_scan_are_planned_in_one_call() -> None:
         return stop_many(axes, decelerations, owners)
 
     ctl.stop_many = spy  # type: ignore[method-assign]
-    for system in systems:
-        for k, name in enumerate(("MAJ1", "MAJ2", "MAJ3")):
-            system[name].inputs.update({"Axis": k + 1, "Speed": 50.0, "Execute": True})
-        system["MAG1"].inputs.update({"SlaveAxis": 5, "MasterAxis": 1, "Execute": True})
-    for k in range(60):
-        for system in systems:
-            system.cycle()
-        same(systems[0], systems[1], ("start", k))
+    set_moving(systems, {})
     stops = {
         "MAS1": {"Axis": 1},
         "MAS2": {"Axis": 2, "ChangeDecel": 1, "DecelRate": 250.0},

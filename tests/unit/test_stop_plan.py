@@ -128,25 +128,18 @@ def apply(ctl: Controller, cmd: Command, started: list[Process], stops: list[Any
                 ctl.coupling_changed()
         elif name == "mas":
             started.append(ctl.stop(ax, None, 500.0 + abs(x)))
-        elif name == "many":
-            # MAS (all motion) on the moving axes between n and m, in one scan
+        elif name in ("many", "halts"):
+            # MAS (all motion), or MC_Halt (aborting, no jerk), on the moving axes between
+            # n and m, in one scan
+            halt = name == "halts"
             lo, hi = sorted((n, m))
             axes = [a for a in ctl.axes[lo : hi + 1] if a.active()]
             decels = [400.0 + abs(x) + 50.0 * k for k in range(len(axes))]
             if ctl.lanes_enabled:
                 batch = bool(axes) and ctl._stops_as_batch(axes, decels)
-                event(f"stops planned as one batch: {batch}")
-            started.extend(ctl.stop_many(axes, decels, [f"MAS{a.number}" for a in axes]))
-        elif name == "halts":
-            # MC_Halt (aborting, no jerk) on the moving axes between n and m, in one scan
-            lo, hi = sorted((n, m))
-            axes = [a for a in ctl.axes[lo : hi + 1] if a.active()]
-            decels = [400.0 + abs(x) + 50.0 * k for k in range(len(axes))]
-            if ctl.lanes_enabled:
-                batch = bool(axes) and ctl._stops_as_batch(axes, decels)
-                event(f"halts planned as one batch: {batch}")
-            owners = [f"MC_Halt{a.number}" for a in axes]
-            started.extend(ctl.stop_many(axes, decels, owners, halt=True))
+                event(f"{'halts' if halt else 'stops'} planned as one batch: {batch}")
+            owners = [f"{'MC_Halt' if halt else 'MAS'}{a.number}" for a in axes]
+            started.extend(ctl.stop_many(axes, decels, owners, halt=halt))
         elif name == "off":
             ctl.servo_off(ax)
         elif name == "on":

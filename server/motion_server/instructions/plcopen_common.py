@@ -170,6 +170,23 @@ class MotionBlock(PLCopenBlock):
         self.fire(BlockEvent.START)
         self.active = self.process is not None
 
+    def batch_started(self, process: Process) -> None:
+        """For a block that queues in a scan's batch (``BATCH``) the command ``begin``
+        starts in the aborting modes: the rest of ``begin`` once the batch started
+        ``process``, and of the rising edge's scan."""
+        self.process = process
+        self.pending = None
+        self.fire(BlockEvent.START)
+        self.active = True
+        self._publish()
+
+    def batch_refused(self) -> None:
+        """The kernel refused the queued command (its error set): ``begin`` would have
+        left no process."""
+        self.process = None
+        self.pending = None
+        self._publish()
+
     def poll(self) -> None:
         if self.process is None and self.pending is not None:
             if self.pending.cancelled:

@@ -16,7 +16,6 @@ from typing import Any
 
 from ...kernel import StopRamp
 from ...kernel.processes import Process
-from ..base import BlockEvent
 from ..operands import AXIS, plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, BufferMode, MotionBlock
 from ..registry import register
@@ -49,21 +48,6 @@ class MC_Halt(MotionBlock):
         if jerk != 0.0 or buffered:
             return None
         return (ax, decel), (number,)
-
-    def batch_started(self, process: Process) -> None:
-        """The rest of ``execute`` (``begin`` in the aborting modes) and of the rising
-        edge's scan."""
-        self.process = process
-        self.pending = None
-        self.fire(BlockEvent.START)
-        self.active = True
-        self._publish()
-
-    def batch_refused(self) -> None:
-        """The kernel refused the halt (its error set): ``begin`` left no process."""
-        self.process = None
-        self.pending = None
-        self._publish()
 
     def execute(self) -> None:
         ax = self.axis()

@@ -20,7 +20,6 @@ from typing import Any
 
 from ...kernel import Controller, JogProcess
 from ...kernel.processes import Process
-from ..base import BlockEvent
 from ..operands import AXIS, plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, BufferMode, MotionBlock, follows_as
 from ..registry import register
@@ -101,21 +100,6 @@ class MC_MoveVelocity(MotionBlock):
             # (not a speed of zero: 0.0 and -0.0 are one key but give targets of two signs)
             batch.plans[memo] = (target, limits)
         return (ax, target, limits), (number,)
-
-    def batch_started(self, process: Process) -> None:
-        """The rest of ``execute`` (``begin`` in the aborting modes) and of the rising
-        edge's scan."""
-        self.process = process
-        self.pending = None
-        self.fire(BlockEvent.START)
-        self.active = True
-        self._publish()
-
-    def batch_refused(self) -> None:
-        """The kernel refused the jog (its error set): ``begin`` left no process."""
-        self.process = None
-        self.pending = None
-        self._publish()
 
     def execute(self) -> None:
         ax = self.axis()
