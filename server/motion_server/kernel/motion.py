@@ -130,8 +130,11 @@ class Motion:
             if not any(map(_MASTERS, chain.from_iterable(map(_OWN_PROCESSES, g.axes)))):
                 # no process of the group reads a master (a group stopped, or at rest):
                 # every axis is placed where it stands, which the loop below gives, read
-                # in C-level passes (an axis whose ramp is a stop row has no process)
-                g.order = list(g.axes)
+                # in C-level passes (an axis whose ramp is a stop row has no process);
+                # the list kept when it holds that order already (what the lanes derived
+                # from it stays valid)
+                if g.order != g.axes:
+                    g.order = list(g.axes)
                 self.lanes[g.number].dirty = True
                 continue
             order: list[Axis] = []

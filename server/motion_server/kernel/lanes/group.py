@@ -13,6 +13,8 @@ composed in Python at that point, before any later level reads them.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import chain
+from operator import attrgetter
 
 import numpy as np
 
@@ -32,6 +34,24 @@ from .scurve import SCurveLane
 
 #: processes released per step after a rebuild dropped many (:meth:`GroupLanes.step`)
 RELEASE_CHUNK = 32
+
+
+_OWN_PROCESSES = attrgetter("_processes")
+_STOP_ROWS = attrgetter("stop_rows")
+
+
+def _offer_again(axes: Sequence[Axis]) -> None:
+    """Mark every process of ``axes`` to be offered to the lanes again. Their process
+    lists are read in a C-level pass (a group of 256 axes, most at rest, costs no Python
+    step per axis without a process); an axis whose ramp is still a stop row, whose list
+    only reading ``processes`` makes, is read the long way."""
+    if list(map(_STOP_ROWS, axes)).count(None) != len(axes):  # (rows have a length)
+        for ax in axes:
+            for p in ax.processes:
+                p.offer_pending = True
+        return
+    for p in chain.from_iterable(map(_OWN_PROCESSES, axes)):
+        p.offer_pending = True
 
 
 class GroupLanes:
@@ -219,10 +239,8 @@ class GroupLanes:
         self._order_command_followers(axes)
         self.schedule = self._schedule()
         self.python_order = self._python_order()
-        for ax in self.python_order:
-            # membership changed: a follower's master may have joined a lane
-            for p in ax.processes:
-                p.offer_pending = True
+        # membership changed: a follower's master may have joined a lane
+        _offer_again(self.python_order)
         self.dirty = False  # evictions while levelling set it: they are rebuilt above
         self.joined = False
         self.handed = False
@@ -304,9 +322,7 @@ class GroupLanes:
             # left one for Python: that marks the lanes dirty)
             if joined:
                 self.python_order = [ax for ax in self.python_order if id(ax) not in joined]
-        for ax in self.python_order:
-            for p in ax.processes:
-                p.offer_pending = True
+        _offer_again(self.python_order)
         self.joined = False
         self.handed = False
         self.followed = False
@@ -443,10 +459,8 @@ class GroupLanes:
         self._defer_release(dropped)
         self.cruise.place(s)
         self.python_order = self._python_order()
-        for ax in self.python_order:
-            # a follower composed in Python may now read a master in a lane
-            for p in ax.processes:
-                p.offer_pending = True
+        # a follower composed in Python may now read a master in a lane
+        _offer_again(self.python_order)
         self.joined = False
 
     def _schedule(self) -> list[tuple[LevelledLane, int]]:
@@ -502,7 +516,7 @@ class GroupLanes:
         left = np.flatnonzero(~laned[self._order_idx])
         if left.size == len(order):
             return list(order)
-        return [order[k] for k in left.tolist()]
+        return list(map(order.__getitem__, left.tolist()))
 
     def _order_command_followers(self, axes: Sequence[Axis]) -> None:
         """Level the command followers (:mod:`.group`'s order) and order their lanes by
