@@ -334,6 +334,7 @@ def main() -> None:
     results = []
     with tempfile.TemporaryDirectory(prefix="write-abuse-") as scratch:
         tmp = args.logs or scratch  # the site maps and the servers' logs
+        Path(tmp).mkdir(parents=True, exist_ok=True)
         runs: list[tuple[str, str, int | None]] = []
         if args.base:
             runs.append(("base", args.base, None))
