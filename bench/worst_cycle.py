@@ -250,11 +250,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steady", type=float, default=2.0, help="seconds of the reference")
     parser.add_argument("--base", help="the server directory of the code to compare with")
+    parser.add_argument("--logs", help="keep the site maps and the servers' logs in this directory")
     args = parser.parse_args()
     here = str(Path(__file__).resolve().parent.parent / "server")
     print(f"load average before: {load_average()}", flush=True)
     results = []
-    with tempfile.TemporaryDirectory(prefix="worst-cycle-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="worst-cycle-") as scratch:
+        tmp = args.logs or scratch  # the site maps and the servers' logs
+        Path(tmp).mkdir(parents=True, exist_ok=True)
         runs = ([("base", args.base)] if args.base else []) + [("this", here)]
         for label, path in runs:
             results.append(run(label, path, args.steady, Path(tmp)))

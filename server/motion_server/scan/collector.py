@@ -23,6 +23,7 @@ costs about as much as the others, so that rule is left out.)
 from __future__ import annotations
 
 import gc
+import time
 
 #: seconds that must be left before the next cycle for a collection to run now
 SLACK = 0.0005
@@ -31,7 +32,8 @@ FORCE = 20
 
 
 class IdleCollector:
-    """Collects between cycles; ``idle`` and ``forced`` count the collections run."""
+    """Collects between cycles; ``idle`` and ``forced`` count the collections run,
+    ``longest`` is the longest one's duration (seconds)."""
 
     def __init__(self, slack: float = SLACK, force: int = FORCE) -> None:
         self.slack = slack
@@ -39,6 +41,7 @@ class IdleCollector:
         self.thresholds = gc.get_threshold()
         self.idle = 0
         self.forced = 0
+        self.longest = 0.0
 
     def start(self) -> None:
         """Take over from the automatic collection (after the start-up heap is frozen)."""
@@ -64,7 +67,9 @@ class IdleCollector:
             forced = True
         # the oldest generation past its threshold, as CPython picks it
         generation = 2 if count[2] > t2 else 1 if count[1] > t1 else 0
+        start = time.perf_counter()
         gc.collect(generation)
+        self.longest = max(self.longest, time.perf_counter() - start)
         if forced:
             self.forced += 1
         else:

@@ -147,8 +147,10 @@ def main() -> int:
         control.drain(DRAIN_TIMEOUT)
     collector.stop()
     log.info(
-        "scan stopped (garbage collections between cycles: %d, forced without time left: %d)",
+        "scan stopped (garbage collections between cycles: %d, the longest %.2f ms; forced "
+        "without time left: %d)",
         collector.idle,
+        collector.longest * 1e3,
         collector.forced,
     )
     return 0
