@@ -5,12 +5,11 @@ Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel 
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
 can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams,
 MAS and MC_Stop -> stops, MC_Halt -> halts, MC_MoveVelocity -> jogs that abort every
-process) and whose trigger rose are latched, judged
-and checked one by one, as their own ``scan`` does, but their kernel commands are
-queued; the queue goes to the kernel in one call per kind (``Controller.start_jogs``,
-``Controller.start_gears``, ``kernel.cam_batch.start_position_cams``,
-``Controller.stop_many``) and then every instance writes its status from the process
-it got.
+process) and whose trigger rose are latched, judged and checked one by one, as their
+own ``scan`` does, but their kernel commands are queued; the queue goes to the kernel
+in one call per kind (``Controller.start_jogs``, ``Controller.start_gears``,
+``kernel.cam_batch.start_position_cams``, ``Controller.stop_many``) and then every
+instance writes its status from the process it got.
 
 The observable result is exactly that of scanning one by one (tested against it, every
 output and the kernel's arrays after every cycle). That holds because a queued command
