@@ -637,9 +637,6 @@ def _some_rowed(
 ) -> StopRows | None:
     """The ramps of :func:`_stop_members` when not all are rows (a ramp from rest, a
     drive off, a group without lanes): those built here, the others' rows returned."""
-    s = motion.s
-    busy = s.scalars.busy
-    dirty = s.dirty
     flags = rowed.tolist()
     vs = v_arr.tolist()
     accels = a_arr.tolist()
@@ -652,20 +649,7 @@ def _some_rowed(
             rowed_axes.append(ax)
             ax._processes = []
             continue
-        v = vs[k]
-        key = (v, ds[k])
-        limits = shared.get(key)
-        r = ramp(ax.period, ds[k], v, owner, limits, stopping)
-        if limits is None:
-            shared[key] = r.limits
-        if v == 0.0 and accels[k] == 0.0:
-            r.state = _DONE
-        ax._processes = [r]
-        i = ax.index
-        busy[i] = active = r.state is _ACTIVE
-        dirty.add(i)
-        if active:
-            motion.offer(ax)  # (a halt's: to its lane, as Motion.start offers it)
+        _ramp_object(motion, ax, vs[k], accels[k], ds[k], owner, shared, stopping)
     if not rowed_axes:
         return None
     sel = np.flatnonzero(rowed)
@@ -684,6 +668,38 @@ def _some_rowed(
     for ax in rowed_axes:
         ax.stop_rows = rows
     return rows
+
+
+def _ramp_object(
+    motion: Motion,
+    ax: Axis,
+    v: float,
+    a: float,
+    d: float,
+    owner: object,
+    shared: dict[tuple[float, float], Limits],
+    stopping: bool,
+) -> None:
+    """The ramp of ``ax`` built as an object, not a row (a ramp from rest, a drive off,
+    a group without lanes, a halt): from ``v`` at ``d``, done at once from rest with no
+    acceleration ``a`` to inherit. It becomes the axis's only process (no stop row is
+    left on an axis whose processes the stop read), busy while it runs and offered to
+    its lane as ``Motion.start`` offers it (a halt's). ``shared``: the limits of the
+    batch's ramps by (velocity, deceleration), equal ones shared (they are immutable)."""
+    key = (v, d)
+    limits = shared.get(key)
+    r = ramp(ax.period, d, v, owner, limits, stopping)
+    if limits is None:
+        shared[key] = r.limits
+    if v == 0.0 and a == 0.0:
+        r.state = _DONE
+    ax._processes = [r]
+    i = ax.index
+    s = motion.s
+    s.scalars.busy[i] = active = r.state is _ACTIVE
+    s.dirty.add(i)
+    if active:
+        motion.offer(ax)
 
 
 def _retire_order(motion: Motion, lanes: GroupLanes, whole: bool) -> None:
@@ -802,7 +818,6 @@ def stop_axes(
         return False
     ds = d_arr.tolist()
     s = motion.s
-    busy = s.scalars.busy
     dirty = s.dirty
     offered = motion.offers(axes[0].group)
     drive_on = s.drive_on
@@ -851,19 +866,7 @@ def stop_axes(
             bases.append(base)
             ax._processes = []
             continue
-        d = ds[k]
-        key = (v, d)
-        limits = shared.get(key)
-        r = ramp(ax.period, d, v, owner, limits, stopping)
-        if limits is None:
-            shared[key] = r.limits
-        if v == 0.0 and accels[k] == 0.0:
-            r.state = _DONE
-        ax.processes = [r]
-        busy[i] = active = r.state is _ACTIVE
-        dirty.add(i)
-        if active:
-            motion.offer(ax)  # (a halt's: to its lane, as Motion.start offers it)
+        _ramp_object(motion, ax, v, accels[k], ds[k], owner, shared, stopping)
     _clear(lanes, emptied)
     if coupling:
         motion.coupling_changed()
