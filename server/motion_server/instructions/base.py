@@ -450,7 +450,10 @@ class LogixInstruction(Instruction):
         process: the FLAGS word follows from the one kept (one bit or two changed), not
         from every bit read back."""
         if self._rising:
-            self.set_bits(IP=False) if pc is None else self.set_bits(IP=False, PC=pc)
+            if pc is None:
+                self.set_bits(IP=False)
+            else:
+                self.set_bits(IP=False, PC=pc)
             return
         out = self.outputs
         flags = out.get("FLAGS", 0) & ~_IP

@@ -158,11 +158,15 @@ class MotionBlock(PLCopenBlock):
             return None
         return p
 
+    def buffered(self) -> bool:
+        """The block's command waits for the motion in progress (BufferMode Buffered):
+        :meth:`begin` queues it; any other mode aborts that motion."""
+        return int(self.op.get("BufferMode", BufferMode.ABORTING)) == BufferMode.BUFFERED
+
     def begin(self, ax: Axis, make: ProcessFactory) -> None:
-        mode = int(self.op.get("BufferMode", BufferMode.ABORTING))
         self.process = None
         self.pending = None
-        if mode == BufferMode.BUFFERED:
+        if self.buffered():
             self.pending = self.ctl.buffer(ax, make, owner=self)
             self.process = self.pending.process
         else:

@@ -140,6 +140,13 @@ class Batch:
         #: groups, and they hand it over first)
         self.stopping: dict[int, bool] = {}
 
+    def before_axis(self, number: int) -> None:
+        """A command on axis ``number`` is about to be checked: if a queued one touches
+        that axis, the queue is handed over first, so that the checks see it (a second
+        command on one axis in a scan)."""
+        if number in self.axes:
+            self.flush()
+
     def add(
         self, kind: BatchKind, owner: BatchInstruction, job: tuple[Any, ...], axes: Iterable[int]
     ) -> None:

@@ -143,10 +143,9 @@ class MotionSystem:
     def _unpark_ended(self) -> list[Instruction]:
         """Update the parked instances whose process left ACTIVE (in this cycle's scan
         or step), or whose watched attribute of it fell, here rather than among the
-        awake ones (each writes only its own
-        outputs: the order does not matter). Returns those that are not asleep after
-        it, to wake once this cycle's update is over (a group stop ending 256 jogs:
-        no other pass over them)."""
+        awake ones (each writes only its own outputs: the order does not matter).
+        Returns those that are not asleep after it, to wake once this cycle's update is
+        over (a group stop ending 256 jogs: no other pass over them)."""
         parked = self._parked
         watched = self._watched
         states = list(map(_STATE, parked.values()))  # (no Python call per process)

@@ -59,7 +59,7 @@ from .mdac_links import MasterDrivenControl
 from .motion import InternalError, Motion
 from .override import Override
 from .power import Power, PowerEvent, require
-from .processes import Pending, Process, ProcessFactory, StopRamp
+from .processes import Pending, Process, ProcessFactory, StopRamp, halt_ramp
 from .redefine import shift_coordinates
 from .scurve import FALLBACKS
 from .state import AxisArrays, Index, MasterArrays, compact
@@ -804,12 +804,7 @@ class Controller:
     def _halt(self, ax: Axis, deceleration: float, owner: object) -> StopRamp:
         """MC_Halt's trapezoidal halt of ``ax`` (aborting mode): a ramp to rest that
         replaces every process, the axis not Stopping."""
-        dt = ax.period
-
-        def make(v: float, a: float) -> Process:
-            return StopRamp(dt, deceleration, 0.0, v, a, owner=owner, stopping=False)
-
-        ramp = self.motion.start(ax, make, replace=None)
+        ramp = self.motion.start(ax, halt_ramp(ax.period, deceleration, 0.0, owner), None)
         assert isinstance(ramp, StopRamp)
         return ramp
 

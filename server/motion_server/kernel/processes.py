@@ -347,3 +347,13 @@ class StopRamp(ProfiledProcess):
         if self.profile.finished:
             self.velocity = 0.0
             self.finish()
+
+
+def halt_ramp(dt: float, deceleration: float, jerk: float, owner: Any) -> ProcessFactory:
+    """The factory of MC_Halt's ramp: from the velocity and acceleration of what it
+    replaces to rest, the axis not Stopping (``StopRamp(..., stopping=False)``)."""
+
+    def make(v: float, a: float) -> Process:
+        return StopRamp(dt, deceleration, jerk, v, a, owner=owner, stopping=False)
+
+    return make

@@ -83,8 +83,7 @@ class MAJ(SpeedControlledMotion):
             return None
         ax = self.ctl.axis(int(op["Axis"]))
         number = ax.number
-        if number in batch.axes:
-            batch.flush()  # a second jog on the axis: its checks see the first one
+        batch.before_axis(number)
         if self.ctl.mdsc.pending(number) is not None:
             return None
         if not takes_motion(ax):

@@ -97,8 +97,7 @@ class MAS(ProcessInstruction):
             return None
         ax = self.axis()
         number = ax.number
-        if number in batch.axes:
-            batch.flush()  # a second stop of the axis: it sees the first one
+        batch.before_axis(number)
         if (
             ax.type == AxisType.FEEDBACK_ONLY
             or ax.index in self.ctl.homing.jobs

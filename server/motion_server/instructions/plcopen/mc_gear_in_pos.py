@@ -121,7 +121,7 @@ class MC_GearInPos(MotionBlock):
             SyncMode(int(self.op["SyncMode"])),
             float(self.op["MasterStartDistance"]),
         )
-        buffered = int(self.op["BufferMode"]) == BufferMode.BUFFERED
+        buffered = self.buffered()
         starts_now = not buffered or not any(p.active for p in slave.processes)
         if starts_now:
             # judged against the positions now: inconsistent inputs move nothing

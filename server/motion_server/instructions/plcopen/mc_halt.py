@@ -14,10 +14,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from ...kernel import StopRamp
-from ...kernel.processes import Process
+from ...kernel.processes import halt_ramp
 from ..operands import AXIS, plcopen_dynamics
-from ..plcopen_common import BUFFER_MODE, BufferMode, MotionBlock
+from ..plcopen_common import BUFFER_MODE, MotionBlock
 from ..registry import register
 from ..scan_pass import Batch, BatchKind
 
@@ -40,12 +39,10 @@ class MC_Halt(MotionBlock):
         halt (it executes alone). Raises what ``execute`` raises before its command."""
         ax = self.axis()
         number = ax.number
-        if number in batch.axes:
-            batch.flush()  # a second halt of the axis: it sees the first one
+        batch.before_axis(number)
         self.check_axis(ax)
         decel, jerk = self.stop_dynamics(ax)
-        buffered = int(self.op.get("BufferMode", BufferMode.ABORTING)) == BufferMode.BUFFERED
-        if jerk != 0.0 or buffered:
+        if jerk != 0.0 or self.buffered():
             return None
         return (ax, decel), (number,)
 
@@ -53,9 +50,4 @@ class MC_Halt(MotionBlock):
         ax = self.axis()
         self.check_axis(ax)
         decel, jerk = self.stop_dynamics(ax)
-        dt = self.ctl.dt(ax)
-
-        def make(v: float, a: float) -> Process:
-            return StopRamp(dt, decel, jerk, v, a, owner=self, stopping=False)
-
-        self.begin(ax, make)
+        self.begin(ax, halt_ramp(self.ctl.dt(ax), decel, jerk, self))

@@ -13,7 +13,7 @@ from __future__ import annotations
 from ...kernel import Axis, MoveProcess
 from ...kernel.processes import Process
 from ..operands import AXIS, plcopen_dynamics
-from ..plcopen_common import BUFFER_MODE, BufferMode, MotionBlock
+from ..plcopen_common import BUFFER_MODE, MotionBlock
 from ..registry import register
 from ..schema import Operand, Quantity, TagType
 from .mc_move_superimposed import SuperimposedMove
@@ -45,7 +45,7 @@ class MC_MoveAdditive(MotionBlock):
         distance = float(self.op["Distance"])
         limits = self.limits()
         dt = self.ctl.dt(ax)
-        buffered = int(self.op["BufferMode"]) == BufferMode.BUFFERED
+        buffered = self.buffered()
 
         def make(v: float, a: float) -> Process:
             # measured when the move starts: a buffered move starts after the previous

@@ -21,7 +21,7 @@ from typing import Any
 from ...kernel import Controller, JogProcess
 from ...kernel.processes import Process
 from ..operands import AXIS, plcopen_dynamics
-from ..plcopen_common import BUFFER_MODE, BufferMode, MotionBlock, follows_as
+from ..plcopen_common import BUFFER_MODE, MotionBlock, follows_as
 from ..registry import register
 from ..scan_pass import Batch, BatchKind
 from ..schema import Operand, Quantity, StatusField, TagType
@@ -77,8 +77,7 @@ class MC_MoveVelocity(MotionBlock):
         object: ``start_jogs`` copies a jog from rest to it)."""
         ax = self.axis()
         number = ax.number
-        if number in batch.axes:
-            batch.flush()  # a second command on the axis: it sees the first one
+        batch.before_axis(number)
         self.check_axis(ax)
         cfg = ax.config
         memo = None
@@ -91,8 +90,7 @@ class MC_MoveVelocity(MotionBlock):
         speed = float(self.op["Velocity"])
         direction = VelocityDirection(int(self.op["Direction"]))
         limits = self.limits(speed or cfg.max_velocity)
-        buffered = int(self.op.get("BufferMode", BufferMode.ABORTING)) == BufferMode.BUFFERED
-        if direction == VelocityDirection.CURRENT or buffered:
+        if direction == VelocityDirection.CURRENT or self.buffered():
             return None
         sign = -1.0 if direction == VelocityDirection.NEGATIVE else 1.0
         target = sign * speed

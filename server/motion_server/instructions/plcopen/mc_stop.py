@@ -33,8 +33,7 @@ class MC_Stop(MotionBlock):
         executes alone). Raises what ``execute`` raises before its command."""
         ax = self.axis()
         number = ax.number
-        if number in batch.axes:
-            batch.flush()  # a second stop of the axis: it sees the first one
+        batch.before_axis(number)
         self.ctl.require_motion(ax)
         decel, jerk = self.stop_dynamics(ax)
         if jerk != 0.0:
