@@ -134,12 +134,13 @@ class _Joining:
     """The gears of the batch bound for one follower lane, admitted together: the
     members, their rows of the lane's ``FIELDS``, whether all step at level 0."""
 
-    __slots__ = ("at_zero", "lane", "members", "rows")
+    __slots__ = ("at_zero", "lane", "masters", "members", "rows")
 
     def __init__(self, lane: BatchedLane) -> None:
         self.lane = lane
         self.members: list[tuple[Process, Axis]] = []
         self.rows: list[tuple[Any, ...]] = []
+        self.masters: list[int] = []  # the members' masters' indices
         self.at_zero = True
 
 
@@ -165,7 +166,7 @@ class _Batch:
         """Hand the gathered gears to their lanes (in the order they started), and
         forget what the lanes held: another start may change it."""
         for j in self.joining.values():
-            j.lane.admit_started(j.members, _columns(j.rows), j.at_zero)
+            j.lane.admit_started(j.members, _columns(j.rows), j.at_zero, j.masters)
         self.joining.clear()
         self.masters_at_zero.clear()
         self.readers.clear()
@@ -336,6 +337,7 @@ def _join(
         j = batch.joining[id(lane)] = _Joining(lane)
     j.members.append((p, ax))
     j.rows.append(row)
+    j.masters.append(index)
     if j.at_zero and command:
         j.at_zero = _at_level_zero(lanes, ax, index, batch)
 

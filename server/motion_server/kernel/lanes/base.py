@@ -366,6 +366,9 @@ class LevelledLane(Lane):
     #: (those kept from ``midx``, those appended read from their processes), for
     #: :meth:`order`; None when ``midx`` did not hold the members before it
     new_midx: list[int] | None = None
+    #: the masters' indices of the batch the last :meth:`rebuild` appended, when its
+    #: admission gave them (``BatchedLane.take_batch``); read once, by that rebuild
+    batch_masters: list[int] | None = None
     #: ``midx`` no longer holds the members' masters: a :meth:`rebuild` that could not
     #: carry them over ran since the last :meth:`order` (a class default for lanes
     #: restored from older state)
@@ -393,13 +396,19 @@ class LevelledLane(Lane):
         else:
             old = self.midx.tolist()
         known = old is not None and len(old) == len(self.members)
+        self.batch_masters = None
         super().rebuild()
+        batch_masters, self.batch_masters = self.batch_masters, None
         if known:
             assert old is not None
             kept = self._kept
             midx = [old[k] for k in kept] if len(kept) != len(old) else list(old)
-            master_index = self.master_index
-            midx += [master_index(p) for p in self.members[len(kept) :]]
+            appended = len(self.members) - len(kept)
+            if batch_masters is not None and len(batch_masters) == appended:
+                midx += batch_masters
+            else:
+                master_index = self.master_index
+                midx += [master_index(p) for p in self.members[len(kept) :]]
             self.new_midx = midx
         else:
             self.new_midx = None

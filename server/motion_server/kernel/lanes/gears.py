@@ -35,18 +35,24 @@ class BatchedLane(LevelledLane):
     lane locked (:meth:`CatchUpLane._lock`), gears started together
     (:mod:`..gear_batch`)."""
 
-    def take_batch(self, joining: Sequence[tuple[Process, Axis]], columns: list[Any]) -> None:
+    def take_batch(
+        self,
+        joining: Sequence[tuple[Process, Axis]],
+        columns: list[Any],
+        masters: list[int] | None = None,
+    ) -> None:
         """``joining`` were admitted last, in this order; ``columns`` holds their
-        ``FIELDS``, what :meth:`_load` would read: if they are all that joined since the
-        last rebuild, the next rebuild takes the columns instead of loading them one by
-        one."""
+        ``FIELDS``, what :meth:`_load` would read, and ``masters`` (if given) their
+        masters' indices, what :meth:`master_index` would read: if they are all that
+        joined since the last rebuild, the next rebuild takes them instead of reading
+        every member."""
         mine = self._joining
         if (
             joining
             and len(mine) == len(joining)
             and all(q is p for (q, _), (p, _) in zip(mine, joining, strict=True))
         ):
-            self._batch = (joining[0][0], len(joining), columns)
+            self._batch = (joining[0][0], len(joining), columns, masters)
 
     def _batch_columns(self, joining: list[tuple[Process, Axis]]) -> list[np.ndarray] | None:
         batch = self._batch
@@ -54,14 +60,22 @@ class BatchedLane(LevelledLane):
             return None
         if len(joining) != batch[1]:
             return None
+        # (the rebuild appends exactly this batch: its masters' indices go with it; a
+        # batch restored from older state has none)
+        self.batch_masters = batch[3] if len(batch) > 3 else None
         return [np.asarray(col, dtype=float) for col in batch[2]]
 
     def admit_started(
-        self, joining: Sequence[tuple[Process, Axis]], columns: list[Any] | None, at_zero: bool
+        self,
+        joining: Sequence[tuple[Process, Axis]],
+        columns: list[Any] | None,
+        at_zero: bool,
+        masters: list[int] | None = None,
     ) -> None:
         """:meth:`~.base.Lane.admit` of each of ``joining`` (gears just started on axes
         without motion, in this order, each already marked ``p.lane is self``), with
-        their ``FIELDS`` as ``columns`` (None: loaded one by one at the rebuild).
+        their ``FIELDS`` as ``columns`` (None: loaded one by one at the rebuild) and
+        their masters' indices as ``masters`` (None: read at the rebuild).
 
         ``at_zero``: every one of them steps at level 0 and no follower's level changes
         by their joining (the caller checked: each reads a master stepped before every
@@ -76,7 +90,7 @@ class BatchedLane(LevelledLane):
         self._joining.extend(joining)
         self.changed = True
         if columns is not None:
-            self.take_batch(joining, columns)
+            self.take_batch(joining, columns, masters)
         owner = self._owner
         if not at_zero:
             owner.dirty = True
@@ -397,7 +411,7 @@ class CatchUpLane(BatchedLane):
         dirty = s.dirty
         reached: list[tuple[Process, Axis]] = []
         # the locked lane's FIELDS of each, as GearLane._load would read them
-        base, lock_pos, num, den = [], [], [], []
+        base, lock_pos, num, den, masters = [], [], [], [], []
         members, axes = self.members, self.axes
         for j, k in enumerate(rows):
             p, ax = members[k], axes[k]
@@ -412,7 +426,8 @@ class CatchUpLane(BatchedLane):
             c.v_prev = v_prev[j]
             # GearProcess._lock, with _Coupling.lock of a real ratio
             p.at_lock = x  # type: ignore[attr-defined]
-            m = c.pos.item(c.index)
+            index = c.index
+            m = c.pos.item(index)
             c.lock_pos = m
             c.slave_counts = 0
             p.locked = True  # type: ignore[attr-defined]
@@ -420,6 +435,7 @@ class CatchUpLane(BatchedLane):
             lock_pos.append(m)
             num.append(c.num)
             den.append(c.den)
+            masters.append(index)
             # composition marks the status (GearingLockStatus) and the axis is offered
             dirty.add(ax.index)
             p.status_changed = False
@@ -430,9 +446,12 @@ class CatchUpLane(BatchedLane):
         self.locked_columns = [
             base, pos, lock_pos, num, den, a["ratio"][r], v_prev, pos, vel, acc
         ]  # fmt: skip
+        self.locked_masters = masters
         self.changed = True
         # handed to the lane of locked gears at the same level (GroupLanes._offer_locked)
         self._owner.handed = True
 
-    #: the ``GearLane`` columns of :attr:`reached` (:meth:`GearLane.take_batch`)
+    #: the ``GearLane`` columns of :attr:`reached` (:meth:`GearLane.take_batch`), and
+    #: their masters' indices
     locked_columns: list[Any] | None = None
+    locked_masters: list[int] | None = None

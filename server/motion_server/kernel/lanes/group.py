@@ -13,7 +13,7 @@ composed in Python at that point, before any later level reads them.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from itertools import chain
+from itertools import chain, repeat
 from operator import attrgetter
 
 import numpy as np
@@ -280,7 +280,7 @@ class GroupLanes:
             x.rebuild()
         # the axes that joined a lane: appended after the members kept (taken before the
         # follower lanes are ordered by level, which moves them)
-        joined = {id(ax) for lane in changed for ax in lane.axes[len(lane._kept) :]}
+        joined = set(map(id, chain.from_iterable(lane.axes[len(lane._kept) :] for lane in changed)))
         handed = self._handed
         levels_of: dict[LevelledLane, list[int]] = {}
         admitted: list[tuple[LevelledLane, list[int]]] = []  # (lane, rows) admitted
@@ -292,13 +292,13 @@ class GroupLanes:
                 rows = list(range(len(levels), n))
                 levels += [-1] * len(rows)  # worked out from their masters
             else:
-                rows = []
-                for row in range(len(levels), n):
-                    level = handed.get(id(lane.members[row]))
-                    if level is None:
-                        rows.append(row)
-                        level = -1
-                    levels.append(level)
+                # (the levels recorded for those handed in, read in a C-level pass)
+                start = len(levels)
+                found = list(map(handed.get, map(id, lane.members[start:]), repeat(-1)))
+                rows = (
+                    [start + j for j, level in enumerate(found) if level < 0] if -1 in found else []
+                )
+                levels += found
             if rows:
                 admitted.append((lane, rows))
             levels_of[lane] = levels
@@ -616,6 +616,7 @@ class GroupLanes:
                 self._offer_locked(lane.reached, gears, lane.reached_level)
                 columns = lane.locked_columns
                 if columns is not None:
-                    gears.take_batch(lane.reached, columns)
+                    gears.take_batch(lane.reached, columns, lane.locked_masters)
                 lane.reached = ()
                 lane.locked_columns = None
+                lane.locked_masters = None
