@@ -57,6 +57,7 @@ from .jog_batch import start_jogs
 from .limits import Limits, group_stop_deceleration
 from .mdac_links import MasterDrivenControl
 from .motion import InternalError, Motion
+from .move_batch import start_moves
 from .override import Override
 from .power import Power, PowerEvent, require
 from .processes import Pending, Process, ProcessFactory, StopRamp, halt_ramp
@@ -689,6 +690,20 @@ class Controller:
         None for every process), for every k in order, the same state, for less work per
         axis (:func:`.jog_batch.start_jogs`)."""
         return start_jogs(self.motion, axes, targets, limits, owners, replace)
+
+    def start_moves(
+        self,
+        axes: Sequence[Axis],
+        distances: Sequence[float],
+        limits: Limits,
+        owners: Sequence[object] | None = None,
+        landings: Sequence[float | None] | None = None,
+    ) -> list[Process]:
+        """Moves on many axes in one call (MAM executed on N axes in one scan): ``start``
+        of ``MoveProcess(period, distances[k], limits, v, a, owners[k], landings[k])``
+        replacing the move of ``axes[k]``, for every k in order, the same state, for less
+        work per axis (:func:`.move_batch.start_moves`)."""
+        return start_moves(self.motion, axes, distances, limits, owners, landings)
 
     def start_gears(
         self,

@@ -152,7 +152,8 @@ class _Joining:
         self.lanes: GroupLanes | None = None
         self.kind: str | None = None
         self.pairs: list[tuple[Process, Axis]] = []
-        self.protos: list[_Proto] = []
+        #: the prototype of each process of the batch (what its lane row is copied from)
+        self.protos: list[Any] = []
 
     def open(self, lanes: GroupLanes, kind: str) -> None:
         """Close the batch held (:meth:`admit`) and start one for ``lanes``' ``kind``."""
@@ -185,11 +186,23 @@ class _Joining:
                 order.append(j)
             which = np.array(order, dtype=np.intp)
         base = np.array([ax.base for ax in axes], dtype=float)
-        lane: Any = lanes.profiles if self.kind == "profiles" else lanes.scurves
-        lane.admit_batch(pairs, base, kinds, which)
+        self._hand_to(lanes, pairs, base, kinds, which)
         self.pairs = []
         self.protos = []
         self.lanes = self.kind = None
+
+    def _hand_to(
+        self,
+        lanes: GroupLanes,
+        pairs: list[tuple[Process, Axis]],
+        base: np.ndarray,
+        kinds: list[tuple[float, ...]],
+        which: np.ndarray | None,
+    ) -> None:
+        """The lane's admission of the batch: ``kinds`` the distinct rows of its
+        prototypes (:attr:`_Proto.row`), ``which`` the kind of each (None: the first)."""
+        lane: Any = lanes.profiles if self.kind == "profiles" else lanes.scurves
+        lane.admit_batch(pairs, base, kinds, which)
 
 
 def start_jogs(

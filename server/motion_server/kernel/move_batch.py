@@ -1,0 +1,184 @@
+"""Moves started on many axes in one call: MAM executed on N axes in the same scan, with
+the same limits.
+
+:func:`start_moves` does what ``Controller.start`` does for each axis in order, with the
+factory ``lambda v, a: MoveProcess(axis period, distance, limits, v, a, owner,
+landing)`` and ``replace=(ProcessKind.MOVE,)`` (MAM without Merge), and leaves the very
+same state (the tests compare the two attribute by attribute and step them side by
+side). What it saves is the per-axis work that does not depend on the axis:
+
+- a trapezoidal move from rest is a function of the period and the distance only: it is
+  built by the constructors (its plan by :func:`.trapezoid.plan_position`) once per
+  (period, distance) and copied for every other axis (the plan is immutable: copies
+  share it);
+- the moves from rest bound for the profile lane join it as one batch, their lane rows
+  read once per prototype (:meth:`.lanes.ramps.ProfileLane.admit_planned`), so the first
+  step takes them as they are instead of reading every move's plan.
+
+Other axes (moving, overridden, with a preloaded cam, and every jerk-limited move) are
+started through ``Motion.start`` or ``Motion.start_from_rest`` as the loop starts them.
+As with the loop, a :class:`.errors.MotionError` on an axis leaves the axes before it
+started.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .axis import Axis
+from .enums import ProcessKind
+from .jog_batch import _Joining
+from .lanes import GroupLanes
+from .limits import Limits
+from .motion import Motion
+from .override import NEUTRAL
+from .processes import MoveProcess, Process, ProcessFactory
+from .trapezoid import TrapezoidProfile
+
+#: what a move replaces (Logix MAM without Merge)
+_REPLACE = (ProcessKind.MOVE,)
+#: a group whose lanes were not looked up yet
+_UNKNOWN: Any = object()
+
+
+class _Proto:
+    """A move from rest built by the constructors: its state and its profile's right
+    after construction, and its row of the profile lane's ``FIELDS`` after the base
+    (None: a jerk-limited move, not copied)."""
+
+    __slots__ = ("prof_state", "row", "state")
+
+    def __init__(self, p: MoveProcess) -> None:
+        prof = p.profile
+        self.state = dict(vars(p))
+        self.prof_state = dict(vars(prof))
+        self.row: tuple[Any, ...] | None = None
+        if type(prof) is TrapezoidProfile and prof.request is None:
+            plan = prof.plan
+            assert plan is not None  # (to_position plans at once)
+            # ProfileLane._load after the base
+            self.row = (
+                float(prof.cycles), prof.dt, plan.done, plan.start, plan.pos, plan.vel,
+                plan.acc, plan.half, p.position, p.velocity, p.acceleration, plan.end,
+                plan.end_position, plan.end_velocity, plan.landing,
+            )  # fmt: skip
+
+
+def _copy(proto: _Proto, distance: float, owner: object, landing: float | None) -> MoveProcess:
+    """A copy of ``proto``'s move with its own owner, distance (as given: an int stays
+    an int), landing and profile."""
+    prof = object.__new__(TrapezoidProfile)
+    prof.__dict__.update(proto.prof_state)
+    p = object.__new__(MoveProcess)
+    p.__dict__.update(proto.state)
+    p.owner = owner
+    p.displacement = distance
+    p.landing = landing
+    p.profile = prof
+    return p
+
+
+class _MoveJoining(_Joining):
+    """The moves from rest bound for one profile lane, admitted as one batch."""
+
+    def _hand_to(
+        self,
+        lanes: GroupLanes,
+        pairs: list[tuple[Process, Axis]],
+        base: np.ndarray,
+        kinds: list[tuple[float, ...]],
+        which: np.ndarray | None,
+    ) -> None:
+        lanes.profiles.admit_planned(pairs, base, kinds, which)
+
+
+def start_moves(
+    motion: Motion,
+    axes: Sequence[Axis],
+    distances: Sequence[float],
+    limits: Limits,
+    owners: Sequence[object] | None = None,
+    landings: Sequence[float | None] | None = None,
+) -> list[Process]:
+    """Start a move of ``distances[k]`` on ``axes[k]``, owned by ``owners[k]`` (None: no
+    owner), landing on ``landings[k]`` (the unwound target of an absolute or rotary
+    MAM; None: none), for every k in order, each replacing the axis's move: the
+    processes started."""
+    n = len(axes)
+    if (
+        len(distances) != n
+        or (owners is not None and len(owners) != n)
+        or (landings is not None and len(landings) != n)
+    ):
+        raise ValueError("one distance (and one owner and landing, if any) per axis")
+    limits = limits.validated()
+    started: list[Process] = []
+    joining = _MoveJoining(motion)
+    pairs, kinds = joining.pairs, joining.protos
+    protos: dict[tuple[float, str], _Proto] = {}
+    offered: dict[int, GroupLanes | None] = {}
+    drive_on = motion.s.drive_on
+    try:
+        for k, ax in enumerate(axes):
+            distance = distances[k]
+            owner = None if owners is None else owners[k]
+            landing = None if landings is None else landings[k]
+            procs = ax._processes if ax.stop_rows is None else ax.processes
+            if (
+                procs
+                or ax.preloaded_cams
+                or (ax.override is not NEUTRAL and not ax.override.neutral)
+            ):
+                joining.admit()
+                make = _factory(ax.period, distance, limits, owner, landing)
+                started.append(motion.start(ax, make, _REPLACE))
+                continue
+            try:
+                key: tuple[float, str] | None = (ax.period, float(distance).hex())
+            except (OverflowError, TypeError, ValueError):
+                key = None  # (the constructor raises, as in the loop)
+            proto = None if key is None else protos.get(key)
+            if proto is not None and proto.row is not None:
+                p = _copy(proto, distance, owner, landing)
+            else:
+                # (a distance that is not a finite number raises here)
+                p = MoveProcess(ax.period, distance, limits, 0.0, 0.0, owner, landing)
+                proto = _Proto(p)
+                if key is not None:
+                    protos.setdefault(key, proto)
+            if proto.row is not None and ax.buffered is None:
+                group = ax.group
+                lanes = offered.get(group, _UNKNOWN)
+                if lanes is _UNKNOWN:
+                    lanes = offered[group] = motion.lanes[group] if motion.offers(group) else None
+                if lanes is not None and drive_on.item(ax.index):
+                    # Motion.start_from_rest of a move just built, its admission to the
+                    # profile lane and its axis's busy flag deferred to the batch
+                    procs.append(p)
+                    p.offer_pending = False
+                    if lanes is not joining.lanes:
+                        joining.open(lanes, "profiles")
+                        pairs, kinds = joining.pairs, joining.protos
+                    pairs.append((p, ax))
+                    kinds.append(proto)
+                    started.append(p)
+                    continue
+            joining.admit()
+            motion.start_from_rest(ax, procs, p, _REPLACE)
+            started.append(p)
+    finally:
+        # (also when a move is refused: those before it started, as in the loop)
+        joining.admit()
+    return started
+
+
+def _factory(
+    dt: float, distance: float, limits: Limits, owner: object, landing: float | None
+) -> ProcessFactory:
+    def make(v: float, a: float) -> MoveProcess:
+        return MoveProcess(dt, distance, limits, v, a, owner, landing)
+
+    return make

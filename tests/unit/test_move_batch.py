@@ -1,0 +1,243 @@
+"""Moves started on many axes in one call (``Controller.start_moves``): the same state
+as ``Controller.start`` with MAM's factory on each axis in order (replacing a move),
+attribute by attribute, and the same motion after every step, lanes on and off; an
+error stops at the same axis. The trapezoidal moves from rest are built by the
+constructors once per distance and join the profile lane as one batch: the objects
+read (or taken out of the lanes) at any moment are those the loop leaves, and a
+snapshot taken before the first step runs on bit for bit."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from motion_server.kernel import JogProcess, Limits, MoveProcess, ProcessKind
+from motion_server.kernel.errors import MotionError
+from motion_server.kernel.gearing import GearProcess
+from motion_server.kernel.lanes import ramps
+from motion_server.kernel.override import Override
+from motion_server.kernel.trapezoid import MAX_DURATION
+from motion_server.scan import statecodec
+
+from .test_jog_batch import PERIOD, N, controller, described, state
+
+_MOVE = (ProcessKind.MOVE,)
+
+distances = st.one_of(
+    st.sampled_from([0.0, -0.0, 10.0, -25.0, 100.0, 3]),
+    st.floats(-500.0, 500.0),
+    st.sampled_from([math.inf, math.nan, 1e300]),  # refused: not finite, too long
+)
+
+
+def plain(p: object) -> str:
+    """A process's state (:func:`.test_jog_batch.state`) but its owner, as text; an
+    object without a repr of its own (a jerk-limited profile's ruckig) by its type."""
+    out = state(p)
+    out.pop("owner")
+    profile = out.get("profile")
+    if isinstance(profile, dict):
+        out["profile"] = {
+            k: type(v).__name__ if " at 0x" in repr(v) else v for k, v in profile.items()
+        }
+    return repr(sorted(out.items()))
+
+
+def start_loop(ctl: Any, axes: list[Any], dist: list[float], limits: Limits,
+               owners: list[Any] | None, landings: list[float | None] | None) -> None:  # fmt: skip
+    """``Controller.start`` with MAM's factory on each axis in order."""
+    for k, ax in enumerate(axes):
+        owner = None if owners is None else owners[k]
+        landing = None if landings is None else landings[k]
+
+        def make(v: float, a: float, d: float = dist[k], o: Any = owner,
+                 ld: float | None = landing) -> MoveProcess:  # fmt: skip
+            return MoveProcess(PERIOD, d, limits, v, a, o, ld)
+
+        ctl.start(ax, make, replace=_MOVE)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    axes=st.lists(st.integers(1, N), min_size=1, max_size=N, unique=True),
+    dist=st.lists(distances, min_size=N, max_size=N),
+    landed=st.lists(st.booleans(), min_size=N, max_size=N),
+    moving=st.lists(st.tuples(st.integers(1, N), st.booleans()), max_size=4),
+    overridden=st.sampled_from([None, 1, 3]),
+    rates=st.sampled_from([(1000.0, 1000.0), (500.0, 2000.0), (1e-6, 1e-6)]),
+    jerk=st.sampled_from([0.0, 0.0, math.inf, 20_000.0]),
+    steps=st.integers(1, 80),
+)
+def test_start_moves_is_start_on_each_axis_in_order(
+    axes: list[int],
+    dist: list[float],
+    landed: list[bool],
+    moving: list[tuple[int, bool]],
+    overridden: int | None,
+    rates: tuple[float, float],
+    jerk: float,
+    steps: int,
+) -> None:
+    """Axes at rest and moving (a move, which the new one replaces and inherits, or a
+    jog, which it superimposes on), one maybe overridden, rates that make long moves
+    too long to plan (refused in the middle), trapezoidal or jerk-limited."""
+    limits = Limits(100.0, rates[0], rates[1], jerk)
+    ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
+                                                         ("ref", False))}  # fmt: skip
+    for ctl in ctls.values():
+        for n, move in moving:
+            if move:
+                ctl.start(ctl.axis(n), lambda v, a: MoveProcess(
+                    PERIOD, 30.0, Limits(40.0, 800.0, 800.0), v, a), replace=_MOVE)  # fmt: skip
+            else:
+                ctl.start(ctl.axis(n), lambda v, a: JogProcess(
+                    PERIOD, 40.0, Limits(40.0, 800.0, 800.0), v, a),
+                    replace=(ProcessKind.JOG,))  # fmt: skip
+        if overridden is not None:
+            ctl.set_override(ctl.axis(overridden), Override(0.5, 0.5))
+        ctl.run(3)
+    owners = [object() for _ in axes]
+    landings: list[float | None] = [
+        d + 7.0 if flag else None for d, flag in zip(dist, landed, strict=True)
+    ][: len(axes)]
+    errors: dict[str, int | None] = {}
+    for name, ctl in ctls.items():
+        errors[name] = None
+        chosen = [ctl.axis(n) for n in axes]
+        try:
+            if name == "batch":
+                ctl.start_moves(chosen, dist[: len(axes)], limits, owners, landings)
+            else:
+                start_loop(ctl, chosen, dist, limits, owners, landings)
+        except MotionError as exc:
+            errors[name] = int(exc.code)
+    assert errors["batch"] == errors["loop"] == errors["ref"]
+    batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
+    for a, b in zip(batch.axes, loop.axes, strict=True):
+        assert len(a.processes) == len(b.processes), a.name
+        for p, q in zip(a.processes, b.processes, strict=True):
+            if isinstance(p, GearProcess):
+                continue
+            assert p.owner is q.owner
+            assert plain(p) == plain(q), a.name
+    for c in range(steps):
+        for ctl in ctls.values():
+            ctl.step()
+        for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
+            x = getattr(batch, arr).tobytes()
+            assert x == getattr(loop, arr).tobytes() == getattr(ref, arr).tobytes(), (arr, c)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    picks=st.lists(st.sampled_from([25.0, -40.0, 3, -0.0, 250.5]), min_size=N, max_size=N),
+    axes=st.lists(st.integers(1, N // 2), min_size=1, max_size=N // 2, unique=True),
+    reads=st.lists(st.tuples(st.integers(0, 300), st.integers(1, N), st.booleans()), max_size=6),
+)
+def test_moves_read_at_any_moment_are_those_the_loop_leaves(
+    picks: list[float], axes: list[int], reads: list[tuple[int, int, bool]]
+) -> None:
+    """Masters at rest, distances repeated (copies of one move) or not; at random cycles
+    an axis's processes are read (and, at some, taken out of the lanes,
+    ``Motion.settle``) on the batch and the loop alike: the same objects' state, and
+    after every step the reference's motion, until every move has landed."""
+    limits = Limits(300.0, 1000.0, 2000.0)
+    ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
+                                                         ("ref", False))}  # fmt: skip
+    for name, ctl in ctls.items():
+        chosen = [ctl.axis(n) for n in axes]
+        if name == "batch":
+            ctl.start_moves(chosen, picks[: len(axes)], limits)
+        else:
+            start_loop(ctl, chosen, picks, limits, None, None)
+    batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
+    for c in range(301):
+        for cycle, n, settle in reads:
+            if cycle != c:
+                continue
+            if settle:
+                batch.motion.settle(batch.axis(n))
+                loop.motion.settle(loop.axis(n))
+            ps, qs = batch.axis(n).processes, loop.axis(n).processes
+            assert list(map(described, ps)) == list(map(described, qs)), (c, n)
+        for ctl in ctls.values():
+            ctl.step()
+        for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
+            x = getattr(batch, arr).tobytes()
+            assert x == getattr(loop, arr).tobytes() == getattr(ref, arr).tobytes(), (arr, c)
+    # 250.5 units at 300 units/s, 1,000 up and 2,000 down: under 1.2 s (600 cycles of 2 ms)
+    for _ in range(300):
+        batch.step()
+    for n, d in zip(axes, picks, strict=False):
+        assert batch.axis(n).command_position == d
+        assert not batch.axis(n).processes
+
+
+def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: Any) -> None:
+    """Six masters at rest, three moves of one distance and three of another: the
+    constructor runs twice (once per distance), and the first step reads no move's plan
+    (the lane takes the columns the call read); the motion is the loop's."""
+    built: list[float] = []
+    init = MoveProcess.__init__
+
+    def counting(self: MoveProcess, *args: Any, **kwargs: Any) -> None:
+        built.append(args[1])
+        init(self, *args, **kwargs)
+
+    limits = Limits(300.0, 1000.0, 2000.0)
+    a, b = 100.0, -60.0
+    dist = [a, a, b, a, b, b]
+    batch, ref = controller(True), controller(False)
+    monkeypatch.setattr(MoveProcess, "__init__", counting)
+    batch.start_moves(batch.axes[: N // 2], dist, limits)
+    assert sorted(built) == [b, a]
+
+    def refuse(*args: Any) -> None:
+        raise AssertionError("a move read at the step")
+
+    monkeypatch.setattr(ramps.ProfileLane, "_load", refuse)
+    batch.step()
+    monkeypatch.undo()
+    start_loop(ref, ref.axes[: N // 2], dist, limits, None, None)
+    ref.step()
+    for _ in range(400):
+        assert batch.cmd_pos.tobytes() == ref.cmd_pos.tobytes()
+        assert batch.cmd_vel.tobytes() == ref.cmd_vel.tobytes()
+        batch.step()
+        ref.step()
+
+
+def test_a_snapshot_taken_before_the_batch_joins_runs_on_bit_for_bit() -> None:
+    """The batch's columns wait in the profile lane for the first step: a copy of the
+    controller through the snapshot codec taken then runs on as the original does."""
+    limits = Limits(300.0, 1000.0, 2000.0)
+    fast, ref = controller(True), controller(False)
+    dist = [100.0, 100.0, -30.0, 7.5, 100.0, -30.0]
+    fast.start_moves(fast.axes[: N // 2], dist, limits)
+    start_loop(ref, ref.axes[: N // 2], dist, limits, None, None)
+    copy = statecodec.loads(statecodec.dumps(fast))
+    for c in range(400):
+        for ctl in (fast, ref, copy):
+            ctl.step()
+        assert fast.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), c
+        assert copy.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), c
+
+
+def test_a_move_too_long_to_plan_is_refused_where_the_loop_refuses_it() -> None:
+    """At 10^-6 units/s² up and down, a move of d units from rest is a triangle of
+    2 sqrt(d / 10^-6) s: 2,000 s for 1 unit, 20,000 s for 100, beyond the kernel's
+    longest plan. The batch of 1, 100, 1 starts the first move and refuses the second
+    with the loop's error; the third is not started."""
+    assert 2 * math.sqrt(100 / 1e-6) > MAX_DURATION > 2 * math.sqrt(1 / 1e-6)
+    limits = Limits(1000.0, 1e-6, 1e-6)
+    ctl = controller(True)
+    try:
+        ctl.start_moves(ctl.axes[:3], [1.0, 100.0, 1.0], limits)
+    except MotionError as exc:
+        assert exc.code.name == "PROFILE_FAILED"
+    else:
+        raise AssertionError("the 100-unit move was planned")
+    assert [len(ax.processes) for ax in ctl.axes[:3]] == [1, 0, 0]
