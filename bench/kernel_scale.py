@@ -48,6 +48,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``mc_velocity``: ``maj`` with MC_MoveVelocity (Velocity 100 mm/s, Acceleration and
   Deceleration 1,000 mm/s², positive, aborting) on every master: its jogs start in one
   ``start_jogs`` call that replaces every process (100 steps).
+- ``mam``: ``maj`` with MAM (incremental, 50 mm at 100 mm/s, 1,000 mm/s² up and down)
+  on every master: its moves start in one ``Controller.start_moves`` call (100 steps:
+  0.1 s up to speed, 5 mm covered).
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
@@ -319,6 +322,13 @@ MC_VELOCITY_SETUP, MC_VELOCITY_COMMAND = instructions(
     lambda n, k: {"Axis": k, "Velocity": SPEED, "Acceleration": RATE, "Deceleration": RATE,
                "Direction": 1},
 )  # fmt: skip
+#: MAM on every master, incremental 50 mm at 100 mm/s, 1000 mm/s², through the instruction
+MAM_SETUP, MAM_COMMAND = instructions(
+    "MAM",
+    lambda n: range(1, n // 2 + 1),
+    lambda n, k: {"Axis": k, "MoveType": 1, "Position": 50.0, "Speed": SPEED, "AccelRate": RATE,
+               "DecelRate": RATE, "AccelUnits": 0, "DecelUnits": 0},
+)  # fmt: skip
 #: MC_Halt (1,000 mm/s², no jerk, aborting) on every axis, through the block
 MC_HALT_SETUP, MC_HALT_COMMAND = instructions(
     "MC_Halt", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "Deceleration": RATE}
@@ -376,6 +386,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
         MC_VELOCITY_COMMAND,
         100,
     ),
+    "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),
 }
 
 

@@ -2,9 +2,9 @@
 (``instructions/scan_pass.py``) against the same scans executed instance by instance.
 
 Two systems get the same writes: one scans with batches (the default), the other with
-``batch=False`` (every instance alone, as before the batches). MAJ, MAG, MAS, MC_Stop,
-MC_Halt and MC_MoveVelocity instances are mixed with MAM and MGS (which always execute
-alone, so they cut a batch) in one fixed order; random scans fire random subsets with
+``batch=False`` (every instance alone, as before the batches). MAJ, MAM, MAG, MAS,
+MC_Stop, MC_Halt and MC_MoveVelocity instances are mixed with MGS (which always executes
+alone, so it cuts a batch) in one fixed order; random scans fire random subsets with
 random, partly invalid operands: two instances on one axis, a MAG whose master is a
 slave geared in the same scan, loops of gears, Merge, S-curve and master units (executed
 alone), a negative ratio, stops of some kinds or with a jerk, buffered halts and jogs,
@@ -59,7 +59,7 @@ DYNAMICS: dict[str, list[Any]] = {
 }
 POOLS: dict[str, dict[str, list[Any]]] = {
     "MAJ": {"Axis": AXES, "Direction": [0, 1], **DYNAMICS},
-    "MAM": {"Axis": AXES, "MoveType": [0, 1], "Position": [-10.0, 25.5], **DYNAMICS},
+    "MAM": {"Axis": AXES, "MoveType": [0, 1, 1, 2], "Position": [-10.0, 25.5, 0.0], **DYNAMICS},
     "MAG": {
         "SlaveAxis": AXES,
         "MasterAxis": AXES,
@@ -104,10 +104,11 @@ ORDER = [
     ("MAJ1", "MAJ"), ("MAJ2", "MAJ"), ("MAJ3", "MAJ"), ("MAG1", "MAG"), ("MAG2", "MAG"),
     ("MAG3", "MAG"), ("MAJ4", "MAJ"), ("MAS1", "MAS"), ("MAS2", "MAS"), ("MC_Stop1", "MC_Stop"),
     ("MAS3", "MAS"), ("MC_Stop2", "MC_Stop"), ("MC_Halt1", "MC_Halt"), ("MC_Halt2", "MC_Halt"),
-    ("MAJ5", "MAJ"), ("MAG4", "MAG"), ("MAM1", "MAM"), ("MC_Halt3", "MC_Halt"),
+    ("MAJ5", "MAJ"), ("MAG4", "MAG"), ("MAM1", "MAM"), ("MAM2", "MAM"), ("MAM3", "MAM"),
+    ("MC_Halt3", "MC_Halt"),
     ("MC_MoveVelocity1", "MC_MoveVelocity"), ("MC_MoveVelocity2", "MC_MoveVelocity"),
     ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MC_MoveVelocity3", "MC_MoveVelocity"),
-    ("MAJ7", "MAJ"), ("MAJ8", "MAJ"),
+    ("MAJ7", "MAJ"), ("MAJ8", "MAJ"), ("MAM4", "MAM"),
 ]  # fmt: skip
 
 
@@ -289,6 +290,81 @@ def test_a_jog_refused_in_the_middle_of_a_batch_leaves_the_others_started() -> N
     assert systems[0].ctl.axis(2).command_velocity == -1000.0
     for name in ("MAJ1", "MAJ3"):
         assert out[name]["DN"] and out[name]["IP"] and out[name]["ERR"] == 0, name
+
+
+def test_moves_of_one_scan_reach_the_kernel_in_one_call_and_land_on_their_targets() -> None:
+    """MAM1..3 on axes 1..3 (incremental 25.5, incremental 25.5, absolute -10: the same
+    limits) and MAM4 on axis 4 later in the scan order, fired together from rest: one
+    ``start_moves`` with the three moves, then MAM4's own; every output and the motion as
+    one by one. 25.5 units at 50 units/s and 100 units/s² take 0.5 s up, 0.01 s at
+    speed and 0.5 s down; 10 units, a triangle with a peak of sqrt(1,000) units/s, take
+    0.63 s: after 1.2 s (600 cycles of 2 ms) every move is done (PC) exactly on its
+    target."""
+    systems = {batch: build(batch, True) for batch in (True, False)}
+    calls: list[int] = []
+    ctl = systems[True].ctl
+    start_moves = ctl.start_moves
+
+    def spy(axes: Any, *args: Any, **kwargs: Any) -> Any:
+        calls.append(len(axes))
+        return start_moves(axes, *args, **kwargs)
+
+    ctl.start_moves = spy  # type: ignore[method-assign]
+    dynamics = {"Speed": 50.0, "AccelRate": 100.0, "DecelRate": 100.0, "SpeedUnits": 0,
+                "AccelUnits": 0, "DecelUnits": 0, "Merge": 0, "Profile": 0}  # fmt: skip
+    targets = {"MAM1": (1, 1, 25.5), "MAM2": (2, 1, 25.5), "MAM3": (3, 0, -10.0),
+               "MAM4": (4, 1, 25.5)}  # fmt: skip
+    for system in systems.values():
+        for name, (axis, kind, position) in targets.items():
+            system[name].inputs.update(
+                {"Axis": axis, "MoveType": kind, "Position": position, **dynamics}
+            )
+            system[name].inputs["Execute"] = True
+    systems[True].cycle()
+    systems[False].cycle()
+    same(systems[True], systems[False], "started")
+    assert calls == [3, 1]
+    for name in targets:
+        out = systems[True][name].outputs
+        assert out["DN"] and out["IP"] and not out["PC"] and not out["ER"], name
+    for k in range(600):
+        systems[True].cycle()
+        systems[False].cycle()
+        same(systems[True], systems[False], k)
+    for name, (axis, _, position) in targets.items():
+        out = systems[True][name].outputs
+        assert out["PC"] and not out["IP"], name
+        assert ctl.axis(axis).command_position == position
+        assert ctl.axis(axis).command_velocity == 0.0
+
+
+def test_a_move_refused_in_the_middle_of_a_batch_leaves_the_others_started() -> None:
+    """MAM1..3 from rest at 10^-6 units/s² up and down (the same limits: one kernel
+    call), incremental 1, 100 and 1 units: a triangle of 2 sqrt(d / a) s, 2,000 s for
+    one unit, 20,000 s for 100 units, beyond the 7,600 s the kernel plans
+    (``trapezoid.MAX_DURATION``). The kernel refuses axis 2's move inside the batch
+    call, after axis 1's started: MAM2 shows the kernel's error and axis 2 stays at
+    rest; MAM1 and MAM3 run; everything as one by one."""
+    systems = [build(batch, True) for batch in (True, False)]
+    slow = {"MoveType": 1, "Speed": 1000.0, "AccelRate": 1e-6, "DecelRate": 1e-6,
+            "SpeedUnits": 0, "AccelUnits": 0, "DecelUnits": 0, "Merge": 0,
+            "Profile": 0}  # fmt: skip
+    for system in systems:
+        fire(system, {
+            "MAM1": {"Axis": 1, "Position": 1.0, **slow},
+            "MAM2": {"Axis": 2, "Position": 100.0, **slow},
+            "MAM3": {"Axis": 3, "Position": 1.0, **slow},
+        })  # fmt: skip
+    same(systems[0], systems[1], "refused")
+    out = {name: systems[0][name].outputs for name in ("MAM1", "MAM2", "MAM3")}
+    assert out["MAM2"]["ER"] and out["MAM2"]["ERR"] == ErrorCode.PROFILE_FAILED
+    assert not systems[0].ctl.axis(2).processes
+    for name in ("MAM1", "MAM3"):
+        assert out[name]["DN"] and out[name]["IP"] and out[name]["ERR"] == 0, name
+    for k in range(5):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], k)
 
 
 def test_a_gear_that_closes_a_loop_through_a_gear_of_the_same_scan_is_refused() -> None:

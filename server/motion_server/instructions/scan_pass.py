@@ -3,13 +3,14 @@ the kernel in one call per kind.
 
 Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel process:
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
-can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAG -> gears, MAPC -> position cams,
-MAS and MC_Stop -> stops, MC_Halt -> halts, MC_MoveVelocity -> jogs that abort every
-process) and whose trigger rose are latched, judged and checked one by one, as their
-own ``scan`` does, but their kernel commands are queued; the queue goes to the kernel
-in one call per kind (``Controller.start_jogs``, ``Controller.start_gears``,
-``kernel.cam_batch.start_position_cams``, ``Controller.stop_many``) and then every
-instance writes its status from the process it got.
+can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAM -> moves, MAG -> gears, MAPC ->
+position cams, MAS and MC_Stop -> stops, MC_Halt -> halts, MC_MoveVelocity -> jogs that
+abort every process) and whose trigger rose are latched, judged and checked one by one,
+as their own ``scan`` does, but their kernel commands are queued; the queue goes to the
+kernel in one call per kind (``Controller.start_jogs``, ``Controller.start_moves``,
+``Controller.start_gears``, ``kernel.cam_batch.start_position_cams``,
+``Controller.stop_many``) and then every instance writes its status from the process it
+got.
 
 The observable result is exactly that of scanning one by one (tested against it, every
 output and the kernel's arrays after every cycle). That holds because a queued command
@@ -24,10 +25,10 @@ over:
   through the master/slave links; a MAPC whose slave is a queued slave or master, or
   whose master reaches a queued slave) first hands the queue over: its checks then see
   the state the queued commands leave;
-- the jogs of one call share one :class:`~..kernel.Limits`: the queue is split where the
-  limits change, keeping the order;
-- an instance that decides to execute alone (a MAJ with Merge, master-driven or under a
-  pending MDAC reassignment; a MAPC with a schedule other than Immediate, a master
+- the jogs (or moves) of one call share one :class:`~..kernel.Limits`: the queue is
+  split where the limits change, keeping the order;
+- an instance that decides to execute alone (a MAJ or MAM with Merge, master-driven or
+  under a pending MDAC reassignment; a MAPC with a schedule other than Immediate, a master
   direction other than both ways, or a cam preloaded on its slave; a MAS that stops
   less than all motion, changes the jerk, has a homing to end or nothing moving; an
   MC_Stop with a jerk; an MC_Halt with a jerk or buffered; an MC_MoveVelocity buffered
@@ -94,6 +95,8 @@ class BatchKind(IntEnum):
     HALT = 4
     #: jogs that replace every process (MC_MoveVelocity, aborting)
     VELOCITY = 5
+    #: moves that replace a move (MAM without Merge)
+    MOVE = 6
 
 
 #: the process kind each batch starts (how a refused batch finds what it started)
@@ -104,6 +107,7 @@ _PROCESS_KIND: dict[BatchKind, ProcessKind] = {
     BatchKind.STOP: ProcessKind.STOP,
     BatchKind.HALT: ProcessKind.STOP,
     BatchKind.VELOCITY: ProcessKind.JOG,
+    BatchKind.MOVE: ProcessKind.MOVE,
 }
 _NO_STATUS: dict[str, Any] = {}
 #: the processes a new gear supersedes (MAG)
@@ -114,9 +118,10 @@ class Batch:
     """The queued kernel commands of one kind, in the instances' order.
 
     ``jobs[k]`` is the command of ``owners[k]``: for jogs ``(axis, signed target,
-    limits)``, for gears ``(slave, term, clutch rate or None, direction)``, for position
-    cams a :class:`~..kernel.cam_batch.CamStart` (its slave first). ``axes`` holds every
-    axis number a queued command touches, ``slaves`` the axes it starts a process on.
+    limits)``, for moves ``(axis, distance, limits, landing)``, for gears ``(slave,
+    term, clutch rate or None, direction)``, for position cams a
+    :class:`~..kernel.cam_batch.CamStart` (its slave first). ``axes`` holds every axis
+    number a queued command touches, ``slaves`` the axes it starts a process on.
     """
 
     __slots__ = (
@@ -167,7 +172,7 @@ class Batch:
         self.jobs, self.owners = [], []
         self.axes.clear()
         self.slaves.clear()
-        if kind is BatchKind.JOG or kind is BatchKind.VELOCITY:
+        if kind is BatchKind.JOG or kind is BatchKind.VELOCITY or kind is BatchKind.MOVE:
             # one call per run of equal limits, in order
             start = 0
             for k in range(1, len(jobs) + 1):
@@ -196,6 +201,10 @@ class Batch:
                 elif kind is BatchKind.VELOCITY:
                     targets = [job[1] for job in jobs]
                     started = ctl.start_jogs(axes, targets, jobs[0][2], owners, replace=None)
+                elif kind is BatchKind.MOVE:
+                    distances = [job[1] for job in jobs]
+                    landings = [job[3] for job in jobs]
+                    started = ctl.start_moves(axes, distances, jobs[0][2], owners, landings)
                 elif kind is BatchKind.POSITION_CAM:
                     started = start_position_cams(ctl, jobs)  # type: ignore[arg-type]
                 elif kind is BatchKind.STOP:

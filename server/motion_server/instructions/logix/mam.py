@@ -11,15 +11,19 @@ from __future__ import annotations
 
 import math
 from enum import IntEnum
+from typing import Any
 
-from ...kernel import Axis, MoveProcess, ProcessKind
+from ...kernel import Axis, Limits, MoveProcess, ProcessKind
 from ...kernel.master_driven import MasterDrivenMove
 from ...kernel.mdac_links import MasterLink
 from ...kernel.processes import Process
+from ..dynamics import DriveMode
+from ..logix_common import STARTED_ACTIVE
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
+from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Operand, Quantity, TagType
-from .mdsc import SpeedControlledMotion
+from .mdsc import SpeedControlledMotion, tracking_status
 
 
 class MoveType(IntEnum):
@@ -28,6 +32,11 @@ class MoveType(IntEnum):
     ROTARY_SHORTEST_PATH = 2
     ROTARY_POSITIVE = 3
     ROTARY_NEGATIVE = 4
+
+
+_TIME_DRIVEN = DriveMode.TIME_DRIVEN
+#: the status of a MAM whose time-driven move started (see ``started_active``)
+_MOVE_STARTED = {**STARTED_ACTIVE, "TrackingMaster": False}
 
 
 @register
@@ -47,18 +56,79 @@ class MAM(SpeedControlledMotion):
         *logix_dynamics(),
     )
 
-    def execute(self) -> None:
-        ax = self.axis()
-        self.check_axis(ax)
-        mode, speed, limits = self.plan(ax)
+    #: rising edges in one scan start their moves with one ``Controller.start_moves``
+    BATCH = BatchKind.MOVE
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the move returned as (axis, distance,
+        limits, landing) for ``Controller.start_moves``; None for a move that starts
+        alone (Merge ends every other process, a master-driven move, a pending MDAC
+        switch). The plan of the dynamics depends on the operands' values and the axis's
+        limits only: MAM with the same values on axes with the same limits plan them
+        once. The axis checks run in full only where they refuse, as MAJ's do."""
+        if self.merging:
+            return None
+        ax = self.ctl.axis(int(self.op["Axis"]))
+        number = ax.number
+        batch.before_axis(number)
+        if self.ctl.mdsc.pending(number) is not None:
+            return None
+        if not takes_motion(ax):
+            self.check_axis(ax)  # the kernel's refusal, with its error
+        else:
+            stopping = batch.stopping.get(ax.group)
+            if stopping is None:
+                stopping = batch.stopping[ax.group] = self.ctl.group_stopping(ax)
+            if stopping:
+                self.check_axis(ax)
+        cfg = ax.config
+        memo = None
+        limits: Limits | None = None
+        if key is not None:
+            memo = (MAM, key, cfg.max_velocity, cfg.max_acceleration, cfg.max_deceleration,
+                    cfg.max_jerk)  # fmt: skip
+            limits = batch.plans.get(memo)
+        if limits is None:
+            mode, speed, limits = self.plan(ax)
+            if mode != _TIME_DRIVEN:
+                return None
+            limits = self._dynamics(speed, limits)
+            if memo is not None:
+                batch.plans[memo] = limits
+        distance, landing = self._target(ax)
+        return (ax, distance, limits, landing), (number,)
+
+    def batch_started(self, process: Process) -> None:
+        if isinstance(process, MoveProcess):  # time-driven: tracks no master
+            self.started_active(process, _MOVE_STARTED)
+        else:
+            self.started(process, tracking_status(process))
+
+    def batch_refused(self) -> None:
+        self.outputs["TrackingMaster"] = False  # a refused start tracks nothing
+
+    def _dynamics(self, speed: float, limits: Limits) -> Limits:
+        """The move's limits, once its speed is judged."""
         if speed <= 0.0:
             raise self.out_of_range("Speed", "a move needs a speed > 0")
-        limits = limits.validated()
+        return limits.validated()
+
+    def _target(self, ax: Axis) -> tuple[float, float | None]:
+        """The distance to travel and, for a target that is not a distance, the unwound
+        position the move lands on."""
         distance = self._distance(ax.command_position, ax.config.rollover)
         landing = None
         if int(self.op["MoveType"]) != MoveType.INCREMENTAL:
             end = ax.command_position_unwound + distance
             landing = ax.unwound_target(float(self.op["Position"]), end)
+        return distance, landing
+
+    def execute(self) -> None:
+        ax = self.axis()
+        self.check_axis(ax)
+        mode, speed, limits = self.plan(ax)
+        limits = self._dynamics(speed, limits)
+        distance, landing = self._target(ax)
         dt = self.ctl.dt(ax)
 
         def make(v: float, a: float) -> Process:
