@@ -47,8 +47,10 @@ def plain(p: object) -> str:
 
 
 def start_loop(ctl: Any, axes: list[Any], dist: list[float], limits: Limits,
-               owners: list[Any] | None, landings: list[float | None] | None) -> None:  # fmt: skip
-    """``Controller.start`` with MAM's factory on each axis in order."""
+               owners: list[Any] | None, landings: list[float | None] | None,
+               replace: tuple[ProcessKind, ...] | None = _MOVE) -> None:  # fmt: skip
+    """``Controller.start`` with MAM's factory on each axis in order (``replace``: what
+    each move supersedes)."""
     for k, ax in enumerate(axes):
         owner = None if owners is None else owners[k]
         landing = None if landings is None else landings[k]
@@ -57,7 +59,7 @@ def start_loop(ctl: Any, axes: list[Any], dist: list[float], limits: Limits,
                  ld: float | None = landing) -> MoveProcess:  # fmt: skip
             return MoveProcess(PERIOD, d, limits, v, a, o, ld)
 
-        ctl.start(ax, make, replace=_MOVE)
+        ctl.start(ax, make, replace=replace)
 
 
 @settings(max_examples=60, deadline=None)
@@ -70,6 +72,7 @@ def start_loop(ctl: Any, axes: list[Any], dist: list[float], limits: Limits,
     rates=st.sampled_from([(1000.0, 1000.0), (500.0, 2000.0), (1e-6, 1e-6)]),
     jerk=st.sampled_from([0.0, 0.0, math.inf, 20_000.0]),
     steps=st.integers(1, 80),
+    aborting=st.booleans(),
 )
 def test_start_moves_is_start_on_each_axis_in_order(
     axes: list[int],
@@ -80,10 +83,13 @@ def test_start_moves_is_start_on_each_axis_in_order(
     rates: tuple[float, float],
     jerk: float,
     steps: int,
+    aborting: bool,
 ) -> None:
     """Axes at rest and moving (a move, which the new one replaces and inherits, or a
-    jog, which it superimposes on), one maybe overridden, rates that make long moves
-    too long to plan (refused in the middle), trapezoidal or jerk-limited."""
+    jog, which it superimposes on, or which it replaces too when ``aborting``: the
+    PLCopen moves replace every process), one maybe overridden, rates that make long
+    moves too long to plan (refused in the middle), trapezoidal or jerk-limited."""
+    replace = None if aborting else _MOVE
     limits = Limits(100.0, rates[0], rates[1], jerk)
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
                                                          ("ref", False))}  # fmt: skip
@@ -109,9 +115,9 @@ def test_start_moves_is_start_on_each_axis_in_order(
         chosen = [ctl.axis(n) for n in axes]
         try:
             if name == "batch":
-                ctl.start_moves(chosen, dist[: len(axes)], limits, owners, landings)
+                ctl.start_moves(chosen, dist[: len(axes)], limits, owners, landings, replace)
             else:
-                start_loop(ctl, chosen, dist, limits, owners, landings)
+                start_loop(ctl, chosen, dist, limits, owners, landings, replace)
         except MotionError as exc:
             errors[name] = int(exc.code)
     assert errors["batch"] == errors["loop"] == errors["ref"]
@@ -192,8 +198,10 @@ def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: 
     dist = [a, a, b, a, b, b]
     batch, ref = controller(True), controller(False)
     monkeypatch.setattr(MoveProcess, "__init__", counting)
-    batch.start_moves(batch.axes[: N // 2], dist, limits)
+    landings = [float(k) for k in range(N // 2)]
+    started = batch.start_moves(batch.axes[: N // 2], dist, limits, None, landings)
     assert sorted(built) == [b, a]
+    assert [p.landing for p in started] == landings  # (each copy its own)
 
     def refuse(*args: Any) -> None:
         raise AssertionError("a move read at the step")
@@ -201,7 +209,7 @@ def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: 
     monkeypatch.setattr(ramps.ProfileLane, "_load", refuse)
     batch.step()
     monkeypatch.undo()
-    start_loop(ref, ref.axes[: N // 2], dist, limits, None, None)
+    start_loop(ref, ref.axes[: N // 2], dist, limits, None, landings)
     ref.step()
     for _ in range(400):
         assert batch.cmd_pos.tobytes() == ref.cmd_pos.tobytes()

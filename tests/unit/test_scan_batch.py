@@ -3,17 +3,17 @@
 
 Two systems get the same writes: one scans with batches (the default), the other with
 ``batch=False`` (every instance alone, as before the batches). MAJ, MAM, MAG, MAS,
-MC_Stop, MC_Halt and MC_MoveVelocity instances are mixed with MGS (which always executes
-alone, so it cuts a batch) in one fixed order; random scans fire random subsets with
-random, partly invalid operands: two instances on one axis, a MAG whose master is a
-slave geared in the same scan, loops of gears, Merge, S-curve and master units (executed
-alone), a negative ratio, stops of some kinds or with a jerk, buffered halts and jogs,
-the current direction (executed alone), axes that do not exist or cannot move, and
-rates so small that the kernel refuses the plan of one jog or stop in the middle of a
-batch. After every cycle both systems must show the same outputs on every instance,
-mark the same instances changed and command the same position, velocity and
-acceleration, bit for bit, with the same processes (their planned attributes and
-owners) on every axis, lanes on and off.
+MC_Stop, MC_Halt, MC_MoveVelocity, MC_MoveAbsolute and MC_MoveRelative instances are
+mixed with MGS (which always executes alone, so it cuts a batch) in one fixed order;
+random scans fire random subsets with random, partly invalid operands: two instances on
+one axis, a MAG whose master is a slave geared in the same scan, loops of gears, Merge,
+S-curve and master units (executed alone), a negative ratio, stops of some kinds or with
+a jerk, buffered halts, jogs and moves, the current direction (executed alone), axes
+that do not exist or cannot move, and rates so small that the kernel refuses the plan
+of one jog, move or stop in the middle of a batch. After every cycle both systems must
+show the same outputs on every instance, mark the same instances changed and command the
+same position, velocity and acceleration, bit for bit, with the same processes (their
+planned attributes and owners) on every axis, lanes on and off.
 """
 
 from __future__ import annotations
@@ -98,6 +98,25 @@ POOLS: dict[str, dict[str, list[Any]]] = {
         "Direction": [1, 1, 3, 4, 2],
         "BufferMode": [0, 0, 0, 1],
     },
+    "MC_MoveRelative": {
+        "Axis": AXES,
+        "Distance": [10.0, -5.5, 10.0, 0.0, 1e9],
+        "Velocity": [5.0, 50.0, 50.0, 5000.0],
+        "Acceleration": RATES,
+        "Deceleration": RATES,
+        "Jerk": [0.0, 0.0, 0.0, 100.0],
+        "BufferMode": [0, 0, 0, 1],
+    },
+    "MC_MoveAbsolute": {
+        "Axis": AXES,
+        "Position": [10.0, -5.5, 10.0, 0.0],
+        "Velocity": [5.0, 50.0, 50.0, 5000.0],
+        "Acceleration": RATES,
+        "Deceleration": RATES,
+        "Jerk": [0.0, 0.0, 0.0, 100.0],
+        "Direction": [1, 2, 3, 4],
+        "BufferMode": [0, 0, 0, 1],
+    },
 }
 #: the instances in scan order: runs of one type, cut by the others
 ORDER = [
@@ -108,7 +127,10 @@ ORDER = [
     ("MC_Halt3", "MC_Halt"),
     ("MC_MoveVelocity1", "MC_MoveVelocity"), ("MC_MoveVelocity2", "MC_MoveVelocity"),
     ("MAJ6", "MAJ"), ("MAG5", "MAG"), ("MGS1", "MGS"), ("MC_MoveVelocity3", "MC_MoveVelocity"),
-    ("MAJ7", "MAJ"), ("MAJ8", "MAJ"), ("MAM4", "MAM"),
+    ("MAJ7", "MAJ"), ("MAJ8", "MAJ"), ("MAM4", "MAM"), ("MC_MoveRelative1", "MC_MoveRelative"),
+    ("MC_MoveRelative2", "MC_MoveRelative"), ("MC_MoveAbsolute1", "MC_MoveAbsolute"),
+    ("MC_MoveAbsolute2", "MC_MoveAbsolute"), ("MC_MoveRelative3", "MC_MoveRelative"),
+    ("MC_MoveAbsolute3", "MC_MoveAbsolute"),
 ]  # fmt: skip
 
 
@@ -658,3 +680,51 @@ def test_stops_of_one_scan_are_planned_in_one_call() -> None:
     for n in (1, 2, 3, 5):
         ax = systems[0].ctl.axis(n)
         assert ax.command_velocity == 0.0 and not ax.processes, n
+
+
+def test_plcopen_moves_of_one_scan_start_in_one_call_and_abort_every_process() -> None:
+    """MAJ1 jogs axis 1 at 20 units/s. Then MC_MoveRelative1 and 2 ask axes 1 and 2 for
+    10 units at 50 units/s and 100 units/s² up and down (aborting, the default): one
+    ``start_moves`` call with both moves, replacing every process (``replace=None``):
+    the jog on axis 1 is aborted and its move starts from 20 units/s. MC_MoveAbsolute1
+    and 2, next in the scan order with the same limits, join that call: they send axes
+    3 and 4 to -10 and 25.5. Outputs and motion as one by one; every block Done, exactly on its target, within
+    1.2 s: the longest, 25.5 units, takes 0.5 s up, 0.01 s at speed and 0.5 s down."""
+    systems = [build(batch, True) for batch in (True, False)]
+    calls: list[tuple[int, Any]] = []
+    ctl = systems[0].ctl
+    start_moves = ctl.start_moves
+
+    def spy(axes: Any, *args: Any) -> Any:
+        calls.append((len(axes), args[-1]))
+        return start_moves(axes, *args)
+
+    ctl.start_moves = spy  # type: ignore[method-assign]
+    for system in systems:
+        fire(system, {"MAJ1": {"Axis": 1, "Speed": 20.0, "AccelRate": 100.0, "AccelUnits": 0}})
+    for k in range(150):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("jog", k))
+    assert systems[0].ctl.axis(1).command_velocity == 20.0
+    start = systems[0].ctl.axis(1).command_position
+    dynamics = {"Velocity": 50.0, "Acceleration": 100.0, "Deceleration": 100.0}
+    for system in systems:
+        fire(system, {
+            "MC_MoveRelative1": {"Axis": 1, "Distance": 10.0, **dynamics},
+            "MC_MoveRelative2": {"Axis": 2, "Distance": 10.0, **dynamics},
+            "MC_MoveAbsolute1": {"Axis": 3, "Position": -10.0, **dynamics},
+            "MC_MoveAbsolute2": {"Axis": 4, "Position": 25.5, **dynamics},
+        })  # fmt: skip
+    same(systems[0], systems[1], "the cycle of the moves")
+    assert calls == [(4, None)]
+    assert systems[0]["MAJ1"].outputs["IP"] is False
+    for k in range(600):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("moving", k))
+    ends = {"MC_MoveRelative1": (1, start + 10.0), "MC_MoveRelative2": (2, 10.0),
+            "MC_MoveAbsolute1": (3, -10.0), "MC_MoveAbsolute2": (4, 25.5)}  # fmt: skip
+    for name, (axis, position) in ends.items():
+        assert systems[0][name].outputs["Done"], name
+        assert systems[0].ctl.axis(axis).command_position == position, name

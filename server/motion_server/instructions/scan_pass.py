@@ -5,7 +5,8 @@ Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel 
 128 MAJ in one scan are 128 ``Controller.start`` calls. Here the instances of a type that
 can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAM -> moves, MAG -> gears, MAPC ->
 position cams, MAS and MC_Stop -> stops, MC_Halt -> halts, MC_MoveVelocity -> jogs that
-abort every process) and whose trigger rose are latched, judged and checked one by one,
+abort every process, MC_MoveAbsolute and MC_MoveRelative -> moves that abort every
+process) and whose trigger rose are latched, judged and checked one by one,
 as their own ``scan`` does, but their kernel commands are queued; the queue goes to the
 kernel in one call per kind (``Controller.start_jogs``, ``Controller.start_moves``,
 ``Controller.start_gears``, ``kernel.cam_batch.start_position_cams``,
@@ -32,8 +33,9 @@ over:
   direction other than both ways, or a cam preloaded on its slave; a MAS that stops
   less than all motion, changes the jerk, has a homing to end or nothing moving; an
   MC_Stop with a jerk; an MC_Halt with a jerk or buffered; an MC_MoveVelocity buffered
-  or in the current direction) hands the queue over first and runs its own ``execute``
-  (a PLCopen block, its own ``scan``).
+  or in the current direction; an MC_MoveAbsolute or MC_MoveRelative buffered, an
+  MC_MoveAbsolute in the current direction on a rotary axis) hands the queue over first
+  and runs its own ``execute`` (a PLCopen block, its own ``scan``).
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
@@ -97,6 +99,8 @@ class BatchKind(IntEnum):
     VELOCITY = 5
     #: moves that replace a move (MAM without Merge)
     MOVE = 6
+    #: moves that replace every process (MC_MoveAbsolute, MC_MoveRelative, aborting)
+    ABORTING_MOVE = 7
 
 
 #: the process kind each batch starts (how a refused batch finds what it started)
@@ -108,10 +112,14 @@ _PROCESS_KIND: dict[BatchKind, ProcessKind] = {
     BatchKind.HALT: ProcessKind.STOP,
     BatchKind.VELOCITY: ProcessKind.JOG,
     BatchKind.MOVE: ProcessKind.MOVE,
+    BatchKind.ABORTING_MOVE: ProcessKind.MOVE,
 }
 _NO_STATUS: dict[str, Any] = {}
-#: the processes a new gear supersedes (MAG)
+#: the processes a new gear supersedes (MAG), a new move (MAM)
 _REPLACE_GEAR = (ProcessKind.GEAR,)
+_REPLACE_MOVE = (ProcessKind.MOVE,)
+#: the kinds whose jobs carry their limits third: one kernel call per run of equal limits
+_BY_LIMITS = frozenset((BatchKind.JOG, BatchKind.VELOCITY, BatchKind.MOVE, BatchKind.ABORTING_MOVE))
 
 
 class Batch:
@@ -172,7 +180,7 @@ class Batch:
         self.jobs, self.owners = [], []
         self.axes.clear()
         self.slaves.clear()
-        if kind is BatchKind.JOG or kind is BatchKind.VELOCITY or kind is BatchKind.MOVE:
+        if kind in _BY_LIMITS:
             # one call per run of equal limits, in order
             start = 0
             for k in range(1, len(jobs) + 1):
@@ -201,10 +209,13 @@ class Batch:
                 elif kind is BatchKind.VELOCITY:
                     targets = [job[1] for job in jobs]
                     started = ctl.start_jogs(axes, targets, jobs[0][2], owners, replace=None)
-                elif kind is BatchKind.MOVE:
+                elif kind is BatchKind.MOVE or kind is BatchKind.ABORTING_MOVE:
                     distances = [job[1] for job in jobs]
                     landings = [job[3] for job in jobs]
-                    started = ctl.start_moves(axes, distances, jobs[0][2], owners, landings)
+                    replace = None if kind is BatchKind.ABORTING_MOVE else _REPLACE_MOVE
+                    started = ctl.start_moves(
+                        axes, distances, jobs[0][2], owners, landings, replace
+                    )
                 elif kind is BatchKind.POSITION_CAM:
                     started = start_position_cams(ctl, jobs)  # type: ignore[arg-type]
                 elif kind is BatchKind.STOP:

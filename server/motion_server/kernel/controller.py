@@ -698,12 +698,15 @@ class Controller:
         limits: Limits,
         owners: Sequence[object] | None = None,
         landings: Sequence[float | None] | None = None,
+        replace: Collection[ProcessKind] | None = (ProcessKind.MOVE,),
     ) -> list[Process]:
-        """Moves on many axes in one call (MAM executed on N axes in one scan): ``start``
-        of ``MoveProcess(period, distances[k], limits, v, a, owners[k], landings[k])``
-        replacing the move of ``axes[k]``, for every k in order, the same state, for less
-        work per axis (:func:`.move_batch.start_moves`)."""
-        return start_moves(self.motion, axes, distances, limits, owners, landings)
+        """Moves on many axes in one call (MAM, MC_MoveAbsolute or MC_MoveRelative
+        executed on N axes in one scan): ``start`` of ``MoveProcess(period,
+        distances[k], limits, v, a, owners[k], landings[k])`` replacing the move of
+        ``axes[k]`` (``replace``: the kinds replaced, None for every process), for every
+        k in order, the same state, for less work per axis
+        (:func:`.move_batch.start_moves`)."""
+        return start_moves(self.motion, axes, distances, limits, owners, landings, replace)
 
     def start_gears(
         self,

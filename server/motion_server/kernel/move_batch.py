@@ -1,11 +1,12 @@
-"""Moves started on many axes in one call: MAM executed on N axes in the same scan, with
-the same limits.
+"""Moves started on many axes in one call: MAM, MC_MoveAbsolute or MC_MoveRelative
+executed on N axes in the same scan, with the same limits.
 
 :func:`start_moves` does what ``Controller.start`` does for each axis in order, with the
 factory ``lambda v, a: MoveProcess(axis period, distance, limits, v, a, owner,
-landing)`` and ``replace=(ProcessKind.MOVE,)`` (MAM without Merge), and leaves the very
-same state (the tests compare the two attribute by attribute and step them side by
-side). What it saves is the per-axis work that does not depend on the axis:
+landing)`` and ``replace=(ProcessKind.MOVE,)`` (MAM without Merge; None, every process,
+for the PLCopen aborting mode), and leaves the very same state (the tests compare the
+two attribute by attribute and step them side by side). What it saves is the per-axis
+work that does not depend on the axis:
 
 - a trapezoidal move from rest is a function of the period and the distance only: it is
   built by the constructors (its plan by :func:`.trapezoid.plan_position`) once per
@@ -23,7 +24,7 @@ started.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from typing import Any
 
 import numpy as np
@@ -102,11 +103,13 @@ def start_moves(
     limits: Limits,
     owners: Sequence[object] | None = None,
     landings: Sequence[float | None] | None = None,
+    replace: Collection[ProcessKind] | None = _REPLACE,
 ) -> list[Process]:
     """Start a move of ``distances[k]`` on ``axes[k]``, owned by ``owners[k]`` (None: no
     owner), landing on ``landings[k]`` (the unwound target of an absolute or rotary
-    MAM; None: none), for every k in order, each replacing the axis's move: the
-    processes started."""
+    move; None: none), for every k in order: the processes started. ``replace``: what
+    each move supersedes, as for ``Motion.start`` (a move, as MAM; None: every process,
+    the PLCopen aborting mode)."""
     n = len(axes)
     if (
         len(distances) != n
@@ -134,7 +137,7 @@ def start_moves(
             ):
                 joining.admit()
                 make = _factory(ax.period, distance, limits, owner, landing)
-                started.append(motion.start(ax, make, _REPLACE))
+                started.append(motion.start(ax, make, replace))
                 continue
             try:
                 key: tuple[float, str] | None = (ax.period, float(distance).hex())
@@ -167,7 +170,7 @@ def start_moves(
                     started.append(p)
                     continue
             joining.admit()
-            motion.start_from_rest(ax, procs, p, _REPLACE)
+            motion.start_from_rest(ax, procs, p, replace)
             started.append(p)
     finally:
         # (also when a move is refused: those before it started, as in the loop)
