@@ -688,8 +688,9 @@ def test_plcopen_moves_of_one_scan_start_in_one_call_and_abort_every_process() -
     ``start_moves`` call with both moves, replacing every process (``replace=None``):
     the jog on axis 1 is aborted and its move starts from 20 units/s. MC_MoveAbsolute1
     and 2, next in the scan order with the same limits, join that call: they send axes
-    3 and 4 to -10 and 25.5. Outputs and motion as one by one; every block Done, exactly on its target, within
-    1.2 s: the longest, 25.5 units, takes 0.5 s up, 0.01 s at speed and 0.5 s down."""
+    3 and 4 to -10 and 25.5. Outputs and motion as one by one; every block Done,
+    exactly on its target, within 1.2 s: the longest, 25.5 units, takes 0.5 s up, 0.01 s
+    at speed and 0.5 s down."""
     systems = [build(batch, True) for batch in (True, False)]
     calls: list[tuple[int, Any]] = []
     ctl = systems[0].ctl
