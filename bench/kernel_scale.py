@@ -51,6 +51,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``mam``: ``maj`` with MAM (incremental, 50 mm at 100 mm/s, 1,000 mm/s² up and down)
   on every master: its moves start in one ``Controller.start_moves`` call (100 steps:
   0.1 s up to speed, 5 mm covered).
+- ``mam_spread``: ``mam`` with a distance of its own on every master (10 mm plus 0.25 mm
+  per axis number: what absolute moves to one target from different positions give),
+  whose plans are built together (``kernel/move_plan.position_plans``), 100 steps.
 
 The commands go to the kernel directly (the processes the instructions build; through
 the instructions in ``maj`` and ``mag``), and as the instructions' batch commands them:
@@ -329,6 +332,13 @@ MAM_SETUP, MAM_COMMAND = instructions(
     lambda n, k: {"Axis": k, "MoveType": 1, "Position": 50.0, "Speed": SPEED, "AccelRate": RATE,
                "DecelRate": RATE, "AccelUnits": 0, "DecelUnits": 0},
 )  # fmt: skip
+#: ``mam`` with a distance of its own on every master
+MAM_SPREAD_SETUP, MAM_SPREAD_COMMAND = instructions(
+    "MAM",
+    lambda n: range(1, n // 2 + 1),
+    lambda n, k: {"Axis": k, "MoveType": 1, "Position": 10.0 + 0.25 * k, "Speed": SPEED,
+               "AccelRate": RATE, "DecelRate": RATE, "AccelUnits": 0, "DecelUnits": 0},
+)  # fmt: skip
 #: MC_Halt (1,000 mm/s², no jerk, aborting) on every axis, through the block
 MC_HALT_SETUP, MC_HALT_COMMAND = instructions(
     "MC_Halt", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "Deceleration": RATE}
@@ -387,6 +397,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
         100,
     ),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),
+    "mam_spread": (lambda c: (gear(c, False), MAM_SPREAD_SETUP(c)), MAM_SPREAD_COMMAND, 100),
 }
 
 

@@ -14,7 +14,7 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from motion_server.kernel import JogProcess, Limits, MoveProcess, ProcessKind
+from motion_server.kernel import JogProcess, Limits, MoveProcess, ProcessKind, move_batch
 from motion_server.kernel.errors import MotionError
 from motion_server.kernel.gearing import GearProcess
 from motion_server.kernel.lanes import ramps
@@ -249,3 +249,35 @@ def test_a_move_too_long_to_plan_is_refused_where_the_loop_refuses_it() -> None:
     else:
         raise AssertionError("the 100-unit move was planned")
     assert [len(ax.processes) for ax in ctl.axes[:3]] == [1, 0, 0]
+
+
+def test_moves_of_many_distances_are_planned_together(monkeypatch: Any) -> None:
+    """Six masters at rest, six distances (absolute moves to one target from six
+    positions give as many): the constructor builds the first move alone, the other
+    five are its copies with plans built together (``move_plan.position_plans``,
+    :data:`~motion_server.kernel.move_batch.AHEAD` distances or more), each the plan
+    ``plan_position`` builds: the same objects and motion as the loop's."""
+    built: list[float] = []
+    init = MoveProcess.__init__
+
+    def counting(self: MoveProcess, *args: Any, **kwargs: Any) -> None:
+        built.append(args[1])
+        init(self, *args, **kwargs)
+
+    limits = Limits(300.0, 1000.0, 2000.0)
+    dist = [100.0, -60.0, 7.5, 0.25, -0.0, 3]
+    assert len(set(dist)) >= move_batch.AHEAD
+    batch, loop, ref = controller(True), controller(True), controller(False)
+    monkeypatch.setattr(MoveProcess, "__init__", counting)
+    batch.start_moves(batch.axes[: N // 2], dist, limits)
+    monkeypatch.undo()
+    assert built == [100.0]
+    for ctl in (loop, ref):
+        start_loop(ctl, ctl.axes[: N // 2], dist, limits, None, None)
+    for a, b in zip(batch.axes[: N // 2], loop.axes[: N // 2], strict=True):
+        (p,), (q,) = a.processes, b.processes
+        assert plain(p) == plain(q), a.name
+    for c in range(400):
+        for ctl in (batch, loop, ref):
+            ctl.step()
+        assert batch.cmd_pos.tobytes() == loop.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), c

@@ -1,7 +1,10 @@
 """Velocity plans built together (:func:`motion_server.kernel.move_plan.velocity_plans`)
 are the plans :func:`motion_server.kernel.trapezoid.plan_velocity` builds one by one, bit
 for bit (signed zeros included); what it refuses is refused when the jog is commanded
-(:func:`~motion_server.kernel.trapezoid.judge_velocity_plan`), with the same error."""
+(:func:`~motion_server.kernel.trapezoid.judge_velocity_plan`), with the same error.
+Position plans built together (:func:`~motion_server.kernel.move_plan.position_plans`)
+are those of :func:`~motion_server.kernel.trapezoid.plan_position`, and are marked
+refused exactly where it refuses one."""
 
 from __future__ import annotations
 
@@ -12,12 +15,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from motion_server.kernel import Limits, MotionError
-from motion_server.kernel.move_plan import velocity_plan_row, velocity_plans
+from motion_server.kernel import ErrorCode, Limits, MotionError
+from motion_server.kernel.move_plan import position_plans, velocity_plan_row, velocity_plans
 from motion_server.kernel.trapezoid import (
     MAX_DURATION,
     TrapezoidProfile,
     judge_velocity_plan,
+    plan_position,
     plan_velocity,
 )
 
@@ -134,3 +138,74 @@ def test_a_requested_plan_is_the_plan(
     prof.to_velocity(target, Limits(1.0, acc, dec))
     assert prof.request is not None and prof.planned
     assert prof.plan == one and prof.request is None
+
+
+# -- position plans ---------------------------------------------------------------------
+
+positions = st.one_of(
+    st.sampled_from([0.0, -0.0, 1.0, -1.0, 25.5, -250.0, 1e-300]),
+    st.floats(-1e4, 1e4),
+    st.sampled_from([1e300, -1e300, 1e308]),  # beyond any plan: refused
+)
+#: velocities beyond the limits drawn often: the braking branches
+starts = st.one_of(
+    st.sampled_from([0.0, -0.0, 50.0, -50.0, 500.0, -500.0]),
+    st.floats(-1e4, 1e4),
+)
+limits_of = st.one_of(st.sampled_from([1e-6, 1.0, 100.0, 1000.0]), st.floats(1e-3, 1e6))
+
+PositionRequest = tuple[float, float, float, float, float, float, float]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.tuples(dts, positions, starts, positions, limits_of, limits_of, limits_of),
+        min_size=1,
+        max_size=20,
+    )
+)
+def test_position_plans_built_together_are_the_plans_built_one_by_one(
+    requests: list[PositionRequest],
+) -> None:
+    """Every branch (from rest, from motion toward and away from the target, beyond the
+    velocity limit either way, too close to stop on it, cruising or not): the same
+    numbers bit for bit where the scalar planner builds a plan, and ``ok`` False exactly
+    where it refuses one (too long, or beyond any float)."""
+    cols = [np.array(c, dtype=float) for c in zip(*requests, strict=True)]
+    dt, p0, v0, target, vmax, acc, dec = cols
+    plans = position_plans(dt, p0, v0, target, vmax, acc, dec)
+    for k, r in enumerate(requests):
+        try:
+            one = plan_position(r[0], r[1], r[2], r[3], r[4], r[5], r[6])
+        except MotionError as exc:
+            assert exc.code == ErrorCode.PROFILE_FAILED
+            assert not plans.ok[k], (k, r)
+            continue
+        assert plans.ok[k], (k, r)
+        for field in ("start", "pos", "vel", "acc", "half"):
+            assert bits(getattr(plans, field)[k]) == bits(getattr(one, field)), (k, field)
+        assert bits(plans.end[k]) == bits(one.end), k
+        assert bits(plans.done[k]) == bits(one.done), k
+
+
+def test_a_position_plan_from_rest_is_the_textbook_trapezoid() -> None:
+    """50 units at 100 units/s, 1,000 units/s² up and 2,000 down, from rest: 0.1 s up
+    (5 units), 0.05 s down (2.5 units), 42.5 units at speed (0.425 s); and 1 unit at
+    10^-6 units/s² both ways, a triangle of 2 sqrt(1 / 10^-6) = 2,000 s, while 100
+    units would take 20,000 s, beyond the longest plan."""
+    one = np.ones(3)
+    plans = position_plans(
+        0.001 * one,
+        0.0 * one,
+        0.0 * one,
+        np.array([50.0, 1.0, 100.0]),
+        np.array([100.0, 1000.0, 1000.0]),
+        np.array([1000.0, 1e-6, 1e-6]),
+        np.array([2000.0, 1e-6, 1e-6]),
+    )
+    assert plans.ok.tolist() == [True, True, False]
+    assert plans.start[0].tolist() == pytest.approx([0.0, 0.0, 0.1, 0.525])
+    assert plans.end[0] == pytest.approx(0.575)
+    assert plans.end[1] == pytest.approx(2000.0)
+    assert MAX_DURATION < 2 * (100 / 1e-6) ** 0.5

@@ -11,7 +11,10 @@ work that does not depend on the axis:
 - a trapezoidal move from rest is a function of the period and the distance only: it is
   built by the constructors (its plan by :func:`.trapezoid.plan_position`) once per
   (period, distance) and copied for every other axis (the plan is immutable: copies
-  share it);
+  share it); when the axes at rest have many distances (absolute moves to one target
+  from different positions), their plans are built together
+  (:func:`.move_plan.position_plans`) and each move is a copy of the first with its own
+  plan;
 - the moves from rest bound for the profile lane join it as one batch, their lane rows
   read once per prototype (:meth:`.lanes.ramps.ProfileLane.admit_planned`), so the first
   step takes them as they are instead of reading every move's plan.
@@ -35,14 +38,17 @@ from .jog_batch import _Joining
 from .lanes import GroupLanes
 from .limits import Limits
 from .motion import Motion
+from .move_plan import position_plans
 from .override import NEUTRAL
 from .processes import MoveProcess, Process, ProcessFactory
-from .trapezoid import TrapezoidProfile
+from .trapezoid import Plan, TrapezoidProfile
 
 #: what a move replaces (Logix MAM without Merge)
 _REPLACE = (ProcessKind.MOVE,)
 #: a group whose lanes were not looked up yet
 _UNKNOWN: Any = object()
+#: distinct distances from rest from which their plans are built together
+AHEAD = 4
 
 
 class _Proto:
@@ -60,12 +66,91 @@ class _Proto:
         if type(prof) is TrapezoidProfile and prof.request is None:
             plan = prof.plan
             assert plan is not None  # (to_position plans at once)
-            # ProfileLane._load after the base
-            self.row = (
-                float(prof.cycles), prof.dt, plan.done, plan.start, plan.pos, plan.vel,
-                plan.acc, plan.half, p.position, p.velocity, p.acceleration, plan.end,
-                plan.end_position, plan.end_velocity, plan.landing,
-            )  # fmt: skip
+            self.row = _row(p, prof, plan)
+
+    @classmethod
+    def planned(cls, template: _Proto, distance: float, plan: Plan) -> _Proto:
+        """The prototype of a move from rest of ``distance`` planned ahead (``plan``): the
+        template's (a trapezoidal move from rest of the same period and limits) but its
+        plan and target (what ``TrapezoidProfile.to_position`` sets from them)."""
+        head = template.row
+        assert head is not None  # (a template is trapezoidal)
+        proto = cls.__new__(cls)
+        proto.state = template.state  # (the distance is set in every copy)
+        proto.prof_state = {
+            **template.prof_state,
+            "_plan": plan,
+            "_target_position": float(distance),
+        }
+        # (cycles and dt, then the plan, the kinematics, the plan's end)
+        proto.row = (*head[:2], plan.done, plan.start, plan.pos, plan.vel, plan.acc, plan.half,
+                     *head[8:11], plan.end, plan.end_position, plan.end_velocity,
+                     plan.landing)  # fmt: skip
+        return proto
+
+
+def _row(p: MoveProcess, prof: TrapezoidProfile, plan: Plan) -> tuple[Any, ...]:
+    """``ProfileLane._load`` of a move from rest after the base."""
+    return (
+        float(prof.cycles), prof.dt, plan.done, plan.start, plan.pos, plan.vel, plan.acc,
+        plan.half, p.position, p.velocity, p.acceleration, plan.end, plan.end_position,
+        plan.end_velocity, plan.landing,
+    )  # fmt: skip
+
+
+def _key(period: float, distance: float) -> tuple[float, str] | None:
+    """What a move from rest depends on besides the limits: the period and the
+    distance's bits (None: not a float, the constructor refuses or converts it)."""
+    try:
+        return (period, float(distance).hex())
+    except (OverflowError, TypeError, ValueError):
+        return None
+
+
+def _plans_ahead(
+    axes: Sequence[Axis], distances: Sequence[float], limits: Limits
+) -> dict[tuple[float, str], Plan]:
+    """The plans of the moves from rest of ``axes`` (those without motion, override or
+    preloaded cam, as :func:`start_moves` finds them) by :func:`_key`, built together
+    when they have at least :data:`AHEAD` distinct distances and the limits are
+    trapezoidal; only those :func:`.trapezoid.plan_position` would build (the others
+    are planned, and refused, by the constructor in the loop's order)."""
+    if not limits.trapezoidal:
+        return {}
+    wanted: dict[tuple[float, str], float] = {}
+    for ax, distance in zip(axes, distances, strict=True):
+        if ax.stop_rows is not None or ax._processes or ax.preloaded_cams:
+            continue
+        if ax.override is not NEUTRAL and not ax.override.neutral:
+            continue
+        key = _key(ax.period, distance)
+        if key is not None:
+            wanted.setdefault(key, float(distance))
+    if len(wanted) < AHEAD:
+        return {}
+    keys = list(wanted)
+    n = len(keys)
+    zeros = np.zeros(n)
+    plans = position_plans(
+        np.array([k[0] for k in keys]),
+        zeros,
+        zeros,
+        np.array(list(wanted.values())),
+        np.full(n, limits.velocity),
+        np.full(n, limits.acceleration),
+        np.full(n, limits.deceleration),
+    )
+    start, pos, vel = plans.start.tolist(), plans.pos.tolist(), plans.vel.tolist()
+    acc, half = plans.acc.tolist(), plans.half.tolist()
+    end, done = plans.end.tolist(), plans.done.tolist()
+    ahead: dict[tuple[float, str], Plan] = {}
+    for j in np.flatnonzero(plans.ok).tolist():
+        key = keys[j]
+        ahead[key] = Plan(
+            tuple(start[j]), tuple(pos[j]), tuple(vel[j]), tuple(acc[j]), tuple(half[j]),
+            end[j], done[j], wanted[key], 0.0, True,
+        )  # fmt: skip
+    return ahead
 
 
 def _copy(proto: _Proto, distance: float, owner: object, landing: float | None) -> MoveProcess:
@@ -122,6 +207,10 @@ def start_moves(
     joining = _MoveJoining(motion)
     pairs, kinds = joining.pairs, joining.protos
     protos: dict[tuple[float, str], _Proto] = {}
+    # per period, the first trapezoidal move from rest the constructors built: the
+    # moves planned ahead are copies of it with their own plan
+    templates: dict[float, _Proto] = {}
+    ahead = _plans_ahead(axes, distances, limits)
     offered: dict[int, GroupLanes | None] = {}
     drive_on = motion.s.drive_on
     try:
@@ -139,11 +228,12 @@ def start_moves(
                 make = _factory(ax.period, distance, limits, owner, landing)
                 started.append(motion.start(ax, make, replace))
                 continue
-            try:
-                key: tuple[float, str] | None = (ax.period, float(distance).hex())
-            except (OverflowError, TypeError, ValueError):
-                key = None  # (the constructor raises, as in the loop)
+            key = _key(ax.period, distance)
             proto = None if key is None else protos.get(key)
+            if proto is None and key is not None and key in ahead:
+                template = templates.get(ax.period)
+                if template is not None:
+                    proto = protos[key] = _Proto.planned(template, distance, ahead[key])
             if proto is not None and proto.row is not None:
                 p = _copy(proto, distance, owner, landing)
             else:
@@ -152,6 +242,8 @@ def start_moves(
                 proto = _Proto(p)
                 if key is not None:
                     protos.setdefault(key, proto)
+                if proto.row is not None:
+                    templates.setdefault(ax.period, proto)
             if proto.row is not None and ax.buffered is None:
                 group = ax.group
                 lanes = offered.get(group, _UNKNOWN)
