@@ -35,6 +35,8 @@ class MoveType(IntEnum):
 
 
 _TIME_DRIVEN = DriveMode.TIME_DRIVEN
+#: the operands the plan of a move's dynamics reads (its target's are not among them)
+_DYNAMICS = tuple(op.name for op in logix_dynamics())
 #: the status of a MAM whose time-driven move started (see ``started_active``)
 _MOVE_STARTED = {**STARTED_ACTIVE, "TrackingMaster": False}
 
@@ -63,9 +65,10 @@ class MAM(SpeedControlledMotion):
         """``execute`` up to the kernel command, the move returned as (axis, distance,
         limits, landing) for ``Controller.start_moves``; None for a move that starts
         alone (Merge ends every other process, a master-driven move, a pending MDAC
-        switch). The plan of the dynamics depends on the operands' values and the axis's
-        limits only: MAM with the same values on axes with the same limits plan them
-        once. The axis checks run in full only where they refuse, as MAJ's do."""
+        switch). The plan of the dynamics depends on the dynamics operands' values and
+        the axis's limits only (not on the target): MAM with the same dynamics on axes
+        with the same limits plan them once. The axis checks run in full only where they
+        refuse, as MAJ's do."""
         if self.merging:
             return None
         ax = self.ctl.axis(int(self.op["Axis"]))
@@ -82,19 +85,16 @@ class MAM(SpeedControlledMotion):
             if stopping:
                 self.check_axis(ax)
         cfg = ax.config
-        memo = None
-        limits: Limits | None = None
-        if key is not None:
-            memo = (MAM, key, cfg.max_velocity, cfg.max_acceleration, cfg.max_deceleration,
-                    cfg.max_jerk)  # fmt: skip
-            limits = batch.plans.get(memo)
+        # (the judge passed the latched values: they hash)
+        memo = (MAM, *map(self.op.__getitem__, _DYNAMICS), cfg.max_velocity,
+                cfg.max_acceleration, cfg.max_deceleration, cfg.max_jerk)  # fmt: skip
+        limits: Limits | None = batch.plans.get(memo)
         if limits is None:
             mode, speed, limits = self.plan(ax)
             if mode != _TIME_DRIVEN:
                 return None
             limits = self._dynamics(speed, limits)
-            if memo is not None:
-                batch.plans[memo] = limits
+            batch.plans[memo] = limits
         distance, landing = self._target(ax)
         return (ax, distance, limits, landing), (number,)
 
