@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from motion_server.kernel.limits import Limits
-from motion_server.kernel.stop_plan import _refused, _refused_exactly, _within
+from motion_server.kernel.stop_plan import _refused_exactly, _within, refused
 from motion_server.kernel.trapezoid import MAX_DURATION, judge_ramp
 
 #: velocities and decelerations where the checks change their answer: zero of both
@@ -50,7 +50,7 @@ def test_what_the_extremes_accept_every_ramp_accepts(
             constructors_accept(float(v[k]), float(d[k]), None if m is None else float(m[k]))
             for k in range(len(rows))
         )
-    assert _refused(v, d, m) == _refused_exactly(v, d, m)
+    assert refused(v, d, m) == _refused_exactly(v, d, m)
 
 
 def test_the_usual_batch_is_accepted_by_its_extremes() -> None:

@@ -60,11 +60,12 @@ from .motion import InternalError, Motion
 from .move_batch import start_moves
 from .override import Override
 from .power import Power, PowerEvent, require
+from .power_plan import power_off_axes
 from .processes import Pending, Process, ProcessFactory, StopRamp, halt_ramp
 from .redefine import shift_coordinates
 from .scurve import FALLBACKS
 from .state import AxisArrays, Index, MasterArrays, compact
-from .stop_plan import power_off_axes, something_to_stop, stop_axes
+from .stop_plan import something_to_stop, stop_axes
 
 #: a redefined position may be at most this many encoder counts from zero (float64 holds
 #: every integer up to 2**53: beyond, positions could not be quantised to single counts)
@@ -370,7 +371,7 @@ class Controller:
     def _after_stops(self, due: list[Axis]) -> None:
         """The after-stop actions of ``due`` (axes of one group come to rest after a
         fast disable or shutdown), the drives off in two batches
-        (:func:`.stop_plan.power_off_axes`): each axis's event concerns it alone, so
+        (:func:`.power_plan.power_off_axes`): each axis's event concerns it alone, so
         the order of the axes does not matter."""
         actions = list(map(_AFTER_STOP, due))
         first = actions[0]
@@ -1003,7 +1004,7 @@ class Controller:
         return None
 
     def _power_off(self, g: MotionGroup, mode: ProgrammedStopMode) -> None:
-        """Every driven axis of ``g`` off at once (:func:`.stop_plan.power_off_axes`),
+        """Every driven axis of ``g`` off at once (:func:`.power_plan.power_off_axes`),
         in axis order: Hard Disable (:meth:`servo_off` of each) or Hard Shutdown
         (:meth:`shutdown` of each: its followers are released before the next axis)."""
         axes = self._motion_axes[g.number]

@@ -29,14 +29,13 @@ position``, ``cmd_vel = velocity``, ``cmd_acc = acceleration`` for one process, 
 lanes the same bit for bit), so no process is read for them: the members are written
 back and aborted lane by lane, the lanes the stop empties are cleared at once
 (``Lane.clear``), and the composition order is kept when no axis reads a master any
-more (:func:`_retire_order`).
+more (:func:`retire_order`).
 
-A group stop in Hard Disable or Hard Shutdown of a group whose axes are all in Servo
-Control switches them off the same way (:func:`power_off_axes`): lanes written back at
-once, each axis's processes ended and its power state changed inline, in axis order (a
-shutdown releases its axis's followers before the next axis, as axis by axis); a group
-of lane members, or of axes at rest, without per-axis bookkeeping at all
-(:func:`_power_off_members`, the followers' release worked out as arrays).
+A group stop in Hard Disable or Hard Shutdown switches the axes off the same way
+(:mod:`.power_plan`), with the helpers kept here: the lanes emptied at once
+(:func:`empty_lanes`, :func:`clear_emptied`), the members' abort judged in C-level passes
+(:func:`plain_and_active`), the ramps' judgement (:func:`refused`) and the composition
+order (:func:`retire_order`).
 
 The result is bit-identical to the reference path: the same process objects in the same
 states, the same axis bases, status arrays and lane membership (tested side by side in
@@ -47,20 +46,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from itertools import repeat
-from operator import attrgetter, itemgetter
+from operator import attrgetter
 
 import numpy as np
 
 from .axis import Axis
 from .cams import CamProcess
-from .enums import AbortReason, AfterStop, AxisState, ProcessState
+from .enums import AbortReason, ProcessState
 from .lanes import GroupLanes
 from .lanes.base import Lane
 from .lanes.stop_rows import StopRows
 from .limits import Limits
 from .motion import Motion
-from .power import ABORT_REASON, PowerEvent
 from .processes import Process, StopRamp
 from .state import Index, compact
 from .trapezoid import MAX_DURATION, TrapezoidProfile
@@ -74,13 +71,7 @@ _cam_abort = CamProcess.abort
 
 _set = object.__setattr__  # Limits is a frozen dataclass
 _state = attrgetter("state")
-_index = attrgetter("index")
-_masters = attrgetter("masters")
-_first = itemgetter(0)
 _own_processes = attrgetter("_processes")
-_buffered = attrgetter("buffered")
-_rows_and_buffered = attrgetter("stop_rows", "buffered")
-_NEITHER = (None, None)
 _stop_rows = attrgetter("stop_rows")
 _preloaded = attrgetter("preloaded_cams")
 _max_deceleration = attrgetter("config.max_deceleration")
@@ -136,10 +127,10 @@ def ramp(
     return r
 
 
-def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> tuple[GroupLanes, list[Lane]]:
+def empty_lanes(motion: Motion, axes: Sequence[Axis]) -> tuple[GroupLanes, list[Lane]]:
     """Evict, lane by lane, every lane of the axes' group whose processes are all on
     ``axes`` (the others' members leave one by one as their axes are settled); the
-    group's lanes, and the lanes emptied (see :func:`_clear`)."""
+    group's lanes, and the lanes emptied (see :func:`clear_emptied`)."""
     lanes = motion.lanes[axes[0].group]
     emptied: list[Lane] = []
     if len(lanes):
@@ -151,8 +142,8 @@ def _empty_lanes(motion: Motion, axes: Sequence[Axis]) -> tuple[GroupLanes, list
     return lanes, emptied
 
 
-def _clear(lanes: GroupLanes, emptied: list[Lane]) -> None:
-    """Once every process of the batch has ended: clear the lanes :func:`_empty_lanes`
+def clear_emptied(lanes: GroupLanes, emptied: list[Lane]) -> None:
+    """Once every process of the batch has ended: clear the lanes :func:`empty_lanes`
     emptied, unless a process joined one since (a follower released by a shutdown), so
     that the next rebuild has nothing to do for them; the processes they held are freed
     a chunk per step, as that rebuild would have them freed (``Lane.clear``)."""
@@ -161,262 +152,7 @@ def _clear(lanes: GroupLanes, emptied: list[Lane]) -> None:
         lanes._defer_release(dropped)
 
 
-def power_off_axes(
-    motion: Motion,
-    axes: Sequence[Axis],
-    state: AxisState,
-    event: PowerEvent,
-    switched: Callable[[], None],
-    after: Callable[[Axis], None] | None = None,
-    releasing: bool = False,
-    prepare: Callable[[], None] | None = None,
-    maxima: tuple[np.ndarray, np.ndarray] | None = None,
-    idx: np.ndarray | None = None,
-) -> None:
-    """Take ``axes`` (of one group, all in Servo Control) to ``state`` (Axis Ready,
-    Axis Shutdown) by ``event`` (SERVO_OFF, SHUTDOWN), as :meth:`Power.fire
-    <.power.Power.fire>` does axis by axis (a group stop's Hard Disable and Hard
-    Shutdown): every process ends at once (:meth:`Motion.abort <.motion.Motion.abort>`
-    with the event's abort reason), the after-stop action and the latch are dropped,
-    the drive goes off (``switched``: the drive model's). The lanes are written back
-    lane by lane, the processes' bookkeeping is inline. ``after(ax)`` runs after each
-    axis (a shutdown releases the axis's followers there, before the next axis;
-    ``releasing``: that is all ``after`` does, ``Motion.release_followers``).
-    ``prepare()`` runs before the first axis when they are taken one by one (what
-    ``after`` needs, found before anything changes). ``maxima``: the axes' maximum
-    decelerations and velocities, ``idx`` their array indices, if the caller has them."""
-    if not axes:
-        return
-    reason = ABORT_REASON[event]
-    if (after is None or releasing) and _power_off_members(
-        motion, axes, state, event, reason, switched, releasing, maxima, idx
-    ):
-        return
-    if prepare is not None:
-        prepare()
-    lanes, emptied = _empty_lanes(motion, axes)
-    s = motion.s
-    busy = s.scalars.busy
-    dirty = s.dirty
-    drive_on = s.drive_on
-    code = int(event)
-    coupling = False
-    for ax in axes:
-        procs = ax.processes
-        for p in procs:
-            lane = p.lane
-            if lane is not None:
-                lane.evict(p)
-        for p in ax.preloaded_cams:
-            lane = p.lane
-            if lane is not None:
-                lane.evict(p)
-        ax.power_event = code
-        # Motion.abort: Motion.retire of every process
-        if ax.preloaded_cams:
-            for p in ax.preloaded_cams:
-                p.abort(reason)
-            ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
-        if procs:
-            base = ax.base
-            for p in procs:
-                if p.state is _ACTIVE:
-                    if type(p).abort is _abort:
-                        p.state = _ABORTED
-                        p.abort_reason = reason
-                    else:
-                        p.abort(reason)
-                if p.state is not _ACTIVE:
-                    base += p.position
-            ax.base = base
-            keep = [p for p in procs if p.state is _ACTIVE]
-            if len(keep) != len(procs):
-                ax.processes = keep
-                coupling = True
-        i = ax.index
-        busy[i] = any(p.state is _ACTIVE for p in ax.processes)
-        dirty.add(i)
-        if ax.buffered is not None:
-            ax.buffered.cancelled = True
-            ax.buffered = None
-        ax.stop_latch = None
-        # Power._enter
-        ax.after_stop = AfterStop.NOTHING
-        ax.state = state
-        if drive_on.item(i):
-            switched()
-        drive_on[i] = False
-        if after is not None:
-            after(ax)
-    _clear(lanes, emptied)
-    if coupling:
-        motion.coupling_changed()
-
-
-def _power_off_members(
-    motion: Motion,
-    axes: Sequence[Axis],
-    state: AxisState,
-    event: PowerEvent,
-    reason: AbortReason,
-    switched: Callable[[], None],
-    releasing: bool = False,
-    maxima: tuple[np.ndarray, np.ndarray] | None = None,
-    idx: np.ndarray | None = None,
-) -> bool:
-    """:func:`power_off_axes` without ``after`` (or, ``releasing``, with the shutdown's
-    release of each axis's followers), when every axis either has no motion at
-    all (at rest after a fast disable's ramp) or one process that is a lane member the
-    last step composed (a Hard Disable of moving axes): the members are written back
-    at once and aborted, the base of an axis with one is its command (as in
-    :func:`_stop_members`), and the axes' power state, latch and after-stop action are
-    set with their status arrays written once for all. False (nothing changed) when the
-    batch is not that simple.
-
-    A shutdown releases the followers of each axis before the next (``releasing``):
-    a follower after its master in the batch has its process aborted there (the same
-    reason), folded into its base, and, its drive on and its velocity not zero, a stop
-    ramp from that velocity, which its own shutdown then aborts where it started (its
-    base plus 0.0); a follower before its master is shut down before the release finds
-    anything. So with every process reading one master, nothing outside the batch in
-    motion and no such ramp refused (then axis by axis raises), the result is the
-    batch's with 0.0 added to the bases of the followers that had a ramp."""
-    lanes = motion.lanes[axes[0].group]
-    n = len(axes)
-    found: list[Lane] = []
-    total = 0
-    for lane in lanes.all:
-        members = lane.members
-        if lane._joining:
-            return False
-        if members:
-            if len(lane._slot) != len(members):
-                return False
-            found.append(lane)
-            total += len(members)
-    # (another stop's rows may still ramp other axes: an axis of the batch with a row,
-    # or with its ramp made from one, is refused below)
-    if idx is None:
-        idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
-    # the batch is every axis of the group: every member of its lanes is on one of them
-    whole = n == len(lanes.group.axes)
-    if found:
-        batch: np.ndarray | None = None
-        if not whole:
-            batch = np.zeros(len(motion.s.busy), dtype=bool)
-            batch[idx] = True
-        for lane in found:
-            if batch is not None and not batch[lane.idx].all():
-                return False
-            if not _plain_and_active(lane.members):
-                return False
-    # the members, one process each, are all the processes of the batch; nothing else
-    # is on its axes (no ramp still a row, nothing buffered, no cam preloaded)
-    if (
-        sum(map(len, map(_own_processes, axes))) != total
-        or list(map(_rows_and_buffered, axes)).count(_NEITHER) != n
-        or any(map(_preloaded, axes))
-    ):
-        return False
-    s = motion.s
-    ramped = _released_with_ramp(motion, found, axes, idx, maxima) if releasing else None
-    if releasing and ramped is None:
-        return False
-    for lane in found:
-        lane.evict_all()
-        for p in lane.members:
-            p.state = _ABORTED
-            p.abort_reason = reason
-        # Motion.abort folds the aborted process into the base: base + position, which
-        # is the command composition wrote (see _stop_members)
-        bases = s.cmd_pos[lane.idx]
-        if ramped is not None and ramped.any():
-            bases = np.where(ramped[lane.idx], bases + 0.0, bases)
-        for ax, b in zip(lane.axes, bases.tolist(), strict=True):
-            ax.base = b
-            ax._processes = []
-    _clear(lanes, found)
-    code = int(event)
-    nothing = AfterStop.NOTHING
-    for ax in axes:
-        ax.power_event = code
-        ax._stop_latch = None
-        ax._after_stop = nothing
-        ax._state = state
-    s.busy[idx] = False
-    s.axis_state[idx] = int(state)
-    s.after_stop[idx] = int(nothing)
-    s.state_changes += n
-    s.dirty.update(idx.tolist())
-    drive_on = s.drive_on
-    for _ in range(int(np.count_nonzero(drive_on[idx]))):
-        switched()  # (once per drive switched off, as axis by axis)
-    drive_on[idx] = False
-    if total:
-        # (the batch the whole group: none of its axes has a process or a row left)
-        _retire_order(motion, lanes, whole or _idle(lanes.group.axes))
-    return True
-
-
-def _released_with_ramp(
-    motion: Motion,
-    found: list[Lane],
-    axes: Sequence[Axis],
-    idx: np.ndarray,
-    maxima: tuple[np.ndarray, np.ndarray] | None,
-) -> np.ndarray | None:
-    """For a shutdown of ``axes`` (array indices ``idx``) whose processes are the
-    members of ``found``: a mask over the controller's axes of the followers its
-    release gives a stop ramp (see :func:`_power_off_members`); None when the batch
-    is not that simple. ``maxima``: the axes' maximum decelerations (and velocities),
-    if the caller has them."""
-    s = motion.s
-    n_all = len(s.busy)
-    if len(axes) != n_all:
-        outside = np.ones(n_all, dtype=bool)
-        outside[idx] = False
-        others = [motion.axes[i] for i in np.flatnonzero(outside).tolist()]
-        if any(map(_own_processes, others)) or list(map(_stop_rows, others)).count(None) != len(
-            others
-        ):
-            return None  # a process outside the batch may read one of its axes
-    order = np.full(n_all, -1, dtype=np.intp)
-    order[idx] = np.arange(len(axes))
-    ramped = np.zeros(n_all, dtype=bool)
-    # axis number -> array index: the state's own table, read for the masters alone
-    index_of = s._index.get
-    for lane in found:
-        masters = list(map(_masters, lane.members))
-        counts = list(map(len, masters))
-        if counts.count(0) == len(counts):
-            continue
-        if max(counts) > 1:
-            return None  # a process reading two masters: released as a whole, one by one
-        reads = np.fromiter(map(bool, counts), dtype=bool, count=len(counts))
-        wanted = list(map(_first, filter(None, masters)))
-        m = np.fromiter(map(index_of, wanted, repeat(-1)), dtype=np.intp, count=len(wanted))
-        slaves = lane.idx[reads]
-        if (m < 0).any() or (m == slaves).any():
-            return None
-        # released by its master's shutdown, before its own
-        released = (order[m] >= 0) & (order[m] < order[slaves])
-        ramped[slaves[released]] = True
-    # the release ramps the velocity it sums (0 + velocity: the command's), the drive on
-    i = np.flatnonzero(ramped)
-    v = 0.0 + s.cmd_vel[i]
-    ramped[i] = s.drive_on[i] & (v != 0.0)
-    i = np.flatnonzero(ramped)
-    if i.size:
-        if maxima is None:
-            dec = np.array([motion.axes[k].config.max_deceleration for k in i.tolist()])
-        else:
-            dec = maxima[0][order[i]]
-        if _refused(s.cmd_vel[i] + 0.0, dec, dec):
-            return None  # a ramp the release would refuse: axis by axis raises
-    return ramped
-
-
-def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
+def refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
     """True if a ramp's constructor would refuse one of these (velocity, deceleration):
     ``Limits.validated`` (finite and positive limits) or ``judge_ramp`` (a ramp no plan
     could hold); or if one of the axes' maximum decelerations ``maximum`` (the ramps'
@@ -430,7 +166,7 @@ def _refused(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) ->
 
 
 def _refused_exactly(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = None) -> bool:
-    """:func:`_refused`, judged element by element."""
+    """:func:`refused`, judged element by element."""
     with np.errstate(all="ignore"):
         big = np.maximum(np.abs(v), 1e-9) * 2.0
         duration = np.abs(v) / d
@@ -449,7 +185,7 @@ def _refused_exactly(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None = 
 
 
 def _within(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None) -> bool:
-    """A sufficient condition for :func:`_refused` to accept every (velocity,
+    """A sufficient condition for :func:`refused` to accept every (velocity,
     deceleration) of a non-empty batch, from the largest speed, the smallest and largest
     deceleration (and maximum): every ``|v| / d`` is at most ``max |v| / min d`` and every
     ``duration * |v|`` at most that times ``max |v|``, as IEEE division and multiplication
@@ -470,7 +206,7 @@ def _within(v: np.ndarray, d: np.ndarray, maximum: np.ndarray | None) -> bool:
     return longest <= MAX_DURATION and math.isfinite(longest * fastest)
 
 
-def _plain_and_active(members: list[Process]) -> bool:
+def plain_and_active(members: list[Process]) -> bool:
     """Every process of ``members`` is active and aborts as ``Process.abort`` does: its
     class does not override it, or it is a cam with no successor waiting
     (``CamProcess.abort`` is then ``Process.abort``). Read without a Python call per
@@ -524,7 +260,7 @@ def _member_lanes(
     for lane in found:
         if batch is not None and not batch[lane.idx].all():
             return None
-        if not _plain_and_active(lane.members):
+        if not plain_and_active(lane.members):
             return None
     if any(map(_preloaded, axes)):
         return None
@@ -572,12 +308,12 @@ def _stop_members(
     if within.all():
         d_arr = dec
         # (the ramps' decelerations are the maxima: judging them judges the maxima)
-        refused = _refused(v_arr, dec)
+        refusing = refused(v_arr, dec)
     else:
         with np.errstate(all="ignore"):
             d_arr = np.where(within, dec, dec * (speed / vmax))
-        refused = _refused(v_arr, d_arr, dec)
-    if refused:
+        refusing = refused(v_arr, d_arr, dec)
+    if refusing:
         return False  # the lanes' write-back moved nothing
     for lane in member_lanes:
         for p in lane.members:
@@ -585,7 +321,7 @@ def _stop_members(
             p.abort_reason = reason
     # the emptied lanes empty now (their next rebuild has nothing to do); the processes
     # they held are freed a chunk per step, as a rebuild would have them freed
-    _clear(lanes, member_lanes)
+    clear_emptied(lanes, member_lanes)
     base = s.cmd_pos[idx]  # (a copy: the rows keep it)
     rowed = s.drive_on[at] & ((v_arr != 0.0) | (a_arr != 0.0))
     if not stopping or not motion.offers(axes[0].group):
@@ -614,7 +350,7 @@ def _stop_members(
         rows = _some_rowed(
             motion, lanes, axes, idx, owner, rowed, base, v_arr, a_arr, d_arr, stopping
         )
-    _retire_order(motion, lanes, _rows_hold(lanes, rows if every else None))
+    retire_order(motion, lanes, _rows_hold(lanes, rows if every else None))
     if rows is not None:
         s.busy[rows.at] = True
         s.dirty.update(rows.idx.tolist())
@@ -702,7 +438,7 @@ def _ramp_object(
         motion.offer(ax)
 
 
-def _retire_order(motion: Motion, lanes: GroupLanes, whole: bool) -> None:
+def retire_order(motion: Motion, lanes: GroupLanes, whole: bool) -> None:
     """The stop removed processes that read masters: the composition order changes
     (``Motion.coupling_changed``: every group sorted again at the next step). When the
     stop left no axis of the group reading a master (``whole``: every axis of the group
@@ -724,7 +460,7 @@ def _rows_hold(lanes: GroupLanes, rows: StopRows | None) -> bool:
     return rows is not None and len(rows.axes) == len(lanes.group.axes)
 
 
-def _idle(axes: Sequence[Axis]) -> bool:
+def idle(axes: Sequence[Axis]) -> bool:
     """No axis of ``axes`` has a process (nor a ramp left as a row)."""
     return not any(map(_own_processes, axes)) and list(map(_stop_rows, axes)).count(None) == len(
         axes
@@ -777,7 +513,7 @@ def stop_axes(
         return _stop_members(
             motion, lanes, member_lanes, axes, idx, at, owner, reason, maxima, stopping
         )
-    lanes, emptied = _empty_lanes(motion, axes)
+    lanes, emptied = empty_lanes(motion, axes)
     n = len(axes)
     # the axes with something to stop. The others are at rest with nothing to stop (an
     # MGS of a group already stopped): the ramp from rest a stop makes them is done at
@@ -814,7 +550,7 @@ def stop_axes(
         absv = np.abs(v_arr)
         # group_stop_deceleration, element by element
         d_arr = np.where(absv <= vmax, dec, dec * (absv / vmax))
-    if not (np.isfinite(dec) & (dec > 0.0)).all() or _refused(v_arr, d_arr):
+    if not (np.isfinite(dec) & (dec > 0.0)).all() or refused(v_arr, d_arr):
         return False
     ds = d_arr.tolist()
     s = motion.s
@@ -867,7 +603,7 @@ def stop_axes(
             ax._processes = []
             continue
         _ramp_object(motion, ax, v, accels[k], ds[k], owner, shared, stopping)
-    _clear(lanes, emptied)
+    clear_emptied(lanes, emptied)
     if coupling:
         motion.coupling_changed()
     if rowed:
