@@ -51,6 +51,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``mam``: ``maj`` with MAM (incremental, 50 mm at 100 mm/s, 1,000 mm/s² up and down)
   on every master: its moves start in one ``Controller.start_moves`` call (100 steps:
   0.1 s up to speed, 5 mm covered).
+- ``mc_gear_in``: ``mag`` with MC_GearIn (ratio 1/2 on the master's set value, a
+  trapezoidal catch-up at 1,000 mm/s² both ways, aborting) on every slave: its gears
+  start in one ``start_gears`` call that replaces every process (60 steps).
 - ``mam_spread``: ``mam`` with a distance of its own on every master (10 mm plus 0.25 mm
   per axis number: what absolute moves to one target from different positions give),
   whose plans are built together (``kernel/move_plan.position_plans``), 100 steps.
@@ -332,6 +335,14 @@ MAM_SETUP, MAM_COMMAND = instructions(
     lambda n, k: {"Axis": k, "MoveType": 1, "Position": 50.0, "Speed": SPEED, "AccelRate": RATE,
                "DecelRate": RATE, "AccelUnits": 0, "DecelUnits": 0},
 )  # fmt: skip
+#: MC_GearIn on every slave (the ``mag`` gear as PLCopen commands it), through the block
+MC_GEAR_IN_SETUP, MC_GEAR_IN_COMMAND = instructions(
+    "MC_GearIn",
+    lambda n: range(n // 2 + 1, n + 1),
+    lambda n, k: {"Slave": k, "Master": k - n // 2, "RatioNumerator": 1.0,
+               "RatioDenominator": 2.0, "MasterValueSource": 0, "Acceleration": RATE,
+               "Deceleration": RATE},
+)  # fmt: skip
 #: ``mam`` with a distance of its own on every master
 MAM_SPREAD_SETUP, MAM_SPREAD_COMMAND = instructions(
     "MAM",
@@ -398,6 +409,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     ),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),
     "mam_spread": (lambda c: (gear(c, False), MAM_SPREAD_SETUP(c)), MAM_SPREAD_COMMAND, 100),
+    "mc_gear_in": (lambda c: (jog(c), MC_GEAR_IN_SETUP(c)), MC_GEAR_IN_COMMAND, 60),
 }
 
 

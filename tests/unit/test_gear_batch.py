@@ -51,13 +51,18 @@ def controller(lanes: bool) -> Controller:
     return ctl
 
 
-def mag(
-    ctl: Controller, slave: Axis, term: GearTerm, rate: float | None, owner: object, direction: int
-) -> Any:
-    """MAG's factory (``instructions/logix/mag.py``): the ramp, then the gear."""
+def mag(ctl: Controller, slave: Axis, term: GearTerm, rate: Any, owner: object,
+        direction: int) -> Any:  # fmt: skip
+    """MAG's factory (``instructions/logix/mag.py``): the ramp, then the gear; with a
+    pair for the rate, MC_GearIn's (``RateRamp(acceleration, deceleration)``)."""
 
     def make(v: float, a: float) -> GearProcess:
-        ramp = None if rate is None else RateRamp(rate)
+        if rate is None:
+            ramp = None
+        elif isinstance(rate, tuple):
+            ramp = RateRamp(*rate)
+        else:
+            ramp = RateRamp(rate)
         return GearProcess(ctl, slave, (term,), ramp, v, a, owner=owner, direction=direction)
 
     return make
@@ -132,7 +137,14 @@ VALID_RATIOS = [(50_000, 100_000, False), (-3, 2, False), (1, 3, False), (7, 5, 
 REFUSED_RATIOS = [(0, 1, False), (1, 0, False), (float("nan"), 1, False), (1.5, 2, True),
                   (3, -1, True), (5e6, 1, False)]  # fmt: skip
 ratios = st.sampled_from([*VALID_RATIOS * 6, *REFUSED_RATIOS])
-rates = st.sampled_from([None] * 6 + [1000.0] * 6 + [250.0, 3000, 0.0, float("inf")])
+rates = st.sampled_from(
+    [None] * 6
+    + [1000.0] * 6
+    + [250.0, 3000, 0.0, float("inf")]
+    # MC_GearIn's catch-up: (acceleration, deceleration)
+    + [(1000.0, 250.0)] * 4
+    + [(800.0, 800.0), (0.0, 100.0), (100.0, float("nan"))]
+)
 gears = st.tuples(
     st.integers(5, 12),
     st.sampled_from([1, 2, 3, 4, 5, 6, 11, 12] * 4 + [99]),
@@ -176,6 +188,7 @@ def acyclic(pairs: list[tuple[int, int]]) -> list[tuple[int, int]]:
     reads=st.lists(st.tuples(st.integers(0, 120), st.integers(1, N)), max_size=4),
     snapshot=st.booleans(),
     alike=st.booleans(),
+    aborting=st.booleans(),
 )  # fmt: skip
 def test_start_gears_is_start_on_each_slave_in_order(
     jogging: list[int],
@@ -186,7 +199,11 @@ def test_start_gears_is_start_on_each_slave_in_order(
     reads: list[tuple[int, int]],
     snapshot: bool,
     alike: bool,
+    aborting: bool,
 ) -> None:
+    """MAG's gears (replacing a gear) and, ``aborting``, MC_GearIn's (replacing every
+    process: a jogging slave's jog too)."""
+    replace = None if aborting else GEAR
     if alike:  # every gear with the first one's parameters (its master and slave apart)
         batch = [(g[0], g[1], *batch[0][2:]) for g in batch]
     ctls = {"batch": controller(True), "loop": controller(True), "ref": controller(False)}
@@ -211,13 +228,13 @@ def test_start_gears_is_start_on_each_slave_in_order(
         dirs = [g[5] for g in batch]
         if name == "batch":
             try:
-                ctl.start_gears(slaves, terms, rates_, owners, dirs)
+                ctl.start_gears(slaves, terms, rates_, owners, dirs, replace)
             except MotionError as exc:
                 errors[name] = int(exc.code)
         else:
             for ax, term, rate, owner, d in zip(slaves, terms, rates_, owners, dirs, strict=True):
                 try:
-                    ctl.start(ax, mag(ctl, ax, term, rate, owner, d), replace=GEAR)
+                    ctl.start(ax, mag(ctl, ax, term, rate, owner, d), replace=replace)
                 except MotionError as exc:
                     errors[name] = int(exc.code)
                     break

@@ -3,8 +3,8 @@
 
 Two systems get the same writes: one scans with batches (the default), the other with
 ``batch=False`` (every instance alone, as before the batches). MAJ, MAM, MAG, MAS,
-MC_Stop, MC_Halt, MC_MoveVelocity, MC_MoveAbsolute and MC_MoveRelative instances are
-mixed with MGS (which always executes alone, so it cuts a batch) in one fixed order;
+MC_Stop, MC_Halt, MC_MoveVelocity, MC_MoveAbsolute, MC_MoveRelative and MC_GearIn
+instances are mixed with MGS (which always executes alone, so it cuts a batch) in one fixed order;
 random scans fire random subsets with random, partly invalid operands: two instances on
 one axis, a MAG whose master is a slave geared in the same scan, loops of gears, Merge,
 S-curve and master units (executed alone), a negative ratio, stops of some kinds or with
@@ -117,6 +117,17 @@ POOLS: dict[str, dict[str, list[Any]]] = {
         "Direction": [1, 2, 3, 4],
         "BufferMode": [0, 0, 0, 1],
     },
+    "MC_GearIn": {
+        "Slave": AXES,
+        "Master": AXES,
+        "RatioNumerator": [0.5, 0.5, -2.0, 0.0],
+        "RatioDenominator": [1.0, 1.0, 3.0],
+        "MasterValueSource": [0, 0, 1],
+        "Acceleration": RATES,
+        "Deceleration": RATES,
+        "Jerk": [0.0, 0.0, 0.0, 100.0],
+        "BufferMode": [0, 0, 0, 1],
+    },
 }
 #: the instances in scan order: runs of one type, cut by the others
 ORDER = [
@@ -130,7 +141,9 @@ ORDER = [
     ("MAJ7", "MAJ"), ("MAJ8", "MAJ"), ("MAM4", "MAM"), ("MC_MoveRelative1", "MC_MoveRelative"),
     ("MC_MoveRelative2", "MC_MoveRelative"), ("MC_MoveAbsolute1", "MC_MoveAbsolute"),
     ("MC_MoveAbsolute2", "MC_MoveAbsolute"), ("MC_MoveRelative3", "MC_MoveRelative"),
-    ("MC_MoveAbsolute3", "MC_MoveAbsolute"),
+    ("MC_MoveAbsolute3", "MC_MoveAbsolute"), ("MC_GearIn1", "MC_GearIn"),
+    ("MC_GearIn2", "MC_GearIn"), ("MC_GearIn3", "MC_GearIn"), ("MAJ9", "MAJ"),
+    ("MC_GearIn4", "MC_GearIn"),
 ]  # fmt: skip
 
 
@@ -729,3 +742,53 @@ def test_plcopen_moves_of_one_scan_start_in_one_call_and_abort_every_process() -
     for name, (axis, position) in ends.items():
         assert systems[0][name].outputs["Done"], name
         assert systems[0].ctl.axis(axis).command_position == position, name
+
+
+def test_gear_in_blocks_of_one_scan_start_in_one_call_and_abort_every_process() -> None:
+    """MAJ1 and MAJ2 jog axes 1 and 2 at 20 units/s, MAJ3 jogs axis 4 at -5 units/s.
+    Then MC_GearIn1..3 gear axes 4, 5 and 6 to axes 1, 2 and 1 at 1/2 (aborting, the
+    default, trapezoidal catch-up at 100 units/s²): one ``start_gears`` call with the
+    three gears, replacing every process (``replace=None``): axis 4's jog is aborted and
+    its gear catches up from -5 units/s. The slaves reach 10 units/s within 0.15 s (from
+    rest 0.1 s); after 0.4 s every block shows InGear. Outputs and motion as one by
+    one."""
+    systems = [build(batch, True) for batch in (True, False)]
+    calls: list[tuple[int, Any]] = []
+    ctl = systems[0].ctl
+    start_gears = ctl.start_gears
+
+    def spy(axes: Any, *args: Any) -> Any:
+        calls.append((len(axes), args[-1]))
+        return start_gears(axes, *args)
+
+    ctl.start_gears = spy  # type: ignore[method-assign]
+    jog = {"AccelRate": 100.0, "DecelRate": 100.0, "AccelUnits": 0, "DecelUnits": 0}
+    for system in systems:
+        fire(system, {
+            "MAJ1": {"Axis": 1, "Speed": 20.0, **jog},
+            "MAJ2": {"Axis": 2, "Speed": 20.0, **jog},
+            "MAJ3": {"Axis": 4, "Speed": 5.0, "Direction": 1, **jog},
+        })  # fmt: skip
+    for k in range(150):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("jogs", k))
+    gear = {"RatioNumerator": 1.0, "RatioDenominator": 2.0, "Acceleration": 100.0,
+            "Deceleration": 100.0}  # fmt: skip
+    for system in systems:
+        fire(system, {
+            "MC_GearIn1": {"Slave": 4, "Master": 1, **gear},
+            "MC_GearIn2": {"Slave": 5, "Master": 2, **gear},
+            "MC_GearIn3": {"Slave": 6, "Master": 1, **gear},
+        })  # fmt: skip
+    same(systems[0], systems[1], "the cycle of the gears")
+    assert calls == [(3, None)]
+    assert systems[0]["MAJ3"].outputs["IP"] is False
+    for k in range(200):
+        for system in systems:
+            system.cycle()
+        same(systems[0], systems[1], ("gearing", k))
+    for name, axis in (("MC_GearIn1", 4), ("MC_GearIn2", 5), ("MC_GearIn3", 6)):
+        out = systems[0][name].outputs
+        assert out["Busy"] and out["Active"] and out["InGear"], name
+        assert systems[0].ctl.axis(axis).command_velocity == 10.0, name

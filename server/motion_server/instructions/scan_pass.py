@@ -6,12 +6,12 @@ Scanned one by one, each MAJ or MAG that fires builds and starts its own kernel 
 can join a batch (:attr:`BatchKind`: MAJ -> jogs, MAM -> moves, MAG -> gears, MAPC ->
 position cams, MAS and MC_Stop -> stops, MC_Halt -> halts, MC_MoveVelocity -> jogs that
 abort every process, MC_MoveAbsolute and MC_MoveRelative -> moves that abort every
-process) and whose trigger rose are latched, judged and checked one by one,
-as their own ``scan`` does, but their kernel commands are queued; the queue goes to the
-kernel in one call per kind (``Controller.start_jogs``, ``Controller.start_moves``,
-``Controller.start_gears``, ``kernel.cam_batch.start_position_cams``,
-``Controller.stop_many``) and then every instance writes its status from the process it
-got.
+process, MC_GearIn -> gears that abort every process) and whose trigger rose are
+latched, judged and checked one by one, as their own ``scan`` does, but their kernel
+commands are queued; the queue goes to the kernel in one call per kind
+(``Controller.start_jogs``, ``Controller.start_moves``, ``Controller.start_gears``,
+``kernel.cam_batch.start_position_cams``, ``Controller.stop_many``) and then every
+instance writes its status from the process it got.
 
 The observable result is exactly that of scanning one by one (tested against it, every
 output and the kernel's arrays after every cycle). That holds because a queued command
@@ -21,11 +21,11 @@ over:
 - the queue holds one kind, in the instances' order; any other instance (another type,
   a trigger that did not rise, an instance that executes alone) first hands the queue
   over, so the kernel sees the commands in the order one-by-one scanning gives;
-- an instance whose axis is already in the queue (a second MAJ on one axis, a MAG whose
-  slave is a queued slave or master, whose master is a queued slave or reaches one
-  through the master/slave links; a MAPC whose slave is a queued slave or master, or
-  whose master reaches a queued slave) first hands the queue over: its checks then see
-  the state the queued commands leave;
+- an instance whose axis is already in the queue (a second MAJ on one axis, a MAG or
+  MC_GearIn whose slave is a queued slave or master, whose master is a queued slave or
+  reaches one through the master/slave links; a MAPC whose slave is a queued slave or
+  master, or whose master reaches a queued slave) first hands the queue over: its
+  checks then see the state the queued commands leave;
 - the jogs (or moves) of one call share one :class:`~..kernel.Limits`: the queue is
   split where the limits change, keeping the order;
 - an instance that decides to execute alone (a MAJ or MAM with Merge, master-driven or
@@ -35,7 +35,8 @@ over:
   MC_Stop with a jerk; an MC_Halt with a jerk or buffered; an MC_MoveVelocity buffered
   or in the current direction; an MC_MoveAbsolute or MC_MoveRelative buffered, an
   MC_MoveAbsolute in the current direction on a rotary axis) hands the queue over first
-  and runs its own ``execute`` (a PLCopen block, its own ``scan``).
+  and runs its own ``execute`` (a PLCopen block, its own ``scan``; an MC_GearIn
+  buffered or with a jerk-limited catch-up).
 
 A kernel call that raises (a plan refused on one axis) has started the axes before the
 one refused, as the loop would: the instance refused shows the error (or, for an
@@ -45,7 +46,7 @@ the rest of the queue is handed over again.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence, Set
 from enum import IntEnum
 from typing import TYPE_CHECKING, Any
 
@@ -101,6 +102,8 @@ class BatchKind(IntEnum):
     MOVE = 6
     #: moves that replace every process (MC_MoveAbsolute, MC_MoveRelative, aborting)
     ABORTING_MOVE = 7
+    #: gears that replace every process (MC_GearIn, aborting)
+    GEAR_IN = 8
 
 
 #: the process kind each batch starts (how a refused batch finds what it started)
@@ -113,6 +116,7 @@ _PROCESS_KIND: dict[BatchKind, ProcessKind] = {
     BatchKind.VELOCITY: ProcessKind.JOG,
     BatchKind.MOVE: ProcessKind.MOVE,
     BatchKind.ABORTING_MOVE: ProcessKind.MOVE,
+    BatchKind.GEAR_IN: ProcessKind.GEAR,
 }
 _NO_STATUS: dict[str, Any] = {}
 #: the processes a new gear supersedes (MAG), a new move (MAM)
@@ -127,7 +131,8 @@ class Batch:
 
     ``jobs[k]`` is the command of ``owners[k]``: for jogs ``(axis, signed target,
     limits)``, for moves ``(axis, distance, limits, landing)``, for gears ``(slave,
-    term, clutch rate or None, direction)``, for position cams a
+    term, clutch rate, MC_GearIn's (acceleration, deceleration) or None, direction)``,
+    for position cams a
     :class:`~..kernel.cam_batch.CamStart` (its slave first). ``axes`` holds every axis
     number a queued command touches, ``slaves`` the axes it starts a process on.
     """
@@ -159,6 +164,11 @@ class Batch:
         command on one axis in a scan)."""
         if number in self.axes:
             self.flush()
+
+    def reaching(self, master: int, slave: int) -> tuple[bool, bool]:
+        """(a gear or cam of ``slave`` on ``master`` closes a loop, ``master`` is a slave
+        queued here or follows one): :func:`walk_masters` over the queued slaves."""
+        return walk_masters(self.ctl, master, slave, self.slaves if self.jobs else _NONE)
 
     def add(
         self, kind: BatchKind, owner: BatchInstruction, job: tuple[Any, ...], axes: Iterable[int]
@@ -229,6 +239,7 @@ class Batch:
                         [job[2] for job in jobs],
                         owners,
                         [job[3] for job in jobs],
+                        None if kind is BatchKind.GEAR_IN else _REPLACE_GEAR,
                     )
             except Exception as exc:
                 # the axes before the refused one started, as in the loop
@@ -263,6 +274,37 @@ class Batch:
             if self.contain is None:
                 raise
             self.contain(owner, exc)
+
+
+def walk_masters(ctl: Controller, master: int, slave: int, queued: Set[int]) -> tuple[bool, bool]:
+    """(a gear of ``slave`` to ``master`` closes a loop, ``master`` is one of ``queued``
+    or follows one of them) through the active processes' masters: the walk of
+    ``Controller.would_cycle``, which a gear queued on such a slave would change."""
+    frontier = [master]
+    seen: set[int] = set()
+    loops = reaches = False
+    while frontier:
+        n = frontier.pop()
+        if n == slave:
+            loops = True
+        if n in queued:
+            reaches = True
+        if loops and (reaches or not queued):
+            break
+        if n in seen:
+            continue
+        seen.add(n)
+        try:
+            ax = ctl.axis(n)
+        except MotionError:
+            continue
+        for p in ax.processes:
+            if p.active:
+                frontier.extend(p.masters)
+    return loops, reaches
+
+
+_NONE: frozenset[int] = frozenset()
 
 
 def _new_process(ax: Axis, owner: object, before: Process | None, kind: BatchKind) -> Process:

@@ -49,7 +49,7 @@ from .enums import (
 )
 from .errors import ErrorCode, MotionError
 from .faults import APPLIES, CAUSE_BIT, DISABLE_DRIVE, OVERTRAVEL, FaultCause, FaultInjection
-from .gear_batch import start_gears
+from .gear_batch import Rate, start_gears
 from .gearing import GearTerm
 from .group import AFTER_FAST_STOP, GroupStop, MotionGroup, OperatingMode, after_stops_due
 from .homing import HomeHandle, HomeProcess, HomeRequest, Homing, PassiveHoming, judge
@@ -713,16 +713,19 @@ class Controller:
         self,
         slaves: Sequence[Axis],
         terms: Sequence[GearTerm],
-        clutch_rates: Sequence[float | None],
+        clutch_rates: Sequence[Rate],
         owners: Sequence[object] | None = None,
         directions: Sequence[int] | None = None,
+        replace: Collection[ProcessKind] | None = (ProcessKind.GEAR,),
     ) -> list[Process]:
         """Gears on many slaves in one call (MAG or MC_GearIn executed on N slaves in one
         scan): ``start`` of ``GearProcess(ctl, slaves[k], (terms[k],), ramp, v, a,
-        owners[k], directions[k])`` replacing the gear of ``slaves[k]``, ``ramp`` a
-        ``RateRamp(clutch_rates[k])`` (None: no clutch, locked at once), for every k in
-        order, the same state, for less work per slave (:func:`.gear_batch.start_gears`)."""
-        return start_gears(self.motion, slaves, terms, clutch_rates, owners, directions)
+        owners[k], directions[k])`` replacing the gear of ``slaves[k]`` (``replace``: the
+        kinds replaced, None for every process), ``ramp`` a ``RateRamp(clutch_rates[k])``
+        (a pair: ``RateRamp(acceleration, deceleration)``; None: no clutch, locked at
+        once), for every k in order, the same state, for less work per slave
+        (:func:`.gear_batch.start_gears`)."""
+        return start_gears(self.motion, slaves, terms, clutch_rates, owners, directions, replace)
 
     def set_override(self, ax: Axis, factors: Override) -> None:
         """Scale the axis's moves and jogs (see :meth:`Motion.set_override

@@ -8,7 +8,9 @@ MAG's factory
 
 where ``ramp`` is ``RateRamp(rate)`` (the clutch: the slave catches up at ``rate`` from
 the velocity it inherits, then locks) or None (no clutch: locked at once), and
-``replace=(ProcessKind.GEAR,)``. It leaves the very same state (the tests compare the
+``replace=(ProcessKind.GEAR,)``; or MC_GearIn's, whose trapezoidal catch-up is
+``RateRamp(acceleration, deceleration)`` (a pair given as the rate) and whose aborting
+mode replaces every process (``replace=None``). It leaves the very same state (the tests compare the
 two attribute by attribute and step them side by side, lanes on and off). What it saves
 is the per-slave work that does not depend on the slave:
 
@@ -33,7 +35,7 @@ on a slave leaves the slaves before it started and nothing changed on it.
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from itertools import chain
 from typing import Any
 
@@ -48,8 +50,11 @@ from .motion import Motion
 from .processes import Process, ProcessFactory
 from .state import AxisArrays
 
-#: what a gear replaces (Logix MAG; the PLCopen aborting mode uses start)
+#: what a gear replaces (Logix MAG; None for the PLCopen aborting mode)
 _REPLACE = (ProcessKind.GEAR,)
+#: a gear's catch-up: None (locked at once), MAG's clutch rate, or MC_GearIn's
+#: (acceleration, deceleration)
+Rate = float | tuple[float, float] | None
 _COMMAND = MasterReference.COMMAND
 
 
@@ -57,17 +62,28 @@ def _factory(
     ctx: AxisArrays,
     slave: Axis,
     term: GearTerm,
-    rate: float | None,
+    rate: Rate,
     owner: object,
     direction: int,
 ) -> ProcessFactory:
-    """MAG's factory: the ramp built with the gear (``RateRamp`` judges its rate)."""
+    """MAG's (or MC_GearIn's) factory: the ramp built with the gear (``RateRamp`` judges
+    its rate, or its acceleration and deceleration)."""
 
     def make(v: float, a: float) -> Process:
-        ramp = None if rate is None else RateRamp(rate)
+        ramp = _ramp(rate)
         return GearProcess(ctx, slave, (term,), ramp, v, a, owner=owner, direction=direction)
 
     return make
+
+
+def _ramp(rate: Rate) -> RateRamp | None:
+    """The catch-up of ``rate``: none, MAG's clutch rate, or (acceleration,
+    deceleration)."""
+    if rate is None:
+        return None
+    if isinstance(rate, tuple):
+        return RateRamp(*rate)
+    return RateRamp(rate)
 
 
 class _Template:
@@ -191,16 +207,19 @@ def start_gears(
     motion_or_ctl: Any,
     slaves: Sequence[Axis],
     terms: Sequence[GearTerm],
-    clutch_rates: Sequence[float | None],
+    clutch_rates: Sequence[Rate],
     owners: Sequence[object] | None = None,
     directions: Sequence[int] | None = None,
+    replace: Collection[ProcessKind] | None = _REPLACE,
 ) -> list[Process]:
     """Start a gear of ``terms[k]`` on ``slaves[k]`` for every k in order (see the module
-    docstring): clutched at ``clutch_rates[k]`` (None: locked at once), owned by
-    ``owners[k]`` (None: no owner), in the direction ``directions[k]`` kept on the slave
-    (+1 same, -1 opposite, as MAG resolves it; None: +1, the constructor's default).
-    ``motion_or_ctl`` is the :class:`~.motion.Motion` or the controller holding it.
-    Returns the processes started."""
+    docstring): clutched at ``clutch_rates[k]`` (None: locked at once; a pair: MC_GearIn's
+    acceleration and deceleration), owned by ``owners[k]`` (None: no owner), in the
+    direction ``directions[k]`` kept on the slave (+1 same, -1 opposite, as MAG resolves
+    it; None: +1, the constructor's default), each replacing ``replace`` (a gear, as MAG;
+    None: every process, MC_GearIn's aborting mode). ``motion_or_ctl`` is the
+    :class:`~.motion.Motion` or the controller holding it. Returns the processes
+    started."""
     n = len(slaves)
     if (
         len(terms) != n
@@ -233,7 +252,7 @@ def start_gears(
                 # not an axis without motion: the start's own path, in the loop's order
                 batch.admit()
                 make = _factory(ctx, ax, term, rate, owner, direction)
-                started.append(motion.start(ax, make, _REPLACE))
+                started.append(motion.start(ax, make, replace))
                 continue
             num, den = term.numerator, term.denominator
             source = term.source

@@ -28,11 +28,10 @@ Decisions the seed leaves open (DESIGN.md):
 from __future__ import annotations
 
 import math
-from collections.abc import Set
 from enum import IntEnum
 from typing import Any, ClassVar, TypeVar
 
-from ...kernel import Axis, AxisType, Controller, MotionError, ProcessKind
+from ...kernel import Axis, AxisType, ProcessKind
 from ...kernel.gearing import (
     GearProcess,
     GearTerm,
@@ -241,8 +240,7 @@ class MAG(ProcessInstruction):
         ctl = self.ctl
         s = int(op["SlaveAxis"])
         m = int(op["MasterAxis"])
-        queued = batch.slaves if batch.jobs else _NONE
-        loops, reaches = _walk(ctl, m, s, queued)
+        loops, reaches = batch.reaching(m, s)
         if reaches or s in batch.axes:
             batch.flush()  # its checks see the gears queued before it
             slave, term, rate, direction = self._gear()
@@ -289,34 +287,5 @@ class MAG(ProcessInstruction):
         self.started(ctl.start(slave, make, replace=_REPLACE))
 
 
-def _walk(ctl: Controller, master: int, slave: int, queued: Set[int]) -> tuple[bool, bool]:
-    """(a gear of ``slave`` to ``master`` closes a loop, ``master`` is one of ``queued``
-    or follows one of them) through the active processes' masters: the walk of
-    ``Controller.would_cycle``, which a gear queued on such a slave would change."""
-    frontier = [master]
-    seen: set[int] = set()
-    loops = reaches = False
-    while frontier:
-        n = frontier.pop()
-        if n == slave:
-            loops = True
-        if n in queued:
-            reaches = True
-        if loops and (reaches or not queued):
-            break
-        if n in seen:
-            continue
-        seen.add(n)
-        try:
-            ax = ctl.axis(n)
-        except MotionError:
-            continue
-        for p in ax.processes:
-            if p.active:
-                frontier.extend(p.masters)
-    return loops, reaches
-
-
-_NONE: frozenset[int] = frozenset()
 _COMMAND = MasterSource.COMMAND
 _FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY

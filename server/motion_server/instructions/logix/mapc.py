@@ -68,7 +68,7 @@ from ..operands import MASTER_AXIS, SLAVE_AXIS
 from ..registry import register
 from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Operand, Quantity, StatusField, TagType
-from .mag import _NONE, DIRECTION, GearDirection, _walk, resolve_direction
+from .mag import DIRECTION, GearDirection, resolve_direction
 from .mccp import CAM_PROFILE
 
 LOCKS = {
@@ -223,7 +223,7 @@ class MAPC(CamInstruction):
         m = int(op["MasterAxis"])
         # one walk over the master/slave links: whether the cam closes a loop, whether
         # its master is a queued slave or follows one
-        loops, reaches = _walk(self.ctl, m, s, batch.slaves if batch.jobs else _NONE)
+        loops, reaches = batch.reaching(m, s)
         flushed = reaches or s in batch.axes
         if flushed:
             batch.flush()  # its checks see the cams queued before it (in full: ``_plan``)

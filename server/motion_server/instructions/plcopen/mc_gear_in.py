@@ -15,12 +15,28 @@ Servo Control (5, 7, 20) and not stopping (78).
 
 from __future__ import annotations
 
-from ...kernel.gearing import GearProcess, GearTerm, MasterSource, catch_up, check_master
+from typing import Any
+
+from ...kernel import Axis, AxisType
+from ...kernel.gearing import (
+    CatchUp,
+    GearProcess,
+    GearTerm,
+    MasterSource,
+    RateRamp,
+    catch_up,
+    check_master,
+)
 from ...kernel.processes import Process
 from ..operands import plcopen_dynamics
 from ..plcopen_common import BUFFER_MODE, MCSource, MotionBlock, follows_as
 from ..registry import register
+from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Kind, Operand, Quantity, StatusField, TagType
+
+#: the operands the gear's ratio and catch-up read (not its axes)
+_GEAR = ("RatioNumerator", "RatioDenominator", "Acceleration", "Deceleration", "Jerk")
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
 
 MASTER = Operand("Master", TagType.DINT, 1, kind=Kind.AXIS, description="master axis number")
 SLAVE = Operand("Slave", TagType.DINT, 2, kind=Kind.AXIS, description="slave axis number")
@@ -71,7 +87,64 @@ class MC_GearIn(MotionBlock):
     )
     OUTPUTS = (StatusField("InGear", TagType.BOOL, "the slave runs at the geared velocity"),)
 
-    def execute(self) -> None:
+    #: rising edges in one scan start their gears with one ``Controller.start_gears``
+    BATCH = BatchKind.GEAR_IN
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the gear returned as (slave, term,
+        (acceleration, deceleration), direction) for ``Controller.start_gears``; None
+        for a buffered block or a jerk-limited catch-up (it executes alone). A gear
+        whose slave is an axis of the queue, or whose master is a queued slave or
+        follows one, hands the queue over first, so that its checks (a loop of masters
+        among them) see the gears queued before it. Raises what ``execute`` raises
+        before its command."""
+        op = self.op
+        s, m = int(op["Slave"]), int(op["Master"])
+        loops, reaches = batch.reaching(m, s)
+        if reaches or s in batch.axes:
+            batch.flush()  # its checks see the gears queued before it (in full)
+            slave, term, direction, ramp = self._judged()
+            if type(ramp) is not RateRamp or self.buffered():
+                return None
+            return (slave, term, (ramp.accel, ramp.decel), direction), (s, m)
+        # _judged's checks in its order, in full only where they refuse (the kernel's
+        # errors); the ratio and the catch-up depend on their operands and the slave's
+        # maxima only: worked out once per set of them in a scan pass
+        slave = self.axis("Slave")
+        master = self.axis("Master")
+        if not takes_motion(slave) or slave.stopping:
+            self.check_axis(slave)
+        source = master_source(int(op["MasterValueSource"]))
+        if loops or (source == MasterSource.COMMAND and master.type is _FEEDBACK_ONLY):
+            check_master(self.ctl, slave, master, source)
+        cfg = slave.config
+        dt = self.ctl.dt(slave)
+        memo = (MC_GearIn, *map(op.__getitem__, _GEAR), cfg.max_acceleration,
+                cfg.max_deceleration, cfg.max_jerk, dt)  # fmt: skip
+        planned = batch.plans.get(memo)
+        if planned is None:
+            num = float(op["RatioNumerator"])
+            if num == 0.0:
+                raise self.out_of_range("RatioNumerator", "RatioNumerator must be non-zero")
+            den = float(op["RatioDenominator"])
+            GearTerm(m, source, num, den).validated()
+            self.check_gear_dynamics(slave)
+            ramp = catch_up(dt, *self._catch_up())
+            pair = (ramp.accel, ramp.decel) if type(ramp) is RateRamp else None
+            planned = batch.plans[memo] = (num, den, 1 if num > 0 else -1, pair)
+        num, den, direction, pair = planned
+        if pair is None or self.buffered():
+            return None
+        return (slave, GearTerm(m, source, num, den), pair, direction), (s, m)
+
+    def _catch_up(self) -> tuple[float, float, float]:
+        """Acceleration, Deceleration and Jerk of the catch-up."""
+        op = self.op
+        return float(op["Acceleration"]), float(op["Deceleration"]), float(op["Jerk"])
+
+    def _judged(self) -> tuple[Axis, GearTerm, int, CatchUp]:
+        """The checks of ``execute`` before its command: the slave, the gear's term, its
+        direction and the catch-up its dynamics make (built to judge them)."""
         slave = self.axis("Slave")
         master = self.axis("Master")
         self.check_axis(slave)
@@ -82,12 +155,15 @@ class MC_GearIn(MotionBlock):
             raise self.out_of_range("RatioNumerator", "RatioNumerator must be non-zero")
         term = GearTerm(master.number, source, num, float(self.op["RatioDenominator"]))
         term.validated()
-        dt = self.ctl.dt(slave)
-        acc, dec, jerk = (float(self.op[k]) for k in ("Acceleration", "Deceleration", "Jerk"))
         self.check_gear_dynamics(slave)
-        catch_up(dt, acc, dec, jerk)  # judge the dynamics now: a bad value moves nothing
+        ramp = catch_up(self.ctl.dt(slave), *self._catch_up())  # a bad value moves nothing
+        return slave, term, 1 if num > 0 else -1, ramp
+
+    def execute(self) -> None:
+        slave, term, direction, _ = self._judged()
+        dt = self.ctl.dt(slave)
+        acc, dec, jerk = self._catch_up()
         ctl = self.ctl
-        direction = 1 if num > 0 else -1
 
         def make(v: float, a: float) -> Process:
             ramp = catch_up(dt, acc, dec, jerk)
