@@ -19,6 +19,7 @@ planned attributes and owners) on every axis, lanes on and off.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -244,12 +245,13 @@ def same(batched: MotionSystem, alone: MotionSystem, when: object) -> None:
         assert a.gear_direction == b.gear_direction, (when, a.name)
 
 
-@pytest.mark.parametrize("lanes", [True, False])
-@settings(max_examples=150, deadline=None)
-@given(plan=scans())
-def test_a_scan_with_batches_acts_as_one_instance_at_a_time(
-    lanes: bool, plan: list[list[tuple[str, dict[str, Any], bool]]]
+def run_side_by_side(
+    build: Callable[[bool, bool], MotionSystem],
+    lanes: bool,
+    plan: list[list[tuple[str, dict[str, Any], bool]]],
 ) -> None:
+    """The cycles of ``plan`` (and three quiet ones) on a system ``build`` makes with
+    batches and on one without, :func:`same` after every cycle."""
     batched, alone = build(True, lanes), build(False, lanes)
     for k, cycle in enumerate(plan + [[]] * 3):
         for system in (batched, alone):
@@ -257,6 +259,15 @@ def test_a_scan_with_batches_acts_as_one_instance_at_a_time(
         batched.cycle()
         alone.cycle()
         same(batched, alone, (k, cycle))
+
+
+@pytest.mark.parametrize("lanes", [True, False])
+@settings(max_examples=150, deadline=None)
+@given(plan=scans())
+def test_a_scan_with_batches_acts_as_one_instance_at_a_time(
+    lanes: bool, plan: list[list[tuple[str, dict[str, Any], bool]]]
+) -> None:
+    run_side_by_side(build, lanes, plan)
 
 
 def test_jogs_and_gears_of_one_scan_reach_the_kernel_in_one_call_each() -> None:

@@ -24,7 +24,7 @@ from hypothesis import given, settings
 from motion_server.instructions import MotionSystem
 from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
 
-from .test_scan_batch import same, scan_plans, write_scan
+from .test_scan_batch import run_side_by_side, scan_plans
 
 #: axes 1..6 servo (on), 7 feedback only, 8 servo off; 9 does not exist
 AXES = [1, 2, 3, 4, 5, 6, 1, 2, 3, 4, 5, 6, 7, 8, 9]
@@ -92,10 +92,4 @@ def build(batch: bool, lanes: bool) -> MotionSystem:
 def test_a_scan_with_gear_in_batches_acts_as_one_instance_at_a_time(
     lanes: bool, plan: list[list[tuple[str, dict[str, Any], bool]]]
 ) -> None:
-    batched, alone = build(True, lanes), build(False, lanes)
-    for k, cycle in enumerate(plan + [[]] * 3):
-        for system in (batched, alone):
-            write_scan(system, cycle)
-        batched.cycle()
-        alone.cycle()
-        same(batched, alone, (k, cycle))
+    run_side_by_side(build, lanes, plan)

@@ -148,12 +148,36 @@ class _Joining:
     :meth:`admit`, before anything else is started)."""
 
     def __init__(self, motion: Motion) -> None:
+        self._motion = motion
         self._s = motion.s
+        #: Motion.lanes_for, its group's part looked up once per group
+        self._offered: dict[int, GroupLanes | None] = {}
         self.lanes: GroupLanes | None = None
         self.kind: str | None = None
         self.pairs: list[tuple[Process, Axis]] = []
         #: the prototype of each process of the batch (what its lane row is copied from)
         self.protos: list[Any] = []
+
+    def take(self, ax: Axis, procs: list[Process], p: Process, proto: Any, kind: str) -> bool:
+        """``Motion.start_from_rest`` of ``p``, just built on ``ax`` (without motion,
+        nothing buffered; ``procs`` its empty process list), with its admission to its
+        group's ``kind`` lane and its axis's busy flag deferred to the batch (``proto``:
+        what its lane row is copied from); False when the group's lanes do not take it
+        now (the caller starts it)."""
+        group = ax.group
+        lanes = self._offered.get(group, _UNKNOWN)
+        if lanes is _UNKNOWN:
+            motion = self._motion
+            lanes = self._offered[group] = motion.lanes[group] if motion.offers(group) else None
+        if lanes is None or not self._s.drive_on.item(ax.index):
+            return False
+        procs.append(p)
+        p.offer_pending = False
+        if lanes is not self.lanes or kind != self.kind:
+            self.open(lanes, kind)
+        self.pairs.append((p, ax))
+        self.protos.append(proto)
+        return True
 
     def open(self, lanes: GroupLanes, kind: str) -> None:
         """Close the batch held (:meth:`admit`) and start one for ``lanes``' ``kind``."""
@@ -222,11 +246,7 @@ def start_jogs(
     limits = limits.validated()
     started: list[Process] = []
     joining = _Joining(motion)
-    pairs, kinds = joining.pairs, joining.protos
     protos = _Protos(limits)
-    # Motion.lanes_for, its group's part looked up once per group
-    offered: dict[int, GroupLanes | None] = {}
-    drive_on = motion.s.drive_on
     # the jog last built or copied: the next axis with the same target (the same
     # object, as a batch of equal targets has) and period is a copy of it
     last: tuple[object, float, _Proto] | None = None
@@ -252,24 +272,10 @@ def start_jogs(
                 p, proto = protos.make(ax.period, target, owner)
                 last = (target, ax.period, proto) if proto.copyable else None
             kind = proto.lane_kind
-            if kind is not None and ax.buffered is None:
-                group = ax.group
-                lanes = offered.get(group, _UNKNOWN)
-                if lanes is _UNKNOWN:
-                    lanes = offered[group] = motion.lanes[group] if motion.offers(group) else None
-                if lanes is not None and drive_on.item(ax.index):
-                    # Motion.start_from_rest of a jog just built, with its admission
-                    # (to its lane: planned, not finished) and its axis's busy flag
-                    # deferred to the batch
-                    procs.append(p)
-                    p.offer_pending = False
-                    if lanes is not joining.lanes or kind != joining.kind:
-                        joining.open(lanes, kind)
-                        pairs, kinds = joining.pairs, joining.protos
-                    pairs.append((p, ax))
-                    kinds.append(proto)
-                    started.append(p)
-                    continue
+            # (to its lane: planned, not finished)
+            if kind is not None and ax.buffered is None and joining.take(ax, procs, p, proto, kind):
+                started.append(p)
+                continue
             joining.admit()
             motion.start_from_rest(ax, procs, p, replace)
             started.append(p)

@@ -45,8 +45,6 @@ from .trapezoid import Plan, TrapezoidProfile
 
 #: what a move replaces (Logix MAM without Merge)
 _REPLACE = (ProcessKind.MOVE,)
-#: a group whose lanes were not looked up yet
-_UNKNOWN: Any = object()
 #: distinct distances from rest from which their plans are built together
 AHEAD = 4
 
@@ -205,14 +203,11 @@ def start_moves(
     limits = limits.validated()
     started: list[Process] = []
     joining = _MoveJoining(motion)
-    pairs, kinds = joining.pairs, joining.protos
     protos: dict[tuple[float, str], _Proto] = {}
     # per period, the first trapezoidal move from rest the constructors built: the
     # moves planned ahead are copies of it with their own plan
     templates: dict[float, _Proto] = {}
     ahead = _plans_ahead(axes, distances, limits)
-    offered: dict[int, GroupLanes | None] = {}
-    drive_on = motion.s.drive_on
     try:
         for k, ax in enumerate(axes):
             distance = distances[k]
@@ -244,23 +239,13 @@ def start_moves(
                     protos.setdefault(key, proto)
                 if proto.row is not None:
                     templates.setdefault(ax.period, proto)
-            if proto.row is not None and ax.buffered is None:
-                group = ax.group
-                lanes = offered.get(group, _UNKNOWN)
-                if lanes is _UNKNOWN:
-                    lanes = offered[group] = motion.lanes[group] if motion.offers(group) else None
-                if lanes is not None and drive_on.item(ax.index):
-                    # Motion.start_from_rest of a move just built, its admission to the
-                    # profile lane and its axis's busy flag deferred to the batch
-                    procs.append(p)
-                    p.offer_pending = False
-                    if lanes is not joining.lanes:
-                        joining.open(lanes, "profiles")
-                        pairs, kinds = joining.pairs, joining.protos
-                    pairs.append((p, ax))
-                    kinds.append(proto)
-                    started.append(p)
-                    continue
+            if (
+                proto.row is not None
+                and ax.buffered is None
+                and joining.take(ax, procs, p, proto, "profiles")
+            ):
+                started.append(p)
+                continue
             joining.admit()
             motion.start_from_rest(ax, procs, p, replace)
             started.append(p)

@@ -28,7 +28,16 @@ from .lanes.base import Lane
 from .motion import Motion
 from .power import ABORT_REASON, PowerEvent
 from .processes import Process
-from .stop_plan import clear_emptied, empty_lanes, idle, plain_and_active, refused, retire_order
+from .stop_plan import (
+    abort_all,
+    clear_emptied,
+    empty_lanes,
+    idle,
+    plain_and_active,
+    refused,
+    retire_order,
+    stepped_lanes,
+)
 
 _ACTIVE = ProcessState.ACTIVE
 _ABORTED = ProcessState.ABORTED
@@ -95,22 +104,8 @@ def power_off_axes(
                 lane.evict(p)
         ax.power_event = code
         # Motion.abort: Motion.retire of every process
-        if ax.preloaded_cams:
-            for p in ax.preloaded_cams:
-                p.abort(reason)
-            ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
+        abort_all(ax, procs, reason)
         if procs:
-            base = ax.base
-            for p in procs:
-                if p.state is _ACTIVE:
-                    if type(p).abort is _abort:
-                        p.state = _ABORTED
-                        p.abort_reason = reason
-                    else:
-                        p.abort(reason)
-                if p.state is not _ACTIVE:
-                    base += p.position
-            ax.base = base
             keep = [p for p in procs if p.state is _ACTIVE]
             if len(keep) != len(procs):
                 ax.processes = keep
@@ -165,17 +160,10 @@ def _power_off_members(
     batch's with 0.0 added to the bases of the followers that had a ramp."""
     lanes = motion.lanes[axes[0].group]
     n = len(axes)
-    found: list[Lane] = []
-    total = 0
-    for lane in lanes.all:
-        members = lane.members
-        if lane._joining:
-            return False
-        if members:
-            if len(lane._slot) != len(members):
-                return False
-            found.append(lane)
-            total += len(members)
+    stepped = stepped_lanes(lanes)
+    if stepped is None:
+        return False
+    found, total = stepped
     # (another stop's rows may still ramp other axes: an axis of the batch with a row,
     # or with its ramp made from one, is refused below)
     if idx is None:

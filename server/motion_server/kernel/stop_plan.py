@@ -222,6 +222,24 @@ def plain_and_active(members: list[Process]) -> bool:
     return list(map(_state, members)).count(_ACTIVE) == len(members)
 
 
+def stepped_lanes(lanes: GroupLanes) -> tuple[list[Lane], int] | None:
+    """The lanes of ``lanes`` that hold members, and how many, when every member was
+    stepped since the last rebuild (no lane has a process joining or evicted); None
+    otherwise."""
+    found: list[Lane] = []
+    total = 0
+    for lane in lanes.all:
+        members = lane.members
+        if lane._joining:
+            return None
+        if members:
+            if len(lane._slot) != len(members):
+                return None
+            found.append(lane)
+            total += len(members)
+    return found, total
+
+
 def _member_lanes(
     motion: Motion, lanes: GroupLanes, axes: Sequence[Axis], idx: np.ndarray
 ) -> list[Lane] | None:
@@ -237,17 +255,10 @@ def _member_lanes(
     members on ``axes`` alone, as many as the axes, are one process per axis. The
     members' classes and states are read with ``operator.attrgetter`` (no Python call
     per process)."""
-    found: list[Lane] = []
-    total = 0
-    for lane in lanes.all:
-        members = lane.members
-        if lane._joining:
-            return None
-        if members:
-            if len(lane._slot) != len(members):
-                return None
-            found.append(lane)
-            total += len(members)
+    stepped = stepped_lanes(lanes)
+    if stepped is None:
+        return None
+    found, total = stepped
     if total != len(axes) or lanes.stops.rows:
         return None
     # the batch is every axis of the group (a group stop of a group without feedback-only
@@ -467,6 +478,28 @@ def idle(axes: Sequence[Axis]) -> bool:
     )
 
 
+def abort_all(ax: Axis, procs: list[Process], reason: AbortReason) -> None:
+    """``Motion.retire`` of every process of ``ax`` (``procs``, its processes, out of
+    the lanes) and of its preloaded cams, without the calls: each active one aborted as
+    ``Process.abort`` does (inline when its class does not override it), each that ended
+    folded into the axis's base, in order."""
+    if ax.preloaded_cams:
+        for p in ax.preloaded_cams:
+            p.abort(reason)
+        ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
+    base = ax.base
+    for p in procs:
+        if p.state is _ACTIVE:
+            if type(p).abort is _abort:
+                p.state = _ABORTED
+                p.abort_reason = reason
+            else:
+                p.abort(reason)
+        if p.state is not _ACTIVE:
+            base += p.position
+    ax.base = base
+
+
 def something_to_stop(ax: Axis) -> bool:
     """A stop has something to replace on ``ax``: a process (a ramp still a row of the
     stop lane too, not made for this), a buffered command or a preloaded cam. An axis
@@ -570,22 +603,8 @@ def stop_axes(
         procs = ax.processes
         if not procs:
             lanes.dirty = True
-        if ax.preloaded_cams:
-            for p in ax.preloaded_cams:
-                p.abort(reason)
-            ax.preloaded_cams = [p for p in ax.preloaded_cams if p.active]
+        abort_all(ax, procs, reason)
         base = ax.base
-        for p in procs:
-            if p.state is _ACTIVE:
-                if type(p).abort is _abort:
-                    # Process.abort, inlined (the process left its lane above)
-                    p.state = _ABORTED
-                    p.abort_reason = reason
-                else:
-                    p.abort(reason)
-            if p.state is not _ACTIVE:
-                base += p.position
-        ax.base = base
         if not coupling and any(p.masters for p in procs):
             # (a process that read no master changes no composition order)
             coupling = True

@@ -20,7 +20,7 @@ from ..dynamics import DriveMode, MergeMode, MergeSpeed
 from ..logix_common import STARTED_ACTIVE
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
-from ..scan_pass import Batch, BatchKind, takes_motion
+from ..scan_pass import Batch, BatchKind
 from ..schema import Operand, TagType
 from .mdsc import SpeedControlledMotion, tracking_status
 
@@ -78,22 +78,12 @@ class MAJ(SpeedControlledMotion):
         checks of ``check_axis`` run in full only where they refuse (the kernel's error):
         an axis in a state that takes motion, not faulted, in a group not stopping (known
         once per group until the batch is handed over) passes them."""
-        op = self.op
-        if int(op["Merge"]) == _MERGE:
+        if int(self.op["Merge"]) == _MERGE:
             return None
-        ax = self.ctl.axis(int(op["Axis"]))
+        ax = self.batch_axis(batch)
+        if ax is None:
+            return None
         number = ax.number
-        batch.before_axis(number)
-        if self.ctl.mdsc.pending(number) is not None:
-            return None
-        if not takes_motion(ax):
-            self.check_axis(ax)  # the kernel's refusal, with its error
-        else:
-            stopping = batch.stopping.get(ax.group)
-            if stopping is None:
-                stopping = batch.stopping[ax.group] = self.ctl.group_stopping(ax)
-            if stopping:
-                self.check_axis(ax)
         cfg = ax.config
         memo = None
         if key is not None:

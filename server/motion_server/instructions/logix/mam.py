@@ -21,7 +21,7 @@ from ..dynamics import DriveMode
 from ..logix_common import STARTED_ACTIVE
 from ..operands import AXIS, logix_dynamics
 from ..registry import register
-from ..scan_pass import Batch, BatchKind, takes_motion
+from ..scan_pass import Batch, BatchKind
 from ..schema import Operand, Quantity, TagType
 from .mdsc import SpeedControlledMotion, tracking_status
 
@@ -71,19 +71,9 @@ class MAM(SpeedControlledMotion):
         refuse, as MAJ's do."""
         if self.merging:
             return None
-        ax = self.ctl.axis(int(self.op["Axis"]))
-        number = ax.number
-        batch.before_axis(number)
-        if self.ctl.mdsc.pending(number) is not None:
+        ax = self.batch_axis(batch)
+        if ax is None:
             return None
-        if not takes_motion(ax):
-            self.check_axis(ax)  # the kernel's refusal, with its error
-        else:
-            stopping = batch.stopping.get(ax.group)
-            if stopping is None:
-                stopping = batch.stopping[ax.group] = self.ctl.group_stopping(ax)
-            if stopping:
-                self.check_axis(ax)
         cfg = ax.config
         # (the judge passed the latched values: they hash)
         memo = (MAM, *map(self.op.__getitem__, _DYNAMICS), cfg.max_velocity,
@@ -96,7 +86,7 @@ class MAM(SpeedControlledMotion):
             limits = self._dynamics(speed, limits)
             batch.plans[memo] = limits
         distance, landing = self._target(ax)
-        return (ax, distance, limits, landing), (number,)
+        return (ax, distance, limits, landing), (ax.number,)
 
     def batch_started(self, process: Process) -> None:
         if isinstance(process, MoveProcess):  # time-driven: tracks no master

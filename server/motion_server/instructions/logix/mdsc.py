@@ -43,6 +43,7 @@ from ..dynamics import (
 from ..judging import TABLE_SIZE
 from ..logix_common import ProcessInstruction
 from ..operands import TRACKING_MASTER
+from ..scan_pass import Batch, takes_motion
 from ..schema import StatusField
 
 #: the operand that gives each master-driven quantity (jerk: the smaller jerk operand)
@@ -93,6 +94,28 @@ class SpeedControlledMotion(ProcessInstruction):
                 ErrorCode.NOT_ALLOWED_WHILE_STOPPING,
                 f"the group of {ax.name} is stopping (MGS): motion is refused until it is done",
             )
+
+    def batch_axis(self, batch: Batch) -> Axis | None:
+        """The axis of a rising edge that may join ``batch`` (its queue handed over
+        first if a queued command touches the axis), checked as :meth:`check_axis`
+        checks it but in full only where it refuses (the kernel's error): an axis in a
+        state that takes motion, in a group not stopping (known once per group until
+        the batch is handed over), passes; None under a pending MDAC switch (the
+        instruction executes alone)."""
+        ax = self.ctl.axis(int(self.op["Axis"]))
+        number = ax.number
+        batch.before_axis(number)
+        if self.ctl.mdsc.pending(number) is not None:
+            return None
+        if not takes_motion(ax):
+            self.check_axis(ax)  # the kernel's refusal, with its error
+        else:
+            stopping = batch.stopping.get(ax.group)
+            if stopping is None:
+                stopping = batch.stopping[ax.group] = self.ctl.group_stopping(ax)
+            if stopping:
+                self.check_axis(ax)
+        return ax
 
     @property
     def merging(self) -> bool:

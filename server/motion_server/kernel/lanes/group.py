@@ -59,10 +59,6 @@ class GroupLanes(FollowerLevels):
     """The lanes of one motion group, and the axes it still composes in Python (their
     command followers' levels: :class:`.levels.FollowerLevels`)."""
 
-    #: per command follower lane: its member list and their levels when it was last
-    #: ordered (the same list object and levels again: nothing to sort); a class default
-    #: for lanes restored from a snapshot saved before it existed
-    _ordered: dict[LevelledLane, tuple[list[Process], list[int]]] | None = None
     # what :meth:`_python_order` keeps (class defaults: lanes restored from older state)
     _order: list[Axis] | None = None
     _order_idx: np.ndarray = np.zeros(0, dtype=np.intp)
@@ -80,16 +76,6 @@ class GroupLanes(FollowerLevels):
     #: with nothing else marking the lanes ``dirty``: the rebuild levels only them
     #: (:meth:`_hand_over`); a class default for lanes restored from older state
     followed = False
-    #: the followers admitted that :meth:`_order_command_followers` levels alone (set
-    #: by :meth:`_hand_over` just before it calls it)
-    _admitted: (
-        tuple[
-            dict[LevelledLane, list[int]],
-            list[tuple[LevelledLane, list[int]]],
-            list[np.ndarray],
-        ]
-        | None
-    ) = None
 
     def __init__(self, group: MotionGroup) -> None:
         self.group = group

@@ -36,7 +36,12 @@ class FollowerLevels:
     dirty: bool
     #: number of levels of command followers
     depth: int
-    _ordered: dict[LevelledLane, tuple[list[Process], list[int]]] | None
+    #: per command follower lane: its member list and their levels when it was last
+    #: ordered (the same list object and levels again: nothing to sort); a class default
+    #: for lanes restored from a snapshot saved before it existed
+    _ordered: dict[LevelledLane, tuple[list[Process], list[int]]] | None = None
+    #: the followers admitted that :meth:`_order_command_followers` levels alone (set
+    #: by ``GroupLanes._hand_over`` just before it calls it)
     _admitted: (
         tuple[
             dict[LevelledLane, list[int]],
@@ -44,7 +49,7 @@ class FollowerLevels:
             list[np.ndarray],
         ]
         | None
-    )
+    ) = None
 
     def _order_levelled(self, levels_of: dict[LevelledLane, list[int]]) -> None:
         """Order each command follower lane of ``levels_of`` by those levels (one per
