@@ -33,7 +33,7 @@ from .stop_plan import (
     clear_emptied,
     empty_lanes,
     idle,
-    plain_and_active,
+    members_of,
     refused,
     retire_order,
     stepped_lanes,
@@ -168,18 +168,9 @@ def _power_off_members(
     # or with its ramp made from one, is refused below)
     if idx is None:
         idx = np.fromiter(map(_index, axes), dtype=np.intp, count=n)
-    # the batch is every axis of the group: every member of its lanes is on one of them
     whole = n == len(lanes.group.axes)
-    if found:
-        batch: np.ndarray | None = None
-        if not whole:
-            batch = np.zeros(len(motion.s.busy), dtype=bool)
-            batch[idx] = True
-        for lane in found:
-            if batch is not None and not batch[lane.idx].all():
-                return False
-            if not plain_and_active(lane.members):
-                return False
+    if found and not members_of(motion, found, idx, whole):
+        return False
     # the members, one process each, are all the processes of the batch; nothing else
     # is on its axes (no ramp still a row, nothing buffered, no cam preloaded)
     if (

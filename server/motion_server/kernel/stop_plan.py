@@ -240,6 +240,23 @@ def stepped_lanes(lanes: GroupLanes) -> tuple[list[Lane], int] | None:
     return found, total
 
 
+def members_of(motion: Motion, found: list[Lane], idx: np.ndarray, whole: bool) -> bool:
+    """Every member of the lanes ``found`` is on an axis of a batch (array indices
+    ``idx``; ``whole``: the batch is every axis of the group, so every member of its
+    lanes is on one of them) and is active, aborting as ``Process.abort`` does
+    (:func:`plain_and_active`)."""
+    batch: np.ndarray | None = None
+    if not whole:
+        batch = np.zeros(len(motion.s.busy), dtype=bool)
+        batch[idx] = True
+    for lane in found:
+        if batch is not None and not batch[lane.idx].all():
+            return False
+        if not plain_and_active(lane.members):
+            return False
+    return True
+
+
 def _member_lanes(
     motion: Motion, lanes: GroupLanes, axes: Sequence[Axis], idx: np.ndarray
 ) -> list[Lane] | None:
@@ -261,18 +278,10 @@ def _member_lanes(
     found, total = stepped
     if total != len(axes) or lanes.stops.rows:
         return None
-    # the batch is every axis of the group (a group stop of a group without feedback-only
-    # axes, the usual one): every member of the group's lanes is on one of its axes
-    whole = len(axes) == len(lanes.group.axes)
-    batch: np.ndarray | None = None
-    if not whole:
-        batch = np.zeros(len(motion.s.busy), dtype=bool)
-        batch[idx] = True
-    for lane in found:
-        if batch is not None and not batch[lane.idx].all():
-            return None
-        if not plain_and_active(lane.members):
-            return None
+    # (the batch the whole group, a group stop of a group without feedback-only axes, is
+    # the usual one)
+    if not members_of(motion, found, idx, len(axes) == len(lanes.group.axes)):
+        return None
     if any(map(_preloaded, axes)):
         return None
     return found
