@@ -235,8 +235,10 @@ class Motion:
             else:
                 ax.base += p.position
         if len(keep) != len(ax.processes):
+            # (a process that read no master leaves the composition order valid)
+            if any(p.masters for p in ax.processes if not p.active):
+                self.coupling_changed()
             ax.processes = keep
-            self.coupling_changed()
         ax.motion_changed()
         return v, a
 
