@@ -54,6 +54,12 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``mc_gear_in``: ``mag`` with MC_GearIn (ratio 1/2 on the master's set value, a
   trapezoidal catch-up at 1,000 mm/s² both ways, aborting) on every slave: its gears
   start in one ``start_gears`` call that replaces every process (60 steps).
+- ``rejog``: from ``steady``, MAJ at 50 mm/s on every master: each jog at speed is
+  replaced by a jog from 100 mm/s (``start_jogs`` on axes already moving), 100 steps;
+  ``maj_rejog`` the same through one MAJ instance per master.
+- ``move_on_jog``: from ``steady``, a move of 50 mm on every master that replaces its
+  jog (the PLCopen aborting mode, MC_MoveRelative: ``start_moves`` with
+  ``replace=None``), each from 100 mm/s, 100 steps.
 - ``mam_spread``: ``mam`` with a distance of its own on every master (10 mm plus 0.25 mm
   per axis number: what absolute moves to one target from different positions give),
   whose plans are built together (``kernel/move_plan.position_plans``), 100 steps.
@@ -232,6 +238,18 @@ def cams_in_lanes(ctl: Controller) -> tuple[int, int]:
     return sum(p.lane is not None for p in cams), len(cams)
 
 
+def rejog(ctl: Controller) -> None:
+    """MAJ at half the speed on every master, jogging at ``SPEED`` (``jog``)."""
+    masters = ctl.axes[: len(ctl.axes) // 2]
+    ctl.start_jogs(masters, [SPEED / 2] * len(masters), Limits(SPEED, RATE, RATE))
+
+
+def move_on_jog(ctl: Controller) -> None:
+    """A move of 50 mm replacing every master's jog at ``SPEED`` (``jog``)."""
+    masters = ctl.axes[: len(ctl.axes) // 2]
+    ctl.start_moves(masters, [50.0] * len(masters), Limits(SPEED, RATE, RATE), replace=None)
+
+
 def stop(ctl: Controller) -> None:
     ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
 
@@ -292,6 +310,13 @@ MAJ_SETUP, MAJ_COMMAND = instructions(
     lambda n: range(1, n // 2 + 1),
     lambda n, k: {"Axis": k, "Speed": SPEED, "AccelRate": RATE, "DecelRate": RATE, "AccelUnits": 0,
                "DecelUnits": 0},
+)  # fmt: skip
+#: MAJ on every master at 50 mm/s, 1000 mm/s² (the ``rejog`` jog), through the instruction
+MAJ_REJOG_SETUP, MAJ_REJOG_COMMAND = instructions(
+    "MAJ",
+    lambda n: range(1, n // 2 + 1),
+    lambda n, k: {"Axis": k, "Speed": SPEED / 2, "AccelRate": RATE, "DecelRate": RATE,
+               "AccelUnits": 0, "DecelUnits": 0},
 )  # fmt: skip
 #: MAG with the clutch on every slave (the ``clutch`` gear), through the instruction: real
 #: ratio 0.5, command reference, clutch at 1,000 mm/s² (units per s²)
@@ -407,6 +432,9 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
         MC_VELOCITY_COMMAND,
         100,
     ),
+    "rejog": (lambda c: (jog(c), gear(c, False)), rejog, 100),
+    "move_on_jog": (lambda c: (jog(c), gear(c, False)), move_on_jog, 100),
+    "maj_rejog": (lambda c: (jog(c), gear(c, False), MAJ_REJOG_SETUP(c)), MAJ_REJOG_COMMAND, 100),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),
     "mam_spread": (lambda c: (gear(c, False), MAM_SPREAD_SETUP(c)), MAM_SPREAD_COMMAND, 100),
     "mc_gear_in": (lambda c: (jog(c), MC_GEAR_IN_SETUP(c)), MC_GEAR_IN_COMMAND, 60),

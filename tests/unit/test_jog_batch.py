@@ -9,6 +9,7 @@ before the first step runs on bit for bit."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -59,6 +60,24 @@ def controller(lanes: bool) -> Controller:
     return ctl
 
 
+def moving_speed(n: int) -> float:
+    """The speed of axis ``n``'s jog in the set-ups that start some axes before the
+    batch: forward on odd axes, back on even ones, so that they move at two speeds."""
+    return 40.0 if n % 2 else -25.0
+
+
+def moving_limits(speed: float) -> Limits:
+    """The limits of a jog at ``speed`` in those set-ups (two accelerations)."""
+    return Limits(abs(speed), 800.0 if speed > 0 else 500.0, 800.0)
+
+
+def moving_jog(n: int) -> Callable[[float, float], JogProcess]:
+    """The factory of axis ``n``'s jog in those set-ups."""
+    speed = moving_speed(n)
+    limits = moving_limits(speed)
+    return lambda v, a: JogProcess(PERIOD, speed, limits, v, a)
+
+
 def state(p: object) -> dict[str, object]:
     """A process's attributes, its profile's as a dict, its lane by kind."""
     out = dict(vars(p))
@@ -84,12 +103,13 @@ targets = st.one_of(
 @given(
     axes=st.lists(st.integers(1, N), min_size=1, max_size=N, unique=True),
     targets=st.lists(targets, min_size=N, max_size=N),
-    moving=st.lists(st.integers(1, N), max_size=4, unique=True),
+    moving=st.lists(st.integers(1, N), max_size=N, unique=True),
     overridden=st.sampled_from([None, 1, 3]),
     rates=st.sampled_from([(1000.0, 1000.0), (500.0, 2000.0)]),
     jerk=st.sampled_from([0.0, 0.0, math.inf, 20_000.0]),
     steps=st.integers(1, 80),
     aborting=st.booleans(),
+    warm=st.sampled_from([3, 40]),
 )
 def test_start_jogs_is_start_on_each_axis_in_order(
     axes: list[int],
@@ -100,11 +120,13 @@ def test_start_jogs_is_start_on_each_axis_in_order(
     jerk: float,
     steps: int,
     aborting: bool,
+    warm: int,
 ) -> None:
     """MAJ's jogs (replacing a jog) and, ``aborting``, MC_MoveVelocity's (replacing
     every process: the axes already moving run a move, which a jog of MAJ would not
-    replace)."""
-    check_same(axes, targets, moving, overridden, rates, jerk, steps, aborting)
+    replace). The axes moving were started ``warm`` cycles before: still ramping (3) or,
+    the jogs, at speed (40)."""
+    check_same(axes, targets, moving, overridden, rates, jerk, steps, aborting, warm)
 
 
 def test_jogs_from_rest_copied_from_the_first_keep_their_own_target_exactly() -> None:
@@ -125,10 +147,12 @@ def check_same(
     jerk: float,
     steps: int,
     aborting: bool = False,
+    warm: int = 3,
 ) -> None:
     """``start_jogs`` on one controller, ``start`` in a loop on two others (lanes on,
     lanes off) from the same state: the same errors, processes and motion. ``aborting``:
-    the moving axes run a move and the jogs replace every process (``replace=None``)."""
+    the moving axes run a move and the jogs replace every process (``replace=None``).
+    ``warm``: the cycles run before the batch."""
     replace = None if aborting else (ProcessKind.JOG,)
     limits = Limits(100.0, rates[0], rates[1], jerk)
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
@@ -146,12 +170,12 @@ def check_same(
                 continue
             ctl.start(
                 ctl.axis(n),
-                lambda v, a: JogProcess(PERIOD, 40.0, Limits(40.0, 800.0, 800.0), v, a),
+                moving_jog(n),
                 replace=(ProcessKind.JOG,),
             )
         if overridden is not None:
             ctl.set_override(ctl.axis(overridden), Override(0.5, 0.5))
-        ctl.run(3)
+        ctl.run(warm)
     owners = [object() for _ in axes]
     errors: dict[str, tuple[int, int] | None] = {}
     for name, ctl in ctls.items():
@@ -219,7 +243,7 @@ FEW = (100.0, -40.0, 3, -0.0, 250.5)
 @given(
     picks=st.lists(st.integers(0, len(FEW) - 1), min_size=N, max_size=N),
     axes=st.lists(st.integers(1, N), min_size=1, max_size=N, unique=True),
-    moving=st.lists(st.integers(1, N), max_size=4, unique=True),
+    moving=st.lists(st.integers(1, N), max_size=N, unique=True),
     jerk=st.sampled_from([0.0, 20_000.0, 5_000.0]),
     reads=st.lists(st.tuples(st.integers(0, 100), st.integers(1, N), st.booleans()), max_size=6),
     same=st.booleans(),
@@ -250,7 +274,7 @@ def test_jogs_read_at_any_moment_are_those_the_loop_leaves(
         for n in moving:
             ctl.start(
                 ctl.axis(n),
-                lambda v, a: JogProcess(PERIOD, 40.0, Limits(40.0, 800.0, 800.0), v, a),
+                moving_jog(n),
                 replace=(ProcessKind.JOG,),
             )
         ctl.run(3)
@@ -319,6 +343,93 @@ def test_jogs_from_rest_are_built_once_per_target_and_planned_in_the_call(
         assert batch.cmd_vel.tobytes() == ref.cmd_vel.tobytes()
         batch.step()
         ref.step()
+
+
+def test_jogs_replaced_on_moving_axes_are_built_once_per_start_and_keep_the_levels(
+    monkeypatch: Any,
+) -> None:
+    """Six masters jogging, their slaves geared to them: three at speed (40 mm/s, in the
+    cruise lane), two still ramping (in the profile lane) and one at speed at 25 mm/s.
+    ``start_jogs`` to one target on all six builds one jog per velocity and acceleration
+    they start from (three at speed alike: one built, two copied); the first step plans
+    nothing (the call planned the jogs) and levels no follower again (the masters pass
+    from one time-driven lane to another: their slaves read them as before); the motion
+    is the loop's and the reference's, step by step, and so are the objects."""
+    limits = Limits(300.0, 1000.0, 2000.0)
+    slow = Limits(25.0, 800.0, 800.0)
+    ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
+                                                         ("ref", False))}  # fmt: skip
+    for ctl in ctls.values():
+        for n in (1, 2, 3, 6):
+            lim = slow if n == 6 else Limits(40.0, 800.0, 800.0)
+            speed = lim.velocity
+            ctl.start(
+                ctl.axis(n),
+                lambda v, a, s=speed, lim=lim: JogProcess(PERIOD, s, lim, v, a),
+                replace=(ProcessKind.JOG,),
+            )
+        ctl.run(40)  # at speed: 40 mm/s at 800 mm/s² is 25 cycles
+        for n in (4, 5):
+            ctl.start(
+                ctl.axis(n),
+                lambda v, a: JogProcess(PERIOD, 40.0, Limits(40.0, 800.0, 800.0), v, a),
+                replace=(ProcessKind.JOG,),
+            )
+        ctl.run(3)  # 4 and 5 ramping: 4.8 mm/s, 800 mm/s²
+    batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
+    lanes = batch.motion.lanes[1]
+    assert [type(batch.axis(n).processes[0].lane).__name__ for n in range(1, 7)] == [
+        "CruiseLane", "CruiseLane", "CruiseLane", "ProfileLane", "ProfileLane", "CruiseLane"
+    ]  # fmt: skip
+    built: list[tuple[float, float]] = []
+    init = JogProcess.__init__
+
+    def counting(self: JogProcess, *args: Any, **kwargs: Any) -> None:
+        built.append((args[3], args[4]))
+        init(self, *args, **kwargs)
+
+    target = -60.0
+    monkeypatch.setattr(JogProcess, "__init__", counting)
+    batch.start_jogs(batch.axes[: N // 2], [target] * (N // 2), limits)
+    monkeypatch.undo()
+    # (40, 0) once for 1-3, (4.8, 800) once for 4 and 5, (25, 0) for 6
+    assert len(built) == 3 and built[0] == (40.0, 0.0) and built[2] == (25.0, 0.0)
+    assert built[1][1] == 800.0 and math.isclose(built[1][0], 4.8)
+    for ax in loop.axes[: N // 2]:
+        loop.start(
+            ax,
+            lambda v, a: JogProcess(PERIOD, target, limits, v, a),
+            replace=(ProcessKind.JOG,),
+        )
+    for ax in ref.axes[: N // 2]:
+        ref.start(
+            ax,
+            lambda v, a: JogProcess(PERIOD, target, limits, v, a),
+            replace=(ProcessKind.JOG,),
+        )
+
+    # jogs replaced by jogs: no process that reads a master came or went, the
+    # composition order stands (``Motion.retire``)
+    assert not batch.motion.order_dirty and not loop.motion.order_dirty
+
+    def refuse(*args: Any) -> None:
+        raise AssertionError("planned or levelled at the step")
+
+    monkeypatch.setattr(ramps, "velocity_plans", refuse)
+    monkeypatch.setattr(type(lanes), "_order_command_followers", refuse)
+    batch.step()
+    monkeypatch.undo()
+    loop.step()
+    ref.step()
+    for c in range(120):
+        for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
+            x = getattr(batch, arr)
+            assert x.tobytes() == getattr(loop, arr).tobytes(), (arr, c)
+            assert x.tobytes() == getattr(ref, arr).tobytes(), (arr, c)
+        for a, b in zip(batch.axes, loop.axes, strict=True):
+            assert list(map(described, a.processes)) == list(map(described, b.processes))
+        for ctl in ctls.values():
+            ctl.step()
 
 
 def test_a_snapshot_taken_before_the_batch_joins_runs_on_bit_for_bit() -> None:

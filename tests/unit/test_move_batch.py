@@ -67,44 +67,56 @@ def start_loop(ctl: Any, axes: list[Any], dist: list[float], limits: Limits,
     axes=st.lists(st.integers(1, N), min_size=1, max_size=N, unique=True),
     dist=st.lists(distances, min_size=N, max_size=N),
     landed=st.lists(st.booleans(), min_size=N, max_size=N),
-    moving=st.lists(st.tuples(st.integers(1, N), st.booleans()), max_size=4),
+    moving=st.lists(
+        st.tuples(st.integers(1, N), st.booleans(), st.sampled_from([40.0, -25.0])), max_size=N
+    ),
     overridden=st.sampled_from([None, 1, 3]),
     rates=st.sampled_from([(1000.0, 1000.0), (500.0, 2000.0), (1e-6, 1e-6)]),
     jerk=st.sampled_from([0.0, 0.0, math.inf, 20_000.0]),
     steps=st.integers(1, 80),
     aborting=st.booleans(),
+    warm=st.sampled_from([3, 40]),
+    shared=st.booleans(),
 )
 def test_start_moves_is_start_on_each_axis_in_order(
     axes: list[int],
     dist: list[float],
     landed: list[bool],
-    moving: list[tuple[int, bool]],
+    moving: list[tuple[int, bool, float]],
     overridden: int | None,
     rates: tuple[float, float],
     jerk: float,
     steps: int,
     aborting: bool,
+    warm: int,
+    shared: bool,
 ) -> None:
     """Axes at rest and moving (a move, which the new one replaces and inherits, or a
     jog, which it superimposes on, or which it replaces too when ``aborting``: the
-    PLCopen moves replace every process), one maybe overridden, rates that make long
-    moves too long to plan (refused in the middle), trapezoidal or jerk-limited."""
+    PLCopen moves replace every process; forward or back, at two rates), one maybe
+    overridden, rates that make long
+    moves too long to plan (refused in the middle), trapezoidal or jerk-limited. The
+    axes moving were started ``warm`` cycles before: ramping (3) or, the jogs, at speed
+    and the moves landed (40). ``shared``: one distance (one object) for every axis, as
+    MC_MoveRelative instances with the same operands give."""
+    if shared:
+        dist = [dist[0]] * N
     replace = None if aborting else _MOVE
     limits = Limits(100.0, rates[0], rates[1], jerk)
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
                                                          ("ref", False))}  # fmt: skip
     for ctl in ctls.values():
-        for n, move in moving:
+        for n, move, speed in moving:
+            lim = Limits(abs(speed), 800.0 if speed > 0 else 500.0, 800.0)
             if move:
-                ctl.start(ctl.axis(n), lambda v, a: MoveProcess(
-                    PERIOD, 30.0, Limits(40.0, 800.0, 800.0), v, a), replace=_MOVE)  # fmt: skip
+                ctl.start(ctl.axis(n), lambda v, a, s=speed, lim=lim: MoveProcess(
+                    PERIOD, 0.75 * s, lim, v, a), replace=_MOVE)  # fmt: skip
             else:
-                ctl.start(ctl.axis(n), lambda v, a: JogProcess(
-                    PERIOD, 40.0, Limits(40.0, 800.0, 800.0), v, a),
-                    replace=(ProcessKind.JOG,))  # fmt: skip
+                ctl.start(ctl.axis(n), lambda v, a, s=speed, lim=lim: JogProcess(
+                    PERIOD, s, lim, v, a), replace=(ProcessKind.JOG,))  # fmt: skip
         if overridden is not None:
             ctl.set_override(ctl.axis(overridden), Override(0.5, 0.5))
-        ctl.run(3)
+        ctl.run(warm)
     owners = [object() for _ in axes]
     landings: list[float | None] = [
         d + 7.0 if flag else None for d, flag in zip(dist, landed, strict=True)
@@ -216,6 +228,65 @@ def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: 
         assert batch.cmd_vel.tobytes() == ref.cmd_vel.tobytes()
         batch.step()
         ref.step()
+
+
+def test_absolute_moves_on_jogging_axes_land_on_their_target(monkeypatch: Any) -> None:
+    """Six masters jogging at 40 mm/s (at speed, in the cruise lane), their slaves geared
+    to them; MC_MoveAbsolute to 100 mm on each, aborting: each move replaces the jog and
+    starts from 40 mm/s. Masters 1 to 3 were started together, so they stand at one
+    position and share one distance: one move built, two copied; 4 to 6 each their own.
+    The first step plans nothing and levels no follower again; the motion is the loop's
+    and the reference's step by step, and every master comes to rest on 100 exactly
+    (the landing of an absolute move)."""
+    jog = Limits(40.0, 800.0, 800.0)
+    limits = Limits(300.0, 1000.0, 2000.0)
+    ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
+                                                         ("ref", False))}  # fmt: skip
+    for ctl in ctls.values():
+        ctl.start_jogs(ctl.axes[:3], [40.0] * 3, jog)
+        ctl.run(5)
+        for ax in ctl.axes[3 : N // 2]:
+            ctl.start_jogs([ax], [40.0], jog)
+            ctl.run(1 + ax.index)
+        ctl.run(40)  # at speed: 40 mm/s at 800 mm/s² is 25 cycles
+    batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
+    assert {type(ax.processes[0].lane).__name__ for ax in batch.axes[: N // 2]} == {"CruiseLane"}
+    target = 100.0
+    built: list[float] = []
+    init = MoveProcess.__init__
+
+    def counting(self: MoveProcess, *args: Any, **kwargs: Any) -> None:
+        built.append(args[1])
+        init(self, *args, **kwargs)
+
+    def refuse(*args: Any) -> None:
+        raise AssertionError("planned or levelled at the step")
+
+    for name, ctl in ctls.items():
+        masters = ctl.axes[: N // 2]
+        dist = [target - ax.command_position for ax in masters]
+        if name == "batch":
+            assert dist[0] == dist[1] == dist[2] and len(set(dist)) == 4
+            monkeypatch.setattr(MoveProcess, "__init__", counting)
+            ctl.start_moves(masters, dist, limits, None, [target] * len(masters), None)
+            monkeypatch.undo()
+            assert built == [dist[0], *dist[3:]]
+            monkeypatch.setattr(ramps.ProfileLane, "_load", refuse)
+            monkeypatch.setattr(type(ctl.motion.lanes[1]), "_order_command_followers", refuse)
+            ctl.step()
+            monkeypatch.undo()
+        else:
+            start_loop(ctl, masters, dist, limits, None, [target] * len(masters), None)
+            ctl.step()
+    for c in range(600):
+        for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
+            x = getattr(batch, arr).tobytes()
+            assert x == getattr(loop, arr).tobytes() == getattr(ref, arr).tobytes(), (arr, c)
+        for ctl in ctls.values():
+            ctl.step()
+    for ax in batch.axes[: N // 2]:
+        assert ax.command_position == target
+        assert not ax.processes
 
 
 def test_a_snapshot_taken_before_the_batch_joins_runs_on_bit_for_bit() -> None:

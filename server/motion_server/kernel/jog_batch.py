@@ -19,13 +19,20 @@ work that does not depend on the axis:
   :meth:`.lanes.scurve.SCurveLane.admit_batch`), so the first step takes them as they
   are instead of reading every jog's request and planning it.
 
+- a trapezoidal jog that replaces the one process of an axis already moving (MAJ on a
+  jogging axis: a new speed) is built from that process's velocity and acceleration,
+  once per (target, velocity, acceleration) and copied, and joins the batch as a jog from
+  rest does; the process it replaces leaves its time-driven lane without levelling the
+  followers again (``Lane.pass_on``: the axis is in a time-driven lane before and after).
+
 The jogs are still one object each (a copy costs about a microsecond): the rows of a
 lane whose objects are made only when read, as a group stop's (:mod:`.lanes.stop_rows`),
 are not done for jogs.
 
-Other axes (moving, overridden, with a preloaded cam, buffered, a jog whose plan the
-constructor had to build or hand to ruckig) are started through ``Motion.start`` or
-``Motion.start_from_rest`` as the loop starts them. As with the loop, a
+Other axes (overridden, with a preloaded cam, buffered, more than one process, a
+jerk-limited jog from motion, a jog whose plan the constructor had to build or hand to
+ruckig) are started through ``Motion.start`` or ``Motion.start_from_rest`` as the loop
+starts them. As with the loop, a
 :class:`.errors.MotionError` on an axis leaves the axes before it started.
 """
 
@@ -46,6 +53,7 @@ from .motion import Motion
 from .override import NEUTRAL
 from .processes import JogProcess, Process, ProcessFactory
 from .scurve import SCurveProfile
+from .take_over import join, same_bits, sole_replaced, take_over
 from .trapezoid import TrapezoidProfile, judge_velocity_plan
 
 #: a group whose lanes were not looked up yet
@@ -92,6 +100,11 @@ class _Protos:
         self.limits = limits
         self.by_target: dict[tuple[float, str], _Proto] = {}
         self.trapezoid: dict[float, _Proto] = {}
+        #: the jogs from motion built so far, by (period, target's, velocity's and
+        #: acceleration's bits)
+        self.moving: dict[tuple[float, str, str, str], _Proto] = {}
+        #: the jog from motion last made: (target, period, velocity, acceleration, proto)
+        self._last_moving: tuple[object, float, float, float, _Proto] | None = None
 
     def make(self, period: float, target: float, owner: object) -> tuple[JogProcess, _Proto]:
         """``JogProcess(period, target, limits, 0.0, 0.0, owner)`` and its prototype."""
@@ -116,6 +129,43 @@ class _Protos:
         proto = self._keep(key, p, period)
         return p, proto
 
+    def make_moving(
+        self, period: float, target: float, owner: object, v: float, a: float
+    ) -> tuple[JogProcess, _Proto]:
+        """``JogProcess(period, target, limits, v, a, owner)`` (trapezoidal limits: the
+        jog from ``v``, the acceleration ``a`` kept as the profile's) and its prototype.
+        The profile's request is the only part that depends on ``v``: a jog from rest
+        of the same period, if one was built, is copied with its velocity, acceleration
+        and request replaced, judged as the constructor judges it."""
+        last = self._last_moving
+        if (
+            last is not None
+            and last[0] is target
+            and last[1] == period
+            and same_bits(v, last[2])
+            and same_bits(a, last[3])
+        ):
+            # (the usual batch: one target, every axis at the same speed)
+            return _copy(last[4], target, owner), last[4]
+        if not math.isfinite(target):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
+        velocity = float(target)
+        key = (period, velocity.hex(), v.hex(), a.hex())
+        proto = self.moving.get(key)
+        if proto is not None:
+            self._last_moving = (target, period, v, a, proto)
+            return _copy(proto, target, owner), proto
+        base = self.trapezoid.get(period)
+        if base is None:
+            p = JogProcess(period, target, self.limits, v, a, owner)
+        else:
+            req = (base.request[0], float(v), velocity, *base.request[3:])  # type: ignore[index]
+            judge_velocity_plan(*req)
+            p = _copy(base, target, owner, req, (v, a))
+        proto = self.moving[key] = _Proto(p, period)
+        self._last_moving = (target, period, v, a, proto)
+        return p, proto
+
     def _keep(self, key: tuple[float, str], p: JogProcess, period: float) -> _Proto:
         proto = _Proto(p, period)
         self.by_target[key] = proto
@@ -125,10 +175,16 @@ class _Protos:
 
 
 def _copy(
-    proto: _Proto, target: float, owner: object, request: tuple[float, ...] | None = None
+    proto: _Proto,
+    target: float,
+    owner: object,
+    request: tuple[float, ...] | None = None,
+    kinematics: tuple[float, float] | None = None,
 ) -> JogProcess:
     """A copy of ``proto``'s jog with its own owner, target (as given: an int stays an
-    int) and profile (``request``: a new trapezoidal request to another target)."""
+    int) and profile (``request``: a new trapezoidal request to another target;
+    ``kinematics``: the velocity and acceleration it starts from, the profile's as
+    floats, as its constructor keeps them)."""
     prof = object.__new__(type(proto.state["profile"]))
     prof.__dict__.update(proto.prof_state)
     if request is not None:
@@ -136,6 +192,9 @@ def _copy(
         prof._target_velocity = request[2]
     p = object.__new__(JogProcess)
     p.__dict__.update(proto.state)
+    if kinematics is not None:
+        p.velocity, p.acceleration = kinematics
+        prof.velocity, prof.acceleration = float(kinematics[0]), float(kinematics[1])
     p.owner = owner
     p.target_velocity = target
     p.profile = prof
@@ -244,6 +303,7 @@ def start_jogs(
     if len(targets) != len(axes) or (owners is not None and len(owners) != len(axes)):
         raise ValueError("one target (and one owner, if any) per axis")
     limits = limits.validated()
+    trapezoidal = limits.trapezoidal
     started: list[Process] = []
     joining = _Joining(motion)
     protos = _Protos(limits)
@@ -260,6 +320,11 @@ def start_jogs(
                 or ax.preloaded_cams
                 or (ax.override is not NEUTRAL and not ax.override.neutral)
             ):
+                if trapezoidal:
+                    p = _from_motion(motion, ax, procs, target, owner, protos, replace, joining)
+                    if p is not None:
+                        started.append(p)
+                        continue
                 joining.admit()
                 started.append(
                     motion.start(ax, _factory(ax.period, target, limits, owner), replace)
@@ -283,6 +348,37 @@ def start_jogs(
         # (also when a jog is refused: those before it started, as in the loop)
         joining.admit()
     return started
+
+
+def _from_motion(
+    motion: Motion,
+    ax: Axis,
+    procs: list[Process],
+    target: float,
+    owner: object,
+    protos: _Protos,
+    replace: Collection[ProcessKind] | None,
+    joining: _Joining,
+) -> JogProcess | None:
+    """``Motion.start`` of a trapezoidal jog on ``ax`` when it replaces the axis's one
+    process (:func:`.take_over.sole_replaced`: what the usual MAJ on a jogging axis
+    finds): built from that process's velocity and acceleration
+    (:meth:`_Protos.make_moving`), it joins the batch of its lane as a jog from rest
+    does. None, with nothing done, for any other axis (the caller starts it)."""
+    q = sole_replaced(ax, procs, replace)
+    if q is None:
+        return None
+    p, proto, new, lanes = take_over(
+        motion, ax, q, lambda v, a: protos.make_moving(ax.period, target, owner, v, a)
+    )
+    kind = proto.lane_kind
+    if kind is not None and joining.take(ax, new, p, proto, kind):
+        return p
+    if lanes is not None:
+        lanes.dirty = True
+    joining.admit()
+    join(motion, ax, new, p)
+    return p
 
 
 def _factory(dt: float, target: float, limits: Limits, owner: object) -> ProcessFactory:

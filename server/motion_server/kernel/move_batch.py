@@ -19,8 +19,14 @@ work that does not depend on the axis:
   read once per prototype (:meth:`.lanes.ramps.ProfileLane.admit_planned`), so the first
   step takes them as they are instead of reading every move's plan.
 
-Other axes (moving, overridden, with a preloaded cam, and every jerk-limited move) are
-started through ``Motion.start`` or ``Motion.start_from_rest`` as the loop starts them.
+- a trapezoidal move that replaces the one process of an axis already moving (the
+  aborting mode on a jogging axis; :mod:`.take_over`) is built from that process's
+  velocity and acceleration, once per (period, distance, velocity, acceleration) and
+  copied, and joins the batch as a move from rest does.
+
+Other axes (overridden, with a preloaded cam, more than one process or a process not
+replaced, and every jerk-limited move) are started through ``Motion.start`` or
+``Motion.start_from_rest`` as the loop starts them.
 As with the loop, a :class:`.errors.MotionError` on an axis leaves the axes before it
 started.
 """
@@ -41,6 +47,7 @@ from .motion import Motion
 from .move_plan import position_plans
 from .override import NEUTRAL
 from .processes import MoveProcess, Process, ProcessFactory
+from .take_over import join, same_bits, sole_replaced, take_over
 from .trapezoid import Plan, TrapezoidProfile
 
 #: what a move replaces (Logix MAM without Merge)
@@ -165,6 +172,53 @@ def _copy(proto: _Proto, distance: float, owner: object, landing: float | None) 
     return p
 
 
+class _FromMotion:
+    """The trapezoidal moves from motion built so far (a move replacing the one process
+    of an axis already moving: :mod:`.take_over`), by (period, distance's, velocity's
+    and acceleration's bits): the others alike are copies. The last one is kept for the
+    usual batch (one distance object, every axis at the same speed)."""
+
+    def __init__(self, limits: Limits) -> None:
+        self.limits = limits
+        self.by_key: dict[tuple[float, str, str, str], _Proto] = {}
+        self.last: tuple[object, float, float, float, _Proto] | None = None
+
+    def make(
+        self,
+        period: float,
+        distance: float,
+        owner: object,
+        landing: float | None,
+        v: float,
+        a: float,
+    ) -> tuple[MoveProcess, _Proto]:
+        """``MoveProcess(period, distance, limits, v, a, owner, landing)`` and its
+        prototype."""
+        last = self.last
+        if (
+            last is not None
+            and last[0] is distance
+            and last[1] == period
+            and same_bits(v, last[2])
+            and same_bits(a, last[3])
+        ):
+            return _copy(last[4], distance, owner, landing), last[4]
+        key = _key(period, distance)
+        full = None if key is None else (*key, v.hex(), a.hex())
+        proto = None if full is None else self.by_key.get(full)
+        if proto is not None:
+            p = _copy(proto, distance, owner, landing)
+        else:
+            # (a distance that is not a finite number raises here)
+            p = MoveProcess(period, distance, self.limits, v, a, owner, landing)
+            proto = _Proto(p)
+            if full is None or proto.row is None:
+                return p, proto
+            self.by_key[full] = proto
+        self.last = (distance, period, v, a, proto)
+        return p, proto
+
+
 class _MoveJoining(_Joining):
     """The moves from rest bound for one profile lane, admitted as one batch."""
 
@@ -208,6 +262,7 @@ def start_moves(
     # moves planned ahead are copies of it with their own plan
     templates: dict[float, _Proto] = {}
     ahead = _plans_ahead(axes, distances, limits)
+    moving = _FromMotion(limits) if limits.trapezoidal else None
     try:
         for k, ax in enumerate(axes):
             distance = distances[k]
@@ -219,6 +274,13 @@ def start_moves(
                 or ax.preloaded_cams
                 or (ax.override is not NEUTRAL and not ax.override.neutral)
             ):
+                q = None if moving is None else sole_replaced(ax, procs, replace)
+                if q is not None:
+                    assert moving is not None
+                    started.append(
+                        _from_motion(motion, ax, q, joining, moving, distance, owner, landing)
+                    )
+                    continue
                 joining.admit()
                 make = _factory(ax.period, distance, limits, owner, landing)
                 started.append(motion.start(ax, make, replace))
@@ -253,6 +315,32 @@ def start_moves(
         # (also when a move is refused: those before it started, as in the loop)
         joining.admit()
     return started
+
+
+def _from_motion(
+    motion: Motion,
+    ax: Axis,
+    q: Process,
+    joining: _MoveJoining,
+    moving: _FromMotion,
+    distance: float,
+    owner: object,
+    landing: float | None,
+) -> MoveProcess:
+    """``Motion.start`` of a trapezoidal move of ``distance`` on ``ax``, replacing its
+    one process ``q`` (:func:`.take_over.sole_replaced`): built by ``moving`` from
+    ``q``'s velocity and acceleration, it joins the batch of the profile lane as a move
+    from rest does."""
+    p, proto, new, lanes = take_over(
+        motion, ax, q, lambda v, a: moving.make(ax.period, distance, owner, landing, v, a)
+    )
+    if proto.row is not None and joining.take(ax, new, p, proto, "profiles"):
+        return p
+    if lanes is not None:
+        lanes.dirty = True
+    joining.admit()
+    join(motion, ax, new, p)
+    return p
 
 
 def _factory(

@@ -159,6 +159,18 @@ class Lane:
         self.changed = True
         self._owner.dirty = True
 
+    def pass_on(self, p: Process) -> None:
+        """:meth:`evict` ``p`` from this time-driven lane (``RELEVELS`` False) for a
+        successor on its axis that joins a time-driven lane before the next rebuild (a
+        jog replaced by a jog): the followers that read the axis keep their level, so the
+        owner is marked ``joined``, not ``dirty``. The caller marks it ``dirty`` if the
+        successor does not join."""
+        owner = self._owner
+        dirty = owner.dirty
+        self.evict(p)
+        owner.dirty = dirty
+        owner.joined = True
+
     def within(self, indices: Collection[int]) -> bool:
         """Every process in the lane (members and those joining) is on an axis whose
         index is in ``indices``."""
