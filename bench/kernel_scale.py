@@ -36,6 +36,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``mapc``: ``cam`` commanded through the instruction, one MAPC instance per slave
   (Continuous, Immediate, on its master's command position, the cam table's profile in
   slot 1 as MCCP computes it), all executed in the same scan (100 steps).
+- ``mc_cam_in``: ``mapc`` with MC_CamIn (the table selected periodic, master and slave
+  relative, MasterScaling 0.1, on the master's set value) on every slave: its cams start
+  in one ``start_position_cams`` call (100 steps).
 - ``mas``: from ``steady``, MAS (stop all motion, at each axis's maximum deceleration)
   on every axis, one instance per axis, all executed in the same scan: the stops as one
   batch (``Controller.stop_many``), what an HMI stopping every axis by its own MAS makes
@@ -337,6 +340,15 @@ MAPC_SETUP, MAPC_COMMAND = instructions(
                "MasterReference": MasterReference.COMMAND},
 )  # fmt: skip
 
+#: MC_CamIn on every slave (``cam``'s table as a periodic selection, master and slave
+#: relative, on the master's set value, MasterScaling 0.1 mm per unit), through the block
+MC_CAM_IN_SETUP, MC_CAM_IN_COMMAND = instructions(
+    "MC_CamIn",
+    lambda n: range(n // 2 + 1, n + 1),
+    lambda n, k: {"Slave": k, "Master": k - n // 2, "CamTableID": 1,
+               "MasterScaling": CAM_MASTER_SCALING, "MasterValueSource": 0},
+)  # fmt: skip
+
 #: MAS (all motion, the maximum deceleration) on every axis, through the instruction
 MAS_SETUP, MAS_COMMAND = instructions(
     "MAS", lambda n: range(1, n + 1), lambda n, k: {"Axis": k, "StopType": 0}
@@ -391,6 +403,16 @@ def mapc_setup(ctl: Controller) -> None:
     MAPC_SETUP(ctl)
 
 
+def mc_cam_in_setup(ctl: Controller) -> None:
+    """Masters jogging, ``cam``'s table selected as CamTableID 1 (what MC_CamTableSelect
+    leaves: periodic, master and slave relative), one MC_CamIn per slave."""
+    from motion_server.kernel.cam_tables import Selection
+
+    jog(ctl)
+    ctl.cams.selections[1] = Selection(cam_profile(), 1, True, False, False)
+    MC_CAM_IN_SETUP(ctl)
+
+
 def geared(ctl: Controller) -> None:
     """Masters jogging, slaves geared to them (the set-up of ``steady``)."""
     jog(ctl)
@@ -424,6 +446,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "maj": (lambda c: (gear(c, False), MAJ_SETUP(c)), MAJ_COMMAND, 100),
     "mag": (lambda c: (jog(c), MAG_SETUP(c)), MAG_COMMAND, 60),
     "mapc": (mapc_setup, MAPC_COMMAND, 100),
+    "mc_cam_in": (mc_cam_in_setup, MC_CAM_IN_COMMAND, 100),
     "mas": (lambda c: (geared(c), MAS_SETUP(c)), MAS_COMMAND, 100),
     "mc_stop": (lambda c: (geared(c), MC_STOP_SETUP(c)), MC_STOP_COMMAND, 100),
     "mc_halt": (lambda c: (geared(c), MC_HALT_SETUP(c)), MC_HALT_COMMAND, 100),

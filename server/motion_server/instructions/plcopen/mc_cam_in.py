@@ -44,17 +44,42 @@ from __future__ import annotations
 
 import math
 from enum import IntEnum
-from typing import Any
+from typing import Any, NamedTuple
 
-from ...kernel import MotionError
+from ...kernel import Axis, AxisType, MotionError
+from ...kernel.cam_batch import CamStart
+from ...kernel.cam_profile import CamProfile
 from ...kernel.cams import CamMode, CamProcess
+from ...kernel.enums import MasterReference
 from ...kernel.gearing import check_master
 from ...kernel.processes import Process
 from ..cam_common import scaling
 from ..plcopen_common import BUFFER_MODE, MCSource, MotionBlock
 from ..registry import register
+from ..scan_pass import Batch, BatchKind, takes_motion
 from ..schema import Operand, Quantity, StatusField, TagType
 from .mc_gear_in import CONTINUOUS_UPDATE, MASTER, SLAVE, master_source
+
+_FEEDBACK_ONLY = AxisType.FEEDBACK_ONLY
+
+
+class _Coupling(NamedTuple):
+    """What ``execute`` judged: the axes, the master's source, the selection's profile
+    and flags, the scalings and offsets, the ramp-in's operands."""
+
+    slave: Axis
+    master: Axis
+    source: MasterReference
+    profile: CamProfile
+    periodic: bool
+    ss: float
+    ms: float
+    mo: float
+    so: float
+    slave_absolute: bool
+    master_absolute: bool
+    distance: float
+    x_sync: float
 
 
 class StartMode(IntEnum):
@@ -127,7 +152,12 @@ class MC_CamIn(MotionBlock):
         super().__init__(*args, **kwargs)
         self._passes = 0
 
-    def execute(self) -> None:
+    #: rising edges in one scan (aborting, no ramp-in, the slave without motion) start
+    #: their cams with one ``start_position_cams``
+    BATCH = BatchKind.POSITION_CAM
+
+    def _judged(self) -> _Coupling:
+        """The checks of ``execute`` before its command, and what the cam is built from."""
         ctl = self.ctl
         slave = self.axis("Slave")
         master = self.axis("Master")
@@ -142,79 +172,167 @@ class MC_CamIn(MotionBlock):
             ) from None
         ms = scaling(self, "MasterScaling")
         ss = scaling(self, "SlaveScaling")
-        mo = float(self.op["MasterOffset"])
-        so = float(self.op["SlaveOffset"])
         prof = sel.profile
-        periodic = sel.periodic
-        slave_absolute = sel.slave_absolute and int(self.op["StartMode"]) == StartMode.ABSOLUTE
-        master_absolute = sel.master_absolute
-
-        def coupling(m: float) -> tuple[float, int]:
-            """(the cam coordinate at coupling inside the range, its period index)."""
-            x = (m - mo) / ms if master_absolute else prof.start - mo / ms
-            if prof.start <= x <= prof.end:
-                return x, 0
-            if not periodic:
-                raise self.out_of_range(
-                    "MasterOffset",
-                    f"the master ({m:g}) lies outside the non-periodic table "
-                    f"[{prof.start:g}, {prof.end:g}] x MasterScaling + MasterOffset",
-                )
-            k = int((x - prof.start) // prof.length)
-            return x - k * prof.length, k
-
         distance = float(self.op["MasterStartDistance"])
         x_sync = float(self.op["MasterSyncPosition"])
-        if distance > 0.0 and not periodic and not prof.start <= x_sync <= prof.end:
+        if distance > 0.0 and not sel.periodic and not prof.start <= x_sync <= prof.end:
             raise self.out_of_range(
                 "MasterSyncPosition",
                 f"MasterSyncPosition {x_sync:g} is outside the table "
                 f"[{prof.start:g}, {prof.end:g}]",
             )
+        return _Coupling(
+            slave,
+            master,
+            source,
+            prof,
+            sel.periodic,
+            ss,
+            ms,
+            float(self.op["MasterOffset"]),
+            float(self.op["SlaveOffset"]),
+            sel.slave_absolute and int(self.op["StartMode"]) == StartMode.ABSOLUTE,
+            sel.master_absolute,
+            distance,
+            x_sync,
+        )
 
-        def ramp(x0: float) -> tuple[float, float] | None:
-            """The ramp-in (x_start, x_sync) ahead of the coupling point ``x0``."""
-            if distance <= 0.0:
-                return None
-            sync = x_sync
-            if periodic:
-                sync += math.ceil((x0 - sync) / prof.length) * prof.length
-                if sync <= x0:
-                    sync += prof.length
-            elif sync <= x0:
-                return None  # past the sync position: coupled at once
-            return max(sync - distance, x0), sync
+    def _coupling(self, c: _Coupling, m: float) -> tuple[float, int]:
+        """(the cam coordinate at coupling on the master's value ``m``, inside the range,
+        and its period index)."""
+        prof = c.profile
+        x = (m - c.mo) / c.ms if c.master_absolute else prof.start - c.mo / c.ms
+        if prof.start <= x <= prof.end:
+            return x, 0
+        if not c.periodic:
+            raise self.out_of_range(
+                "MasterOffset",
+                f"the master ({m:g}) lies outside the non-periodic table "
+                f"[{prof.start:g}, {prof.end:g}] x MasterScaling + MasterOffset",
+            )
+        k = int((x - prof.start) // prof.length)
+        return x - k * prof.length, k
 
-        m_now = ctl.read_master(master.index, source)[0]
-        coupling(m_now)  # judged now: a refused coupling moves nothing
+    @staticmethod
+    def _origin(c: _Coupling, x0: float, k0: int) -> float:
+        """The cam's origin: an absolute slave placed on the cam (the nearest turn of a
+        rotary one), else the SlaveOffset."""
+        if not c.slave_absolute:
+            return c.so
+        prof = c.profile
+        target = c.ss * (prof.value(x0) + k0 * prof.rise) + c.so
+        here = c.slave.command_position_unwound
+        return c.slave.unwound_target(target, here) - here
+
+    @staticmethod
+    def _ramp(c: _Coupling, x0: float) -> tuple[float, float] | None:
+        """The ramp-in (x_start, x_sync) ahead of the coupling point ``x0``."""
+        if c.distance <= 0.0:
+            return None
+        prof = c.profile
+        sync = c.x_sync
+        if c.periodic:
+            sync += math.ceil((x0 - sync) / prof.length) * prof.length
+            if sync <= x0:
+                sync += prof.length
+        elif sync <= x0:
+            return None  # past the sync position: coupled at once
+        return max(sync - c.distance, x0), sync
+
+    def execute(self) -> None:
+        ctl = self.ctl
+        c = self._judged()
+        master = c.master
+        self._coupling(c, ctl.read_master(master.index, c.source)[0])  # judged now
 
         def make(v: float, a: float) -> Process:
-            m = ctl.read_master(master.index, source)[0]
-            x0, k0 = coupling(m)
-            if slave_absolute:
-                target = ss * (prof.value(x0) + k0 * prof.rise) + so
-                here = slave.command_position_unwound
-                origin = slave.unwound_target(target, here) - here
-            else:
-                origin = so
+            x0, k0 = self._coupling(c, ctl.read_master(master.index, c.source)[0])
             return CamProcess(
                 ctl,
-                prof,
-                CamMode.CONTINUOUS if periodic else CamMode.PERSISTENT,
-                ss,
-                ms,
+                c.profile,
+                CamMode.CONTINUOUS if c.periodic else CamMode.PERSISTENT,
+                c.ss,
+                c.ms,
                 x0,
                 master=master.index,
-                source=source,
+                source=c.source,
                 master_number=master.number,
                 rollover=master.config.rollover,
-                origin=origin,
-                ramp_in=ramp(x0),
+                origin=self._origin(c, x0, k0),
+                ramp_in=self._ramp(c, x0),
                 owner=self,
             )
 
         self._passes = 0
-        self.begin(slave, make)
+        self.begin(c.slave, make)
+        self._count()
+
+    def batch_job(self, batch: Batch, key: Any) -> tuple[tuple[Any, ...], tuple[int, ...]] | None:
+        """``execute`` up to the kernel command, the cam returned as a
+        :class:`~...kernel.cam_batch.CamStart` for ``start_position_cams``; None (executed
+        alone) for a buffered block, a ramp-in, or a slave with motion, a cam preloaded
+        or a command buffered (the batch starts cams on slaves at rest, where the
+        aborting mode replaces nothing). A cam whose slave is an axis of the queue, or
+        whose master is a queued slave or follows one, hands the queue over first, so
+        that its checks see the cams queued before it. Raises what ``execute`` raises
+        before its command (the block's own scan then shows it)."""
+        op = self.op
+        if self.buffered() or float(op["MasterStartDistance"]) > 0.0:
+            return None
+        s, m = int(op["Slave"]), int(op["Master"])
+        loops, reaches = batch.reaching(m, s)
+        flushed = reaches or s in batch.axes
+        if flushed:
+            batch.flush()  # its checks see the cams queued before it (in full: ``_judged``)
+        slave = self.axis("Slave")
+        if (
+            slave._processes
+            or slave.stop_rows is not None
+            or slave.preloaded_cams
+            or slave.buffered is not None
+        ):
+            return None
+        # what the checks find from the values and the selection alone (the judge's key
+        # and the selection the CamTableID names): worked out once per set of them in a
+        # scan pass
+        ctl = self.ctl
+        sel = None if flushed or key is None else ctl.cams.selections.get(int(op["CamTableID"]))
+        memo = None if sel is None else (MC_CamIn, key, id(sel))
+        values = None if memo is None else batch.plans.get(memo)
+        if values is None:
+            c = self._judged()
+            if memo is not None:
+                batch.plans[memo] = c[3:]
+        else:
+            # ``_judged``'s checks in its order, in full only where they refuse
+            master = self.axis("Master")
+            if not takes_motion(slave) or slave.stopping:
+                self.check_axis(slave)
+            source = master_source(int(op["MasterValueSource"]))
+            if loops or (source == MasterReference.COMMAND and master.type is _FEEDBACK_ONLY):
+                check_master(ctl, slave, master, source)
+            c = _Coupling(slave, master, source, *values)
+        master = c.master
+        # (the master's value and the slave's position do not change until the step:
+        # read now, they are what the cam's factory would read when the batch starts it)
+        x0, k0 = self._coupling(c, ctl.read_master(master.index, c.source)[0])
+        start = CamStart(
+            slave,
+            master,
+            c.profile,
+            CamMode.CONTINUOUS if c.periodic else CamMode.PERSISTENT,
+            c.ss,
+            c.ms,
+            x0,
+            c.source,
+            self._origin(c, x0, k0),
+            owner=self,
+        )
+        return start, (s, master.number)
+
+    def batch_started(self, process: Process) -> None:
+        self._passes = 0
+        super().batch_started(process)
         self._count()
 
     def _count(self) -> None:
