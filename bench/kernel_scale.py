@@ -59,7 +59,8 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   start in one ``start_gears`` call that replaces every process (60 steps).
 - ``rejog``: from ``steady``, MAJ at 50 mm/s on every master: each jog at speed is
   replaced by a jog from 100 mm/s (``start_jogs`` on axes already moving), 100 steps;
-  ``maj_rejog`` the same through one MAJ instance per master.
+  ``maj_rejog`` the same through one MAJ instance per master; ``s-rejog`` with a jerk
+  limit of 20,000 mm/s³ (S-curves from 100 mm/s, in the S-curve lane).
 - ``move_on_jog``: from ``steady``, a move of 50 mm on every master that replaces its
   jog (the PLCopen aborting mode, MC_MoveRelative: ``start_moves`` with
   ``replace=None``), each from 100 mm/s, 100 steps.
@@ -245,6 +246,12 @@ def rejog(ctl: Controller) -> None:
     """MAJ at half the speed on every master, jogging at ``SPEED`` (``jog``)."""
     masters = ctl.axes[: len(ctl.axes) // 2]
     ctl.start_jogs(masters, [SPEED / 2] * len(masters), Limits(SPEED, RATE, RATE))
+
+
+def s_rejog(ctl: Controller) -> None:
+    """``rejog`` with a jerk limit: S-curves from ``SPEED`` to half of it."""
+    masters = ctl.axes[: len(ctl.axes) // 2]
+    ctl.start_jogs(masters, [SPEED / 2] * len(masters), Limits(SPEED, RATE, RATE, JERK))
 
 
 def move_on_jog(ctl: Controller) -> None:
@@ -456,6 +463,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
         100,
     ),
     "rejog": (lambda c: (jog(c), gear(c, False)), rejog, 100),
+    "s-rejog": (lambda c: (jog(c), gear(c, False)), s_rejog, 100),
     "move_on_jog": (lambda c: (jog(c), gear(c, False)), move_on_jog, 100),
     "maj_rejog": (lambda c: (jog(c), gear(c, False), MAJ_REJOG_SETUP(c)), MAJ_REJOG_COMMAND, 100),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -345,8 +346,9 @@ def test_jogs_from_rest_are_built_once_per_target_and_planned_in_the_call(
         ref.step()
 
 
+@pytest.mark.parametrize("jerk", [0.0, 20_000.0])
 def test_jogs_replaced_on_moving_axes_are_built_once_per_start_and_keep_the_levels(
-    monkeypatch: Any,
+    monkeypatch: Any, jerk: float
 ) -> None:
     """Six masters jogging, their slaves geared to them: three at speed (40 mm/s, in the
     cruise lane), two still ramping (in the profile lane) and one at speed at 25 mm/s.
@@ -354,8 +356,10 @@ def test_jogs_replaced_on_moving_axes_are_built_once_per_start_and_keep_the_leve
     they start from (three at speed alike: one built, two copied); the first step plans
     nothing (the call planned the jogs) and levels no follower again (the masters pass
     from one time-driven lane to another: their slaves read them as before); the motion
-    is the loop's and the reference's, step by step, and so are the objects."""
-    limits = Limits(300.0, 1000.0, 2000.0)
+    is the loop's and the reference's, step by step, and so are the objects. The new
+    jogs are trapezoidal (the profile lane) or jerk-limited (the S-curve lane, the
+    closed form from the velocity and acceleration each starts from)."""
+    limits = Limits(300.0, 1000.0, 2000.0, jerk)
     slow = Limits(25.0, 800.0, 800.0)
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
                                                          ("ref", False))}  # fmt: skip
@@ -416,8 +420,11 @@ def test_jogs_replaced_on_moving_axes_are_built_once_per_start_and_keep_the_leve
         raise AssertionError("planned or levelled at the step")
 
     monkeypatch.setattr(ramps, "velocity_plans", refuse)
+    monkeypatch.setattr(scurve, "jerk_plans", refuse)
     monkeypatch.setattr(type(lanes), "_order_command_followers", refuse)
     batch.step()
+    lane = "SCurveLane" if jerk else "ProfileLane"
+    assert {type(ax.processes[0].lane).__name__ for ax in batch.axes[: N // 2]} == {lane}
     monkeypatch.undo()
     loop.step()
     ref.step()

@@ -19,21 +19,20 @@ work that does not depend on the axis:
   :meth:`.lanes.scurve.SCurveLane.admit_batch`), so the first step takes them as they
   are instead of reading every jog's request and planning it.
 
-- a trapezoidal jog that replaces the one process of an axis already moving (MAJ on a
-  jogging axis: a new speed) is built from that process's velocity and acceleration,
-  once per (target, velocity, acceleration) and copied, and joins the batch as a jog from
-  rest does; the process it replaces leaves its time-driven lane without levelling the
+- a jog that replaces the one process of an axis already moving (MAJ on a jogging
+  axis: a new speed) is built from that process's velocity and acceleration, once per
+  (target, velocity, acceleration) and copied, and joins the batch as a jog from rest
+  does; the process it replaces leaves its time-driven lane without levelling the
   followers again (``Lane.pass_on``: the axis is in a time-driven lane before and after).
 
 The jogs are still one object each (a copy costs about a microsecond): the rows of a
 lane whose objects are made only when read, as a group stop's (:mod:`.lanes.stop_rows`),
 are not done for jogs.
 
-Other axes (overridden, with a preloaded cam, buffered, more than one process, a
-jerk-limited jog from motion, a jog whose plan the constructor had to build or hand to
-ruckig) are started through ``Motion.start`` or ``Motion.start_from_rest`` as the loop
-starts them. As with the loop, a
-:class:`.errors.MotionError` on an axis leaves the axes before it started.
+Other axes (overridden, with a preloaded cam, buffered, more than one process, a jog
+whose plan the constructor had to build or hand to ruckig) are started through
+``Motion.start`` or ``Motion.start_from_rest`` as the loop starts them. As with the
+loop, a :class:`.errors.MotionError` on an axis leaves the axes before it started.
 """
 
 from __future__ import annotations
@@ -132,11 +131,13 @@ class _Protos:
     def make_moving(
         self, period: float, target: float, owner: object, v: float, a: float
     ) -> tuple[JogProcess, _Proto]:
-        """``JogProcess(period, target, limits, v, a, owner)`` (trapezoidal limits: the
-        jog from ``v``, the acceleration ``a`` kept as the profile's) and its prototype.
-        The profile's request is the only part that depends on ``v``: a jog from rest
-        of the same period, if one was built, is copied with its velocity, acceleration
-        and request replaced, judged as the constructor judges it."""
+        """``JogProcess(period, target, limits, v, a, owner)`` and its prototype: built
+        once per (period, target, v, a) and copied, when it can be copied (a
+        jerk-limited one whose plan the constructor handed to ruckig is built each
+        time). A trapezoidal profile's request is the only part that depends on ``v``
+        (the acceleration ``a`` is kept as the profile's): a trapezoidal jog from rest
+        of the same period, if one was built, is copied with its velocity,
+        acceleration and request replaced, judged as the constructor judges it."""
         last = self._last_moving
         if (
             last is not None
@@ -162,8 +163,10 @@ class _Protos:
             req = (base.request[0], float(v), velocity, *base.request[3:])  # type: ignore[index]
             judge_velocity_plan(*req)
             p = _copy(base, target, owner, req, (v, a))
-        proto = self.moving[key] = _Proto(p, period)
-        self._last_moving = (target, period, v, a, proto)
+        proto = _Proto(p, period)
+        if proto.copyable:
+            self.moving[key] = proto
+            self._last_moving = (target, period, v, a, proto)
         return p, proto
 
     def _keep(self, key: tuple[float, str], p: JogProcess, period: float) -> _Proto:
@@ -303,7 +306,6 @@ def start_jogs(
     if len(targets) != len(axes) or (owners is not None and len(owners) != len(axes)):
         raise ValueError("one target (and one owner, if any) per axis")
     limits = limits.validated()
-    trapezoidal = limits.trapezoidal
     started: list[Process] = []
     joining = _Joining(motion)
     protos = _Protos(limits)
@@ -320,11 +322,10 @@ def start_jogs(
                 or ax.preloaded_cams
                 or (ax.override is not NEUTRAL and not ax.override.neutral)
             ):
-                if trapezoidal:
-                    p = _from_motion(motion, ax, procs, target, owner, protos, replace, joining)
-                    if p is not None:
-                        started.append(p)
-                        continue
+                p = _from_motion(motion, ax, procs, target, owner, protos, replace, joining)
+                if p is not None:
+                    started.append(p)
+                    continue
                 joining.admit()
                 started.append(
                     motion.start(ax, _factory(ax.period, target, limits, owner), replace)
@@ -360,7 +361,7 @@ def _from_motion(
     replace: Collection[ProcessKind] | None,
     joining: _Joining,
 ) -> JogProcess | None:
-    """``Motion.start`` of a trapezoidal jog on ``ax`` when it replaces the axis's one
+    """``Motion.start`` of a jog on ``ax`` when it replaces the axis's one
     process (:func:`.take_over.sole_replaced`: what the usual MAJ on a jogging axis
     finds): built from that process's velocity and acceleration
     (:meth:`_Protos.make_moving`), it joins the batch of its lane as a jog from rest
