@@ -7,8 +7,8 @@ that simple; :func:`take_over` then does what ``Motion.start`` does before the n
 process joins its axis: settle the old process (out of its lane), build the new one from
 the old one's velocity and acceleration (if that raises, nothing else has changed, as in
 ``Motion.start``), abort the old one as ``Process.abort`` does and fold its displacement
-into the axis's base. The caller adds the new process to the list returned, as a start
-from rest does (``Motion.start_from_rest``, or its batch's admission to a lane).
+into the axis's base. The caller adds the new process to the list returned: its batch's
+admission to a lane, or :func:`join`, the rest of ``Motion.start``.
 
 An old process in a time-driven lane (a jog at speed, a ramp) leaves it with
 ``Lane.pass_on``: the followers that read the axis keep their level when the new process
@@ -24,7 +24,6 @@ from typing import Any, TypeVar
 
 from .axis import Axis
 from .enums import AbortReason, ProcessKind, ProcessState
-from .errors import MotionError
 from .lanes import GroupLanes
 from .motion import Motion
 from .override import NEUTRAL
@@ -86,7 +85,8 @@ def take_over(
             lanes = motion.lanes[ax.group]
     try:
         p, extra = build(0.0 + q.velocity, 0.0 + q.acceleration)
-    except MotionError:
+    except BaseException:
+        # (refused: ``q`` runs on, composed in Python, as after ``Motion.settle``)
         if lanes is not None:
             lanes.dirty = True
         raise
