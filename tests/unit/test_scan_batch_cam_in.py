@@ -21,24 +21,16 @@ from typing import Any
 import pytest
 from hypothesis import given, settings
 
-from motion_server.instructions import MotionSystem, scan_pass
+from motion_server.instructions import MotionSystem
 from motion_server.kernel import (
-    AxisConfig,
-    AxisType,
-    CamTableConfig,
-    Controller,
     ErrorCode,
-    GroupConfig,
 )
 
+from . import test_scan_batch_cams
 from .test_scan_batch import run_side_by_side, same, scan_plans
 
-L = 0  # SegmentType linear
-#: table 1: slope 1/2 over 0..100, flat to 200; table 2: y = x over 0..100
-TABLES = {
-    1: ("Half", ((0.0, 0.0, L), (100.0, 50.0, L), (200.0, 50.0, L))),
-    2: ("Line", ((0.0, 0.0, L), (100.0, 100.0, L))),
-}
+#: MAPC's tables 1 (slope 1/2 over 0..100, flat to 200) and 2 (y = x over 0..100)
+TABLES = {n: test_scan_batch_cams.TABLES[n] for n in (1, 2)}
 #: the selections MC_CamTableSelect makes before the scans, CamTableID 1..4 in order:
 #: (table, periodic, master absolute, slave absolute)
 SELECTIONS = [(1, True, True, True), (2, False, True, True), (1, True, False, False),
@@ -79,17 +71,7 @@ ORDER = [
 
 
 def build(batch: bool, lanes: bool) -> MotionSystem:
-    axes = [
-        AxisConfig(n, f"A{n}", AxisType.SERVO, max_velocity=1000.0, max_acceleration=500.0,
-                   max_deceleration=400.0)
-        for n in range(1, 7)
-    ] + [AxisConfig(7, "A7", AxisType.FEEDBACK_ONLY),
-         AxisConfig(8, "A8", AxisType.SERVO)]  # fmt: skip
-    cams = [CamTableConfig(n, name, 8, points) for n, (name, points) in TABLES.items()]
-    group = GroupConfig(1, "Group1", tuple(a.number for a in axes), 0.002)
-    system = MotionSystem(Controller(axes, [group], lanes, cams), batch=batch)
-    for ax in system.ctl.axes[:6]:
-        system.ctl.servo_on(ax)
+    system = test_scan_batch_cams.cam_system(batch, lanes, TABLES)
     for k, (table, periodic, master_abs, slave_abs) in enumerate(SELECTIONS):
         sel = system.add("MC_CamTableSelect", f"Select{k + 1}", {})
         sel.inputs.update({"Master": 1, "Slave": 2, "CamTable": table, "Periodic": periodic,
@@ -130,14 +112,7 @@ def test_cams_of_one_scan_reach_the_kernel_in_one_call(monkeypatch: pytest.Monke
     slave 6 (absolute, so the slave jumps onto the cam), then MC_CamIn 5 buffered on the
     jogging axis 2 (alone): two calls of three cams and one; every cam runs, Busy and
     Active as one by one, and slave 6 stands where the table puts it."""
-    calls: list[int] = []
-    real = scan_pass.start_position_cams
-
-    def spy(ctl: Controller, starts: Any) -> Any:
-        calls.append(len(starts))
-        return real(ctl, starts)
-
-    monkeypatch.setattr(scan_pass, "start_position_cams", spy)
+    calls = test_scan_batch_cams.cam_calls(monkeypatch)
     systems = (build(True, True), build(False, True))
     for system in systems:
         for name, axis in (("MC_MoveVelocity1", 1), ("MC_MoveVelocity2", 2)):
@@ -146,7 +121,7 @@ def test_cams_of_one_scan_reach_the_kernel_in_one_call(monkeypatch: pytest.Monke
     for _ in range(100):  # 0.2 s at 100 mm/s²: 20 mm/s, 2 mm
         for system in systems:
             system.cycle()
-    fired = {
+    fired: dict[str, dict[str, Any]] = {
         "MC_CamIn1": {"Master": 1, "Slave": 3, "CamTableID": 1},
         "MC_CamIn2": {"Master": 2, "Slave": 4, "CamTableID": 1},
         "MC_CamIn3": {"Master": 1, "Slave": 5, "CamTableID": 3},

@@ -71,18 +71,27 @@ ORDER = [
 ]  # fmt: skip
 
 
-def build(batch: bool, lanes: bool) -> MotionSystem:
+def cam_system(
+    batch: bool, lanes: bool, tables: dict[int, tuple[str, Any]] = TABLES
+) -> MotionSystem:
+    """Axes 1..6 servo (on), 7 feedback only, 8 servo (off), in one group at 2 ms, with
+    the cam tables ``tables``; batched or one instance at a time."""
     axes = [
         AxisConfig(n, f"A{n}", AxisType.SERVO, max_velocity=1000.0, max_acceleration=500.0,
                    max_deceleration=400.0)
         for n in range(1, 7)
     ] + [AxisConfig(7, "A7", AxisType.FEEDBACK_ONLY),
          AxisConfig(8, "A8", AxisType.SERVO)]  # fmt: skip
-    cams = [CamTableConfig(n, name, 8, points) for n, (name, points) in TABLES.items()]
+    cams = [CamTableConfig(n, name, 8, points) for n, (name, points) in tables.items()]
     group = GroupConfig(1, "Group1", tuple(a.number for a in axes), 0.002)
     system = MotionSystem(Controller(axes, [group], lanes, cams), batch=batch)
     for ax in system.ctl.axes[:6]:
         system.ctl.servo_on(ax)
+    return system
+
+
+def build(batch: bool, lanes: bool) -> MotionSystem:
+    system = cam_system(batch, lanes)
     for n in (1, 2):  # MCCP of tables 1 and 2 into their own profiles
         mccp = system.add("MCCP", f"MCCP{n}", {})
         mccp.inputs.update(
@@ -140,9 +149,8 @@ def fire(systems: tuple[MotionSystem, ...], operands: dict[str, dict[str, Any]])
     same(systems[0], systems[1], operands)
 
 
-def test_cams_of_one_scan_reach_the_kernel_in_one_call(monkeypatch: pytest.MonkeyPatch) -> None:
-    """MAPC1..3 (a run) and MAPC4, 5 (after a MAG): two calls of three and two cams; every
-    cam runs, DN and IP set, as one by one."""
+def cam_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The number of cams of each ``start_position_cams`` call the scans make from now on."""
     calls: list[int] = []
     real = scan_pass.start_position_cams
 
@@ -151,6 +159,13 @@ def test_cams_of_one_scan_reach_the_kernel_in_one_call(monkeypatch: pytest.Monke
         return real(ctl, starts)
 
     monkeypatch.setattr(scan_pass, "start_position_cams", spy)
+    return calls
+
+
+def test_cams_of_one_scan_reach_the_kernel_in_one_call(monkeypatch: pytest.MonkeyPatch) -> None:
+    """MAPC1..3 (a run) and MAPC4, 5 (after a MAG): two calls of three and two cams; every
+    cam runs, DN and IP set, as one by one."""
+    calls = cam_calls(monkeypatch)
     systems = pair()
     fire(
         systems,

@@ -52,7 +52,7 @@ from .motion import Motion
 from .override import NEUTRAL
 from .processes import JogProcess, Process, ProcessFactory
 from .scurve import SCurveProfile
-from .take_over import join, same_bits, sole_replaced, take_over
+from .take_over import LastStart, join, sole_replaced, take_over
 from .trapezoid import TrapezoidProfile, judge_velocity_plan
 
 #: a group whose lanes were not looked up yet
@@ -102,8 +102,8 @@ class _Protos:
         #: the jogs from motion built so far, by (period, target's, velocity's and
         #: acceleration's bits)
         self.moving: dict[tuple[float, str, str, str], _Proto] = {}
-        #: the jog from motion last made: (target, period, velocity, acceleration, proto)
-        self._last_moving: tuple[object, float, float, float, _Proto] | None = None
+        #: the jog from motion last made
+        self.last: LastStart[_Proto] = LastStart()
 
     def make(self, period: float, target: float, owner: object) -> tuple[JogProcess, _Proto]:
         """``JogProcess(period, target, limits, 0.0, 0.0, owner)`` and its prototype."""
@@ -138,23 +138,16 @@ class _Protos:
         (the acceleration ``a`` is kept as the profile's): a trapezoidal jog from rest
         of the same period, if one was built, is copied with its velocity,
         acceleration and request replaced, judged as the constructor judges it."""
-        last = self._last_moving
-        if (
-            last is not None
-            and last[0] is target
-            and last[1] == period
-            and same_bits(v, last[2])
-            and same_bits(a, last[3])
-        ):
-            # (the usual batch: one target, every axis at the same speed)
-            return _copy(last[4], target, owner), last[4]
+        proto = self.last.get(target, period, v, a)
+        if proto is not None:
+            return _copy(proto, target, owner), proto
         if not math.isfinite(target):
             raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target velocity must be finite")
         velocity = float(target)
         key = (period, velocity.hex(), v.hex(), a.hex())
         proto = self.moving.get(key)
         if proto is not None:
-            self._last_moving = (target, period, v, a, proto)
+            self.last.keep(target, period, v, a, proto)
             return _copy(proto, target, owner), proto
         base = self.trapezoid.get(period)
         if base is None:
@@ -166,7 +159,7 @@ class _Protos:
         proto = _Proto(p, period)
         if proto.copyable:
             self.moving[key] = proto
-            self._last_moving = (target, period, v, a, proto)
+            self.last.keep(target, period, v, a, proto)
         return p, proto
 
     def _keep(self, key: tuple[float, str], p: JogProcess, period: float) -> _Proto:
@@ -240,6 +233,27 @@ class _Joining:
         self.pairs.append((p, ax))
         self.protos.append(proto)
         return True
+
+    def take_moving(
+        self,
+        ax: Axis,
+        new: list[Process],
+        p: Process,
+        proto: Any,
+        kind: str | None,
+        lanes: GroupLanes | None,
+    ) -> None:
+        """The rest of a start :func:`.take_over.take_over` began on ``ax`` (``new`` the
+        axis's new process list, ``lanes`` what it returned): ``p`` joins this batch
+        when its ``kind`` of lane takes it, else it starts as ``Motion.start`` ends, the
+        lanes marked for the full rebuild if the process it replaced left a
+        time-driven lane."""
+        if kind is not None and self.take(ax, new, p, proto, kind):
+            return
+        if lanes is not None:
+            lanes.dirty = True
+        self.admit()
+        join(self._motion, ax, new, p)
 
     def open(self, lanes: GroupLanes, kind: str) -> None:
         """Close the batch held (:meth:`admit`) and start one for ``lanes``' ``kind``."""
@@ -372,13 +386,7 @@ def _from_motion(
     p, proto, new, lanes = take_over(
         motion, ax, q, lambda v, a: protos.make_moving(ax.period, target, owner, v, a)
     )
-    kind = proto.lane_kind
-    if kind is not None and joining.take(ax, new, p, proto, kind):
-        return p
-    if lanes is not None:
-        lanes.dirty = True
-    joining.admit()
-    join(motion, ax, new, p)
+    joining.take_moving(ax, new, p, proto, proto.lane_kind, lanes)
     return p
 
 

@@ -47,7 +47,7 @@ from .motion import Motion
 from .move_plan import position_plans
 from .override import NEUTRAL
 from .processes import MoveProcess, Process, ProcessFactory
-from .take_over import join, same_bits, sole_replaced, take_over
+from .take_over import LastStart, sole_replaced, take_over
 from .trapezoid import Plan, TrapezoidProfile
 
 #: what a move replaces (Logix MAM without Merge)
@@ -181,7 +181,7 @@ class _FromMotion:
     def __init__(self, limits: Limits) -> None:
         self.limits = limits
         self.by_key: dict[tuple[float, str, str, str], _Proto] = {}
-        self.last: tuple[object, float, float, float, _Proto] | None = None
+        self.last: LastStart[_Proto] = LastStart()
 
     def make(
         self,
@@ -194,15 +194,9 @@ class _FromMotion:
     ) -> tuple[MoveProcess, _Proto]:
         """``MoveProcess(period, distance, limits, v, a, owner, landing)`` and its
         prototype."""
-        last = self.last
-        if (
-            last is not None
-            and last[0] is distance
-            and last[1] == period
-            and same_bits(v, last[2])
-            and same_bits(a, last[3])
-        ):
-            return _copy(last[4], distance, owner, landing), last[4]
+        proto = self.last.get(distance, period, v, a)
+        if proto is not None:
+            return _copy(proto, distance, owner, landing), proto
         key = _key(period, distance)
         full = None if key is None else (*key, v.hex(), a.hex())
         proto = None if full is None else self.by_key.get(full)
@@ -215,7 +209,7 @@ class _FromMotion:
             if full is None or proto.row is None:
                 return p, proto
             self.by_key[full] = proto
-        self.last = (distance, period, v, a, proto)
+        self.last.keep(distance, period, v, a, proto)
         return p, proto
 
 
@@ -334,12 +328,7 @@ def _from_motion(
     p, proto, new, lanes = take_over(
         motion, ax, q, lambda v, a: moving.make(ax.period, distance, owner, landing, v, a)
     )
-    if proto.row is not None and joining.take(ax, new, p, proto, "profiles"):
-        return p
-    if lanes is not None:
-        lanes.dirty = True
-    joining.admit()
-    join(motion, ax, new, p)
+    joining.take_moving(ax, new, p, proto, None if proto.row is None else "profiles", lanes)
     return p
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Collection
-from typing import Any, TypeVar
+from typing import Any, Generic, TypeVar
 
 from .axis import Axis
 from .enums import AbortReason, ProcessKind, ProcessState
@@ -42,6 +42,35 @@ def same_bits(x: float, y: float) -> bool:
     """``x`` and ``y`` have the same bits (finite or infinite; zeros by their sign): a
     batch's new processes built from them are alike."""
     return x == y and (x != 0.0 or math.copysign(1.0, x) == math.copysign(1.0, y))
+
+
+class LastStart(Generic[T]):
+    """The start a batch built last from motion: its target or distance (the object),
+    period, velocity and acceleration, and its prototype. The usual batch (one target
+    object for every axis, every axis at the same speed) finds the next axis's here."""
+
+    __slots__ = ("a", "period", "proto", "v", "what")
+
+    def __init__(self) -> None:
+        self.proto: T | None = None
+        self.what: object = None
+        self.period = self.v = self.a = 0.0
+
+    def get(self, what: object, period: float, v: float, a: float) -> T | None:
+        """The prototype kept, if it was built from these."""
+        proto = self.proto
+        if (
+            proto is not None
+            and self.what is what
+            and self.period == period
+            and same_bits(v, self.v)
+            and same_bits(a, self.a)
+        ):
+            return proto
+        return None
+
+    def keep(self, what: object, period: float, v: float, a: float, proto: T) -> None:
+        self.what, self.period, self.v, self.a, self.proto = what, period, v, a, proto
 
 
 def sole_replaced(
