@@ -61,6 +61,8 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   replaced by a jog from 100 mm/s (``start_jogs`` on axes already moving), 100 steps;
   ``maj_rejog`` the same through one MAJ instance per master; ``s-rejog`` with a jerk
   limit of 20,000 mm/s³ (S-curves from 100 mm/s, in the S-curve lane).
+- ``regear``: from ``steady``, MAG with the clutch at a new ratio (1/4) on every slave:
+  each gear replaced by one that catches up from the slave's 50 mm/s (100 steps).
 - ``move_on_jog``: from ``steady``, a move of 50 mm on every master that replaces its
   jog (the PLCopen aborting mode, MC_MoveRelative: ``start_moves`` with
   ``replace=None``), each from 100 mm/s, 100 steps.
@@ -252,6 +254,13 @@ def s_rejog(ctl: Controller) -> None:
     """``rejog`` with a jerk limit: S-curves from ``SPEED`` to half of it."""
     masters = ctl.axes[: len(ctl.axes) // 2]
     ctl.start_jogs(masters, [SPEED / 2] * len(masters), Limits(SPEED, RATE, RATE, JERK))
+
+
+def regear(ctl: Controller) -> None:
+    """MAG with the clutch at the ratio 1/4 on every slave, geared at 0.5 (``gear``)."""
+    half = len(ctl.axes) // 2
+    terms = [GearTerm(k + 1, MasterReference.COMMAND, 25_000, 100_000) for k in range(half)]
+    ctl.start_gears(ctl.axes[half:], terms, [RATE] * half)
 
 
 def move_on_jog(ctl: Controller) -> None:
@@ -464,6 +473,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     ),
     "rejog": (lambda c: (jog(c), gear(c, False)), rejog, 100),
     "s-rejog": (lambda c: (jog(c), gear(c, False)), s_rejog, 100),
+    "regear": (lambda c: (jog(c), gear(c, False)), regear, 100),
     "move_on_jog": (lambda c: (jog(c), gear(c, False)), move_on_jog, 100),
     "maj_rejog": (lambda c: (jog(c), gear(c, False), MAJ_REJOG_SETUP(c)), MAJ_REJOG_COMMAND, 100),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),

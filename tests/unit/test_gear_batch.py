@@ -317,3 +317,48 @@ def test_a_follower_reading_a_slave_of_the_batch_is_levelled_again() -> None:
             c.step()
         assert ctls[0].cmd_pos.tobytes() == ctls[1].cmd_pos.tobytes(), k
     assert ctls[0].cmd_pos[5] != 0.0
+
+
+def test_gears_at_a_new_ratio_on_geared_slaves_catch_up_and_lock() -> None:
+    """Masters 1-4 jogging at 100 mm/s, slaves 5-10 geared at 1/2 (locked, 50 mm/s); a
+    batch gears them again at 1/4 with the clutch at 500 mm/s²: each new gear is built
+    from the slave's 50 mm/s (one built per set of parameters, the others copied), reads
+    the same master, so the composition order stands; the motion is the loop's and the
+    reference's step by step, and each slave ends locked at 25 mm/s, a quarter of its
+    master's speed (50 to 25 mm/s at 500 mm/s² is 0.05 s: locked well within 0.4 s)."""
+    ctls = {"batch": bench_like(True), "loop": bench_like(True), "ref": bench_like(False)}
+    for c in ctls.values():
+        for n in range(5, 11):
+            term = GearTerm((n - 5) % 4 + 1, MasterReference.COMMAND, 1, 2)
+            c.start(c.axis(n), mag(c, c.axis(n), term, None, None, 1), GEAR)
+        c.run(50)
+    built: list[float] = []
+    init = GearProcess.__init__
+
+    def counting(self: GearProcess, *args: Any, **kwargs: Any) -> None:
+        built.append(args[4])  # the velocity it starts from
+        init(self, *args, **kwargs)
+
+    for name, c in ctls.items():
+        slaves = [c.axis(n) for n in range(5, 11)]
+        terms = [GearTerm((n - 5) % 4 + 1, MasterReference.COMMAND, 1, 4) for n in range(5, 11)]
+        if name == "batch":
+            GearProcess.__init__ = counting  # type: ignore[method-assign]
+            try:
+                c.start_gears(slaves, terms, [500.0] * 6)
+            finally:
+                GearProcess.__init__ = init  # type: ignore[method-assign]
+            assert built == [50.0]
+            assert not c.motion.order_dirty
+        else:
+            for ax, term in zip(slaves, terms, strict=True):
+                c.start(ax, mag(c, ax, term, 500.0, None, 1), GEAR)
+    assert_same_processes(ctls["batch"], ctls["loop"])
+    for k in range(200):
+        for c in ctls.values():
+            c.step()
+        assert_same_motion(ctls, k)
+    for n in range(5, 11):
+        ax = ctls["batch"].axis(n)
+        assert ax.processes[0].locked
+        assert ax.command_velocity == 25.0

@@ -27,9 +27,13 @@ is the per-slave work that does not depend on the slave:
   (0): the next rebuild orders the follower lanes without levelling every follower
   again (:meth:`.lanes.gears.BatchedLane.admit_started`).
 
-Any other slave (one with processes, a preloaded cam or a buffered command) is started
-through ``Motion.start`` with the factory. As with the loop, a :class:`.errors.MotionError`
-on a slave leaves the slaves before it started and nothing changed on it.
+A slave whose one process the gear replaces (a gear on a slave already geared: a new
+ratio; :mod:`.take_over`) takes a gear built from that process's velocity and
+acceleration, once per set of parameters and start state, the others copied, and joins
+the batch as a gear from rest does. Any other slave (more processes, a preloaded cam or
+a buffered command) is started through ``Motion.start`` with the factory. As with the
+loop, a :class:`.errors.MotionError` on a slave leaves the slaves before it started and
+nothing changed on it.
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ from .lanes.gears import BatchedLane, CatchUpLane, GearLane
 from .motion import Motion
 from .processes import Process, ProcessFactory
 from .state import AxisArrays
+from .take_over import sole_replaced, take_over
 
 #: what a gear replaces (Logix MAG; None for the PLCopen aborting mode)
 _REPLACE = (ProcessKind.GEAR,)
@@ -249,6 +254,12 @@ def start_gears(
             direction = 1 if directions is None else directions[k]
             procs = ax._processes if ax.stop_rows is None else ax.processes
             if procs or ax.preloaded_cams or ax.buffered is not None:
+                q = sole_replaced(ax, procs, replace)
+                if q is not None:
+                    started.append(
+                        _from_motion(motion, ax, q, term, rate, owner, direction, templates, batch)
+                    )
+                    continue
                 # not an axis without motion: the start's own path, in the loop's order
                 batch.admit()
                 make = _factory(ctx, ax, term, rate, owner, direction)
@@ -286,6 +297,57 @@ def start_gears(
     return started
 
 
+def _from_motion(
+    motion: Motion,
+    ax: Axis,
+    q: Process,
+    term: GearTerm,
+    rate: Rate,
+    owner: object,
+    direction: int,
+    templates: dict[tuple[Any, ...], _Template],
+    batch: _Batch,
+) -> GearProcess:
+    """``Motion.start`` of the gear on ``ax`` when it replaces the axis's one process
+    ``q`` (:func:`.take_over.sole_replaced`: a gear on a slave already geared, a new
+    ratio): built from ``q``'s velocity and acceleration, once per set of parameters
+    and start state, and copied for the other masters as a gear from rest is; then
+    started and gathered for its lane as one from rest. The lanes it leaves are
+    rebuilt in full (its followers read a slave composed anew)."""
+    ctx = motion.s
+    key = (term.numerator, type(term.numerator), term.denominator, type(term.denominator),
+           term.counts, int(term.source), rate, direction)  # fmt: skip
+
+    def build(v: float, a: float) -> tuple[GearProcess, int]:
+        full = (*key, v.hex(), a.hex())
+        t = templates.get(full)
+        if t is None:
+            p = _factory(ctx, ax, term, rate, owner, direction)(v, a)
+            assert isinstance(p, GearProcess)
+            templates[full] = _Template(p)
+            return p, p._c[0].index
+        index = ctx.index_of(term.master)  # (raises as the coupling does)
+        p = _copy(t, ctx, ax, term, index, owner)
+        ax.gear_direction = -1 if direction < 0 else 1
+        return p, index
+
+    p, index, new, _ = take_over(motion, ax, q, build)
+    # the group's followers are levelled again at the next rebuild, as after the
+    # loop's start: the slave's process left its lane (a gear from a follower lane,
+    # which marks the lanes, a jog from a time-driven one, or it was composed in Python)
+    motion.lanes[ax.group].dirty = True
+    new.append(p)
+    i = ax.index
+    if not motion.order_dirty and not _order_holds(motion, ax, i, index, batch):
+        motion.order_dirty = True
+    ctx.scalars.busy[i] = True
+    ctx.dirty.add(i)
+    lanes = motion._offer_to.get(ax.group)
+    if lanes is not None and ctx.drive_on.item(i):
+        _join(lanes, p, ax, index, term.source, batch, levelled=False)
+    return p
+
+
 def _order_holds(motion: Motion, ax: Axis, i: int, index: int, batch: _Batch) -> bool:
     """``Motion._order_holds`` of a gear on ``ax`` (index ``i``, without motion before)
     reading the master at ``index``: the master, if in the group, composes before it.
@@ -314,9 +376,12 @@ def _join(
     index: int,
     source: MasterReference,
     batch: _Batch,
+    levelled: bool = True,
 ) -> None:
     """``GroupLanes.offer`` of the gear ``p`` just started on ``ax`` (without motion
-    before), the admission itself gathered in ``batch``."""
+    before), the admission itself gathered in ``batch``. ``levelled`` False: the lanes
+    are levelled in full at the next rebuild (``dirty``), so whether the gear steps at
+    level 0 is not worked out."""
     p.offer_pending = False  # (offered, whether a lane takes it or not)
     command = source == _COMMAND
     if command and not lanes._master_settled(index):
@@ -357,7 +422,9 @@ def _join(
     j.members.append((p, ax))
     j.rows.append(row)
     j.masters.append(index)
-    if j.at_zero and command:
+    if not levelled:
+        j.at_zero = False
+    elif j.at_zero and command:
         j.at_zero = _at_level_zero(lanes, ax, index, batch)
 
 

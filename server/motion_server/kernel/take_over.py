@@ -122,7 +122,9 @@ def take_over(
     q.state = _ABORTED
     q.abort_reason = AbortReason.SUPERSEDED
     ax.base += q.position
-    if q.masters:
+    if q.masters and q.masters != p.masters:
+        # (a successor reading the same masters, a gear at a new ratio, leaves the
+        # composition order as valid as it was)
         motion.coupling_changed()
     new: list[Process] = []
     ax._processes = new
