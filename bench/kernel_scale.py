@@ -61,6 +61,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   replaced by a jog from 100 mm/s (``start_jogs`` on axes already moving), 100 steps;
   ``maj_rejog`` the same through one MAJ instance per master; ``s-rejog`` with a jerk
   limit of 20,000 mm/s³ (S-curves from 100 mm/s, in the S-curve lane).
+- ``s-move``: masters at rest, slaves locked to them; a move of 50 mm with a jerk limit
+  of 20,000 mm/s³ on every master (``start_moves``): a jerk-limited position profile is
+  planned by ruckig, stepped per axis in Python, in no lane (100 steps).
 - ``regear``: from ``steady``, MAG with the clutch at a new ratio (1/4) on every slave:
   each gear replaced by one that catches up from the slave's 50 mm/s (100 steps).
 - ``move_on_jog``: from ``steady``, a move of 50 mm on every master that replaces its
@@ -254,6 +257,12 @@ def s_rejog(ctl: Controller) -> None:
     """``rejog`` with a jerk limit: S-curves from ``SPEED`` to half of it."""
     masters = ctl.axes[: len(ctl.axes) // 2]
     ctl.start_jogs(masters, [SPEED / 2] * len(masters), Limits(SPEED, RATE, RATE, JERK))
+
+
+def s_move(ctl: Controller) -> None:
+    """A move of 50 mm with a jerk limit on every master."""
+    masters = ctl.axes[: len(ctl.axes) // 2]
+    ctl.start_moves(masters, [50.0] * len(masters), Limits(SPEED, RATE, RATE, JERK))
 
 
 def regear(ctl: Controller) -> None:
@@ -473,6 +482,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     ),
     "rejog": (lambda c: (jog(c), gear(c, False)), rejog, 100),
     "s-rejog": (lambda c: (jog(c), gear(c, False)), s_rejog, 100),
+    "s-move": (lambda c: gear(c, False), s_move, 100),
     "regear": (lambda c: (jog(c), gear(c, False)), regear, 100),
     "move_on_jog": (lambda c: (jog(c), gear(c, False)), move_on_jog, 100),
     "maj_rejog": (lambda c: (jog(c), gear(c, False), MAJ_REJOG_SETUP(c)), MAJ_REJOG_COMMAND, 100),
@@ -516,6 +526,9 @@ class Run:
         self.laned_last = cams_in_lanes(ctl)
         self.trace = trace.digest()
         self.ctl = ctl
+        # (collectable again: ruckig's profiles, bound with nanobind, report objects
+        # still alive when the interpreter exits)
+        gc.unfreeze()
 
 
 def main() -> None:
