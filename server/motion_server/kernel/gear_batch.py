@@ -235,11 +235,6 @@ def start_gears(
         raise ValueError("one term, clutch rate (and owner and direction, if any) per slave")
     motion: Motion = motion_or_ctl if isinstance(motion_or_ctl, Motion) else motion_or_ctl.motion
     ctx = motion.s
-    busy = ctx.scalars.busy
-    dirty = ctx.dirty
-    drive_on = ctx.drive_on
-    offer_to = motion._offer_to
-    index_of = ctx.index_of
     started: list[Process] = []
     # per set of parameters, the first gear the constructors built (so its ratio and
     # rate were judged valid; an unseen or refused set is built, and raises, as usual)
@@ -265,36 +260,73 @@ def start_gears(
                 make = _factory(ctx, ax, term, rate, owner, direction)
                 started.append(motion.start(ax, make, replace))
                 continue
-            num, den = term.numerator, term.denominator
-            source = term.source
-            key = (num, type(num), den, type(den), term.counts, int(source), rate, direction)
-            t = templates.get(key)
-            if t is None:
-                p = _factory(ctx, ax, term, rate, owner, direction)(0.0, 0.0)
-                assert isinstance(p, GearProcess)
-                templates[key] = _Template(p)
-                index = p._c[0].index
-            else:
-                index = index_of(term.master)  # (raises as the coupling does)
-                p = _copy(t, ctx, ax, term, index, owner)
-                ax.gear_direction = -1 if direction < 0 else 1
-            # Motion.start_from_rest, the lane's admission gathered
-            procs.append(p)
-            i = ax.index
-            if not motion.order_dirty and not _order_holds(motion, ax, i, index, batch):
-                motion.order_dirty = True
-            busy[i] = True
-            dirty.add(i)
-            lanes = offer_to.get(ax.group)
-            if lanes is not None and drive_on.item(i):
-                _join(lanes, p, ax, index, source, batch)
-            if p.lane is None:
-                motion.lanes[ax.group].dirty = True
+            p, index = _built(ctx, ax, term, rate, owner, direction, templates)
+            _started(motion, ax, procs, p, index, term.source, batch)
             started.append(p)
     finally:
         # (also when a gear is refused: those before it started, as in the loop)
         batch.admit()
     return started
+
+
+def _built(
+    ctx: AxisArrays,
+    ax: Axis,
+    term: GearTerm,
+    rate: Rate,
+    owner: object,
+    direction: int,
+    templates: dict[tuple[Any, ...], _Template],
+    moving: tuple[float, float] | None = None,
+) -> tuple[GearProcess, int]:
+    """MAG's gear on ``ax`` (its factory's, from rest or from ``moving``: the velocity
+    and acceleration it inherits) and its master's array index: built by the
+    constructors once per set of parameters and start state (a refused set raises
+    there, as usual), copied with its own master for the others."""
+    num, den = term.numerator, term.denominator
+    key: tuple[Any, ...] = (num, type(num), den, type(den), term.counts, int(term.source),
+                            rate, direction)  # fmt: skip
+    v = a = 0.0
+    if moving is not None:
+        v, a = moving
+        key = (*key, v.hex(), a.hex())
+    t = templates.get(key)
+    if t is None:
+        p = _factory(ctx, ax, term, rate, owner, direction)(v, a)
+        assert isinstance(p, GearProcess)
+        templates[key] = _Template(p)
+        return p, p._c[0].index
+    index = ctx.index_of(term.master)  # (raises as the coupling does)
+    p = _copy(t, ctx, ax, term, index, owner)
+    ax.gear_direction = -1 if direction < 0 else 1
+    return p, index
+
+
+def _started(
+    motion: Motion,
+    ax: Axis,
+    procs: list[Process],
+    p: GearProcess,
+    index: int,
+    source: MasterReference,
+    batch: _Batch,
+    levelled: bool = True,
+) -> None:
+    """``Motion.start_from_rest`` of ``p`` on ``ax`` (``procs`` its empty process list;
+    ``index`` its master's), the lane's admission gathered in ``batch`` (``levelled``:
+    as for :func:`_join`)."""
+    s = motion.s
+    procs.append(p)
+    i = ax.index
+    if not motion.order_dirty and not _order_holds(motion, ax, i, index, batch):
+        motion.order_dirty = True
+    s.scalars.busy[i] = True
+    s.dirty.add(i)
+    lanes = motion._offer_to.get(ax.group)
+    if lanes is not None and s.drive_on.item(i):
+        _join(lanes, p, ax, index, source, batch, levelled)
+    if p.lane is None:
+        motion.lanes[ax.group].dirty = True
 
 
 def _from_motion(
@@ -310,41 +342,20 @@ def _from_motion(
 ) -> GearProcess:
     """``Motion.start`` of the gear on ``ax`` when it replaces the axis's one process
     ``q`` (:func:`.take_over.sole_replaced`: a gear on a slave already geared, a new
-    ratio): built from ``q``'s velocity and acceleration, once per set of parameters
-    and start state, and copied for the other masters as a gear from rest is; then
-    started and gathered for its lane as one from rest. The lanes it leaves are
-    rebuilt in full (its followers read a slave composed anew)."""
-    ctx = motion.s
-    key = (term.numerator, type(term.numerator), term.denominator, type(term.denominator),
-           term.counts, int(term.source), rate, direction)  # fmt: skip
-
-    def build(v: float, a: float) -> tuple[GearProcess, int]:
-        full = (*key, v.hex(), a.hex())
-        t = templates.get(full)
-        if t is None:
-            p = _factory(ctx, ax, term, rate, owner, direction)(v, a)
-            assert isinstance(p, GearProcess)
-            templates[full] = _Template(p)
-            return p, p._c[0].index
-        index = ctx.index_of(term.master)  # (raises as the coupling does)
-        p = _copy(t, ctx, ax, term, index, owner)
-        ax.gear_direction = -1 if direction < 0 else 1
-        return p, index
-
-    p, index, new, _ = take_over(motion, ax, q, build)
+    ratio): built from ``q``'s velocity and acceleration (:func:`_built`), then started
+    and gathered for its lane as one from rest. The lanes it leaves are rebuilt in
+    full (its followers read a slave composed anew)."""
+    p, index, new, _ = take_over(
+        motion,
+        ax,
+        q,
+        lambda v, a: _built(motion.s, ax, term, rate, owner, direction, templates, (v, a)),
+    )
     # the group's followers are levelled again at the next rebuild, as after the
     # loop's start: the slave's process left its lane (a gear from a follower lane,
     # which marks the lanes, a jog from a time-driven one, or it was composed in Python)
     motion.lanes[ax.group].dirty = True
-    new.append(p)
-    i = ax.index
-    if not motion.order_dirty and not _order_holds(motion, ax, i, index, batch):
-        motion.order_dirty = True
-    ctx.scalars.busy[i] = True
-    ctx.dirty.add(i)
-    lanes = motion._offer_to.get(ax.group)
-    if lanes is not None and ctx.drive_on.item(i):
-        _join(lanes, p, ax, index, term.source, batch, levelled=False)
+    _started(motion, ax, new, p, index, term.source, batch, levelled=False)
     return p
 
 

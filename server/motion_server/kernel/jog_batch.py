@@ -255,6 +255,24 @@ class _Joining:
         self.admit()
         join(self._motion, ax, new, p)
 
+    def take_from_rest(
+        self,
+        ax: Axis,
+        procs: list[Process],
+        p: Process,
+        proto: Any,
+        kind: str | None,
+        replace: Collection[ProcessKind] | None,
+    ) -> None:
+        """The rest of a start on ``ax`` without motion (``procs`` its empty process
+        list), once ``p`` is built: ``p`` joins this batch when its ``kind`` of lane
+        takes it and nothing is buffered, else it starts as ``Motion.start_from_rest``
+        starts it, after the batch held is admitted (the loop's order)."""
+        if kind is not None and ax.buffered is None and self.take(ax, procs, p, proto, kind):
+            return
+        self.admit()
+        self._motion.start_from_rest(ax, procs, p, replace)
+
     def open(self, lanes: GroupLanes, kind: str) -> None:
         """Close the batch held (:meth:`admit`) and start one for ``lanes``' ``kind``."""
         self.admit()
@@ -351,13 +369,8 @@ def start_jogs(
             else:
                 p, proto = protos.make(ax.period, target, owner)
                 last = (target, ax.period, proto) if proto.copyable else None
-            kind = proto.lane_kind
             # (to its lane: planned, not finished)
-            if kind is not None and ax.buffered is None and joining.take(ax, procs, p, proto, kind):
-                started.append(p)
-                continue
-            joining.admit()
-            motion.start_from_rest(ax, procs, p, replace)
+            joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
             started.append(p)
     finally:
         # (also when a jog is refused: those before it started, as in the loop)

@@ -73,6 +73,12 @@ class _Proto:
             assert plan is not None  # (to_position plans at once)
             self.row = _row(p, prof, plan)
 
+    @property
+    def lane_kind(self) -> str | None:
+        """The lane copies of this move join as a batch: the profile lane, if it has a
+        row there."""
+        return None if self.row is None else "profiles"
+
     @classmethod
     def planned(cls, template: _Proto, distance: float, plan: Plan) -> _Proto:
         """The prototype of a move from rest of ``distance`` planned ahead (``plan``): the
@@ -295,15 +301,7 @@ def start_moves(
                     protos.setdefault(key, proto)
                 if proto.row is not None:
                     templates.setdefault(ax.period, proto)
-            if (
-                proto.row is not None
-                and ax.buffered is None
-                and joining.take(ax, procs, p, proto, "profiles")
-            ):
-                started.append(p)
-                continue
-            joining.admit()
-            motion.start_from_rest(ax, procs, p, replace)
+            joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
             started.append(p)
     finally:
         # (also when a move is refused: those before it started, as in the loop)
@@ -328,7 +326,7 @@ def _from_motion(
     p, proto, new, lanes = take_over(
         motion, ax, q, lambda v, a: moving.make(ax.period, distance, owner, landing, v, a)
     )
-    joining.take_moving(ax, new, p, proto, None if proto.row is None else "profiles", lanes)
+    joining.take_moving(ax, new, p, proto, proto.lane_kind, lanes)
     return p
 
 
