@@ -28,6 +28,8 @@ from motion_server.kernel.gearing import GearProcess, GearTerm, MasterReference,
 from motion_server.kernel.lanes.gears import CatchUpLane, GearLane
 from motion_server.scan import statecodec
 
+from .test_jog_batch import count_built
+
 #: group 1: axes 1-4 virtual, 5-10 servo; group 2: axes 11 (virtual) and 12 (servo)
 N = 12
 PERIOD = 0.002
@@ -319,7 +321,7 @@ def test_a_follower_reading_a_slave_of_the_batch_is_levelled_again() -> None:
     assert ctls[0].cmd_pos[5] != 0.0
 
 
-def test_gears_at_a_new_ratio_on_geared_slaves_catch_up_and_lock() -> None:
+def test_gears_at_a_new_ratio_on_geared_slaves_catch_up_and_lock(monkeypatch: Any) -> None:
     """Masters 1-4 jogging at 100 mm/s, slaves 5-10 geared at 1/2 (locked, 50 mm/s); a
     batch gears them again at 1/4 with the clutch at 500 mm/s²: each new gear is built
     from the slave's 50 mm/s (one built per set of parameters, the others copied), reads
@@ -332,22 +334,14 @@ def test_gears_at_a_new_ratio_on_geared_slaves_catch_up_and_lock() -> None:
             term = GearTerm((n - 5) % 4 + 1, MasterReference.COMMAND, 1, 2)
             c.start(c.axis(n), mag(c, c.axis(n), term, None, None, 1), GEAR)
         c.run(50)
-    built: list[float] = []
-    init = GearProcess.__init__
-
-    def counting(self: GearProcess, *args: Any, **kwargs: Any) -> None:
-        built.append(args[4])  # the velocity it starts from
-        init(self, *args, **kwargs)
-
     for name, c in ctls.items():
         slaves = [c.axis(n) for n in range(5, 11)]
         terms = [GearTerm((n - 5) % 4 + 1, MasterReference.COMMAND, 1, 4) for n in range(5, 11)]
         if name == "batch":
-            GearProcess.__init__ = counting  # type: ignore[method-assign]
-            try:
-                c.start_gears(slaves, terms, [500.0] * 6)
-            finally:
-                GearProcess.__init__ = init  # type: ignore[method-assign]
+            # (the velocity each gear starts from)
+            built = count_built(monkeypatch, GearProcess, lambda args: args[4])
+            c.start_gears(slaves, terms, [500.0] * 6)
+            monkeypatch.undo()
             assert built == [50.0]
             assert not c.motion.order_dirty
         else:

@@ -79,6 +79,20 @@ def moving_jog(n: int) -> Callable[[float, float], JogProcess]:
     return lambda v, a: JogProcess(PERIOD, speed, limits, v, a)
 
 
+def count_built(monkeypatch: Any, cls: type, pick: Callable[[tuple[Any, ...]], Any]) -> list[Any]:
+    """What ``pick`` takes of the arguments of every ``cls`` constructed from now until
+    ``monkeypatch`` is undone, in order."""
+    built: list[Any] = []
+    init = cls.__init__
+
+    def counting(self: Any, *args: Any, **kwargs: Any) -> None:
+        built.append(pick(args))
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(cls, "__init__", counting)
+    return built
+
+
 def state(p: object) -> dict[str, object]:
     """A process's attributes, its profile's as a dict, its lane by kind."""
     out = dict(vars(p))
@@ -290,8 +304,18 @@ def test_jogs_read_at_any_moment_are_those_the_loop_leaves(
                     lambda v, a, t=target: JogProcess(PERIOD, t, limits, v, a),
                     replace=(ProcessKind.JOG,),
                 )
+    step_with_reads(ctls, reads, 101)
+
+
+def step_with_reads(
+    ctls: dict[str, Controller], reads: list[tuple[int, int, bool]], cycles: int
+) -> None:
+    """``cycles`` steps of ``ctls`` ("batch", "loop" and "ref"). Before the step of each
+    ``(cycle, n, settle)`` of ``reads``, axis ``n``'s processes are read (taken out of
+    the lanes first, ``Motion.settle``, when ``settle``) on the batch and the loop alike:
+    the same objects' state; after every step, the same commands on all three."""
     batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
-    for c in range(101):
+    for c in range(cycles):
         for cycle, n, settle in reads:
             if cycle != c:
                 continue
@@ -314,18 +338,11 @@ def test_jogs_from_rest_are_built_once_per_target_and_planned_in_the_call(
     """Six masters at rest, three to one target and three to another, jerk-limited: the
     constructor runs twice (once per target), and the first step plans nothing (the
     lane takes the columns the call planned); the motion is the loop's."""
-    built: list[float] = []
-    init = JogProcess.__init__
-
-    def counting(self: JogProcess, *args: Any, **kwargs: Any) -> None:
-        built.append(args[1])
-        init(self, *args, **kwargs)
-
     limits = Limits(300.0, 1000.0, 2000.0, 20_000.0)
     a, b = 100.0, -60.0
     targets = [a, a, b, a, b, b]
     batch, ref = controller(True), controller(False)
-    monkeypatch.setattr(JogProcess, "__init__", counting)
+    built = count_built(monkeypatch, JogProcess, lambda args: args[1])
     batch.start_jogs(batch.axes[: N // 2], targets, limits)
     assert sorted(built) == [b, a]
 
@@ -385,15 +402,9 @@ def test_jogs_replaced_on_moving_axes_are_built_once_per_start_and_keep_the_leve
     assert [type(batch.axis(n).processes[0].lane).__name__ for n in range(1, 7)] == [
         "CruiseLane", "CruiseLane", "CruiseLane", "ProfileLane", "ProfileLane", "CruiseLane"
     ]  # fmt: skip
-    built: list[tuple[float, float]] = []
-    init = JogProcess.__init__
-
-    def counting(self: JogProcess, *args: Any, **kwargs: Any) -> None:
-        built.append((args[3], args[4]))
-        init(self, *args, **kwargs)
-
     target = -60.0
-    monkeypatch.setattr(JogProcess, "__init__", counting)
+    # (the velocity and acceleration each jog starts from)
+    built = count_built(monkeypatch, JogProcess, lambda args: (args[3], args[4]))
     batch.start_jogs(batch.axes[: N // 2], [target] * (N // 2), limits)
     monkeypatch.undo()
     # (40, 0) once for 1-3, (4.8, 800) once for 4 and 5, (25, 0) for 6

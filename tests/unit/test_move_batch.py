@@ -22,7 +22,7 @@ from motion_server.kernel.override import Override
 from motion_server.kernel.trapezoid import MAX_DURATION
 from motion_server.scan import statecodec
 
-from .test_jog_batch import PERIOD, N, controller, described, state
+from .test_jog_batch import PERIOD, N, controller, count_built, state, step_with_reads
 
 _MOVE = (ProcessKind.MOVE,)
 
@@ -171,21 +171,8 @@ def test_moves_read_at_any_moment_are_those_the_loop_leaves(
             ctl.start_moves(chosen, picks[: len(axes)], limits)
         else:
             start_loop(ctl, chosen, picks, limits, None, None)
-    batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
-    for c in range(301):
-        for cycle, n, settle in reads:
-            if cycle != c:
-                continue
-            if settle:
-                batch.motion.settle(batch.axis(n))
-                loop.motion.settle(loop.axis(n))
-            ps, qs = batch.axis(n).processes, loop.axis(n).processes
-            assert list(map(described, ps)) == list(map(described, qs)), (c, n)
-        for ctl in ctls.values():
-            ctl.step()
-        for arr in ("cmd_pos", "cmd_vel", "cmd_acc"):
-            x = getattr(batch, arr).tobytes()
-            assert x == getattr(loop, arr).tobytes() == getattr(ref, arr).tobytes(), (arr, c)
+    batch = ctls["batch"]
+    step_with_reads(ctls, reads, 301)
     # 250.5 units at 300 units/s, 1,000 up and 2,000 down: under 1.2 s (600 cycles of 2 ms)
     for _ in range(300):
         batch.step()
@@ -198,18 +185,11 @@ def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: 
     """Six masters at rest, three moves of one distance and three of another: the
     constructor runs twice (once per distance), and the first step reads no move's plan
     (the lane takes the columns the call read); the motion is the loop's."""
-    built: list[float] = []
-    init = MoveProcess.__init__
-
-    def counting(self: MoveProcess, *args: Any, **kwargs: Any) -> None:
-        built.append(args[1])
-        init(self, *args, **kwargs)
-
     limits = Limits(300.0, 1000.0, 2000.0)
     a, b = 100.0, -60.0
     dist = [a, a, b, a, b, b]
     batch, ref = controller(True), controller(False)
-    monkeypatch.setattr(MoveProcess, "__init__", counting)
+    built = count_built(monkeypatch, MoveProcess, lambda args: args[1])
     landings = [float(k) for k in range(N // 2)]
     started = batch.start_moves(batch.axes[: N // 2], dist, limits, None, landings)
     assert sorted(built) == [b, a]
@@ -252,12 +232,6 @@ def test_absolute_moves_on_jogging_axes_land_on_their_target(monkeypatch: Any) -
     batch, loop, ref = ctls["batch"], ctls["loop"], ctls["ref"]
     assert {type(ax.processes[0].lane).__name__ for ax in batch.axes[: N // 2]} == {"CruiseLane"}
     target = 100.0
-    built: list[float] = []
-    init = MoveProcess.__init__
-
-    def counting(self: MoveProcess, *args: Any, **kwargs: Any) -> None:
-        built.append(args[1])
-        init(self, *args, **kwargs)
 
     def refuse(*args: Any) -> None:
         raise AssertionError("planned or levelled at the step")
@@ -267,7 +241,7 @@ def test_absolute_moves_on_jogging_axes_land_on_their_target(monkeypatch: Any) -
         dist = [target - ax.command_position for ax in masters]
         if name == "batch":
             assert dist[0] == dist[1] == dist[2] and len(set(dist)) == 4
-            monkeypatch.setattr(MoveProcess, "__init__", counting)
+            built = count_built(monkeypatch, MoveProcess, lambda args: args[1])
             ctl.start_moves(masters, dist, limits, None, [target] * len(masters), None)
             monkeypatch.undo()
             assert built == [dist[0], *dist[3:]]
@@ -328,18 +302,11 @@ def test_moves_of_many_distances_are_planned_together(monkeypatch: Any) -> None:
     five are its copies with plans built together (``move_plan.position_plans``,
     :data:`~motion_server.kernel.move_batch.AHEAD` distances or more), each the plan
     ``plan_position`` builds: the same objects and motion as the loop's."""
-    built: list[float] = []
-    init = MoveProcess.__init__
-
-    def counting(self: MoveProcess, *args: Any, **kwargs: Any) -> None:
-        built.append(args[1])
-        init(self, *args, **kwargs)
-
     limits = Limits(300.0, 1000.0, 2000.0)
     dist = [100.0, -60.0, 7.5, 0.25, -0.0, 3]
     assert len(set(dist)) >= move_batch.AHEAD
     batch, loop, ref = controller(True), controller(True), controller(False)
-    monkeypatch.setattr(MoveProcess, "__init__", counting)
+    built = count_built(monkeypatch, MoveProcess, lambda args: args[1])
     batch.start_moves(batch.axes[: N // 2], dist, limits)
     monkeypatch.undo()
     assert built == [100.0]

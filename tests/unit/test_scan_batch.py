@@ -148,17 +148,26 @@ ORDER = [
 ]  # fmt: skip
 
 
-def build(batch: bool, lanes: bool) -> MotionSystem:
-    axes = [
-        AxisConfig(n, f"A{n}", AxisType.SERVO, max_velocity=1000.0, max_acceleration=500.0,
-                   max_deceleration=400.0, max_jerk=20000.0)
-        for n in range(1, 7)
-    ] + [AxisConfig(7, "A7", AxisType.FEEDBACK_ONLY),
-         AxisConfig(8, "A8", AxisType.SERVO)]  # fmt: skip
+def servo_system(batch: bool, lanes: bool, axes: list[AxisConfig] | None = None) -> MotionSystem:
+    """A system of ``axes`` in one group at 2 ms, the first six in Servo Control:
+    unless given, servos 1..6, 7 feedback only, 8 a servo (left off); batched or one
+    instance at a time."""
+    if axes is None:
+        axes = [
+            AxisConfig(n, f"A{n}", AxisType.SERVO, max_velocity=1000.0, max_acceleration=500.0,
+                       max_deceleration=400.0, max_jerk=20000.0)
+            for n in range(1, 7)
+        ] + [AxisConfig(7, "A7", AxisType.FEEDBACK_ONLY),
+             AxisConfig(8, "A8", AxisType.SERVO)]  # fmt: skip
     group = GroupConfig(1, "Group1", tuple(a.number for a in axes), 0.002)
     system = MotionSystem(Controller(axes, [group], lanes=lanes), batch=batch)
     for ax in system.ctl.axes[:6]:
         system.ctl.servo_on(ax)
+    return system
+
+
+def build(batch: bool, lanes: bool) -> MotionSystem:
+    system = servo_system(batch, lanes)
     for name, type_name in ORDER:
         system.add(type_name, name)
     return system

@@ -22,9 +22,8 @@ import pytest
 from hypothesis import given, settings
 
 from motion_server.instructions import MotionSystem
-from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
 
-from .test_scan_batch import run_side_by_side, scan_plans
+from .test_scan_batch import run_side_by_side, scan_plans, servo_system
 
 #: axes 1..6 servo (on), 7 feedback only, 8 servo off; 9 does not exist
 AXES = [1, 2, 3, 4, 5, 6, 1, 2, 3, 4, 5, 6, 7, 8, 9]
@@ -63,16 +62,7 @@ PAIRS = [(3, 1), (4, 2), (5, 1), (6, 2), (3, 2), (4, 1)]
 
 
 def build(batch: bool, lanes: bool) -> MotionSystem:
-    axes = [
-        AxisConfig(n, f"A{n}", AxisType.SERVO, max_velocity=1000.0, max_acceleration=500.0,
-                   max_deceleration=400.0, max_jerk=20000.0)
-        for n in range(1, 7)
-    ] + [AxisConfig(7, "A7", AxisType.FEEDBACK_ONLY),
-         AxisConfig(8, "A8", AxisType.SERVO)]  # fmt: skip
-    group = GroupConfig(1, "Group1", tuple(a.number for a in axes), 0.002)
-    system = MotionSystem(Controller(axes, [group], lanes=lanes), batch=batch)
-    for ax in system.ctl.axes[:6]:
-        system.ctl.servo_on(ax)
+    system = servo_system(batch, lanes)
     gears = iter(PAIRS)
     for k, (name, type_name) in enumerate(ORDER):
         inst = system.add(type_name, name)

@@ -22,9 +22,9 @@ import pytest
 from hypothesis import given, settings
 
 from motion_server.instructions import MotionSystem
-from motion_server.kernel import AxisConfig, AxisType, Controller, GroupConfig
+from motion_server.kernel import AxisConfig, AxisType
 
-from .test_scan_batch import run_side_by_side, scan_plans
+from .test_scan_batch import run_side_by_side, scan_plans, servo_system
 
 #: axes 1..5 linear servos, 6 a rotary servo (360 units a turn), 8 off; 9 does not exist
 AXES = [1, 2, 3, 4, 5, 6, 1, 2, 3, 4, 6, 8, 9]
@@ -95,10 +95,7 @@ def build(batch: bool, lanes: bool) -> MotionSystem:
                    rollover=360.0 if n == 6 else 0.0)
         for n in range(1, 7)
     ] + [AxisConfig(8, "A8", AxisType.SERVO)]  # fmt: skip
-    group = GroupConfig(1, "Group1", tuple(a.number for a in axes), 0.002)
-    system = MotionSystem(Controller(axes, [group], lanes=lanes), batch=batch)
-    for ax in system.ctl.axes[:6]:
-        system.ctl.servo_on(ax)
+    system = servo_system(batch, lanes, axes)
     for k, (name, type_name) in enumerate(ORDER):
         inst = system.add(type_name, name)
         # valid operands to start from, each instance on an axis of its own in its run
