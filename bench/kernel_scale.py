@@ -62,8 +62,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
   ``maj_rejog`` the same through one MAJ instance per master; ``s-rejog`` with a jerk
   limit of 20,000 mm/s³ (S-curves from 100 mm/s, in the S-curve lane).
 - ``s-move``: masters at rest, slaves locked to them; a move of 50 mm with a jerk limit
-  of 20,000 mm/s³ on every master (``start_moves``): a jerk-limited position profile is
-  planned by ruckig, stepped per axis in Python, in no lane (100 steps).
+  of 20,000 mm/s³ on every master (``start_moves``): a jerk-limited position profile,
+  planned in closed form (``kernel/scurve_position.py``, once for the equal moves) and
+  stepped in the S-curve lane; by ruckig per axis in Python before (100 steps).
 - ``regear``: from ``steady``, MAG with the clutch at a new ratio (1/4) on every slave:
   each gear replaced by one that catches up from the slave's 50 mm/s (100 steps).
 - ``move_on_jog``: from ``steady``, a move of 50 mm on every master that replaces its

@@ -272,8 +272,9 @@ def test_masters_starting_from_rest_leave_their_followers_levels_alone(
     """Jogs started from rest on the masters of locked gears: the followers read them at
     level 0 before (no motion) and after (a time-driven lane), so neither the step that
     starts them nor the one in which they reach their speed (profile lane to cruise lane)
-    levels the followers again; a stop's ramps coming to rest neither. A master composed
-    in Python (a jerk-limited position move goes to ruckig) does level them again."""
+    levels the followers again; a stop's ramps coming to rest neither, nor a jerk-limited
+    move from rest (the S-curve lane). A master composed in Python (a move that replaces
+    one still accelerating goes to ruckig) does level them again."""
     fast, ref = geared_at_rest()
     lanes = fast.ctl.motion.lanes[1]
     calls: list[int] = []
@@ -299,13 +300,21 @@ def test_masters_starting_from_rest_leave_their_followers_levels_alone(
     levelled = len(calls)
     assert levelled >= 1
     assert not fast.ctl.cmd_vel[: len(MASTERS)].any()
-    # from rest again: a move through ruckig (jerk-limited position target) is composed
-    # in Python, so its followers are levelled again (and leave their lanes)
+    # from rest again: a jerk-limited move, planned in closed form, joins the S-curve
+    # lane, so its followers keep their levels
     move: list[Command] = [
         ("MC_MoveRelative", {"Axis": 1, "Distance": 10.0, "Velocity": 50.0,
                              "Acceleration": 1000.0, "Deceleration": 1000.0, "Jerk": 50_000.0})
     ]  # fmt: skip
     run_rounds(fast, ref, [(move, 5)], prefix="M")
+    assert len(calls) == levelled
+    master = fast.ctl.axis(1).processes[0]
+    assert master.lane is lanes.scurves
+    # 10 ms into its first jerk phase (1000 / 50,000 s long) the axis accelerates: a
+    # move that replaces it from there goes to ruckig, is composed in Python, and its
+    # followers are levelled again (and leave their lanes)
+    assert fast.ctl.axis(1).command_acceleration != 0.0
+    run_rounds(fast, ref, [(move, 5)], prefix="N")
     assert len(calls) > levelled
 
 

@@ -1,14 +1,14 @@
 """One-axis profiles: trapezoidal in closed form (:mod:`.trapezoid`), jerk-limited velocity
-targets in closed form (:mod:`.scurve`), jerk-limited position targets through ruckig (one
-online update per cycle, :class:`Profile`).
+and position targets in closed form (:mod:`.scurve`, :mod:`.scurve_position`), the states
+those do not cover through ruckig (one online update per cycle, :class:`Profile`).
 
 A profile plans in displacement from its own origin, so a process can add its position to
 the others (superposition). Inputs are validated here before ruckig sees them: ruckig
 raises on bad input, and a controller must answer ER instead. Jerk 0 (or infinite) means a
 trapezoidal velocity profile: :func:`profile_for` then gives a
 :class:`~.trapezoid.TrapezoidProfile`; otherwise a :class:`~.scurve.SCurveProfile`, which
-hands position targets to a :class:`Profile`. The fast lanes sample both closed forms as
-arrays.
+hands what its closed forms do not cover to a :class:`Profile`. The fast lanes sample the
+closed forms as arrays.
 ``intermediate_positions`` is never set.
 """
 
@@ -34,7 +34,7 @@ __all__ = [
 
 
 #: a process's profile: the closed forms, trapezoidal or jerk-limited (ruckig inside for
-#: position targets); a bare ruckig profile where a caller builds one
+#: what they do not cover); a bare ruckig profile where a caller builds one
 OnlineProfile = Profile | TrapezoidProfile | SCurveProfile
 
 
@@ -46,7 +46,7 @@ def profile_for(
     position: float = 0.0,
 ) -> OnlineProfile:
     """The profile that plans ``limits``: trapezoidal in closed form, else jerk-limited
-    (velocity targets in closed form, position targets through ruckig)."""
+    (in closed form, ruckig for the states the closed forms leave)."""
     if limits.trapezoidal:
         return TrapezoidProfile(dt, velocity, acceleration, position)
     return SCurveProfile(dt, velocity, acceleration, position)

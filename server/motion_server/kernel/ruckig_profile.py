@@ -1,7 +1,7 @@
 """The jerk-limited profile through ruckig: one online update per cycle.
 
-What :class:`~.scurve.SCurveProfile` hands position targets (and the velocity cases its
-closed form does not cover) to, and what master-driven motion plans with. Inputs are
+What :class:`~.scurve.SCurveProfile` hands the position and velocity targets its closed
+forms do not cover to, and what master-driven motion plans with. Inputs are
 validated before ruckig sees them (ruckig raises on bad input, a controller answers ER
 instead); ``intermediate_positions`` is never set.
 """

@@ -47,38 +47,40 @@ from __future__ import annotations
 
 import math
 import struct
-import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .errors import ErrorCode, MotionError
+from .jerk_phases import Phases, solve_phases
 from .limits import Limits
 from .ruckig_profile import Profile
+from .scurve_position import P_PRECISION, position_segments
 from .trapezoid import END_TOLERANCE, MAX_DURATION
 
 #: every plan has this many segments of constant jerk (unused ones have zero duration):
 #: the brake, jerk toward the peak, the hold, jerk back to zero
 SEGMENTS = 4
-#: ruckig's acceptance tolerances of a velocity profile (``Profile::check_for_velocity``)
-_A_EPS = 1e-12
-_V_PRECISION = 1e-8
-_A_PRECISION = 1e-10
-_T_EPS = sys.float_info.epsilon
+#: a position plan's segments: an (empty) brake, the ramp to the peak velocity (three),
+#: the cruise, the ramp to rest (three)
+POSITION_SEGMENTS = 8
 
 
 class Fallbacks:
-    """How many velocity targets the closed form left to ruckig, since the process
-    started (one scan process runs one controller: ``Controller.profile_fallbacks``)."""
+    """How many jerk-limited targets (velocity or position) the closed forms left to
+    ruckig, since the process started (one scan process runs one controller:
+    ``Controller.profile_fallbacks``)."""
 
     count = 0
 
 
-#: the process-wide count of velocity plans handed to ruckig
+#: the process-wide count of jerk-limited plans handed to ruckig
 FALLBACKS = Fallbacks()
 
 
 @dataclass(frozen=True, slots=True)
 class JerkPlan:
-    """Four segments of constant jerk from the plan's origin (t = 0), then the end.
+    """Segments of constant jerk from the plan's origin (t = 0), then the end: four for
+    a velocity target (:data:`SEGMENTS`), eight for a position target
+    (:data:`POSITION_SEGMENTS`, :mod:`.scurve_position`).
 
     ``start[s]`` is the time segment ``s`` begins (``start[0]`` = 0, non-decreasing),
     ``pos``, ``vel``, ``acc`` the state there, ``jerk`` its jerk; ``half`` = acc / 2,
@@ -87,14 +89,14 @@ class JerkPlan:
     ``end_velocity`` are reached at ``end``.
     """
 
-    start: tuple[float, float, float, float]
-    pos: tuple[float, float, float, float]
-    vel: tuple[float, float, float, float]
-    acc: tuple[float, float, float, float]
-    half: tuple[float, float, float, float]
-    jerk: tuple[float, float, float, float]
-    jhalf: tuple[float, float, float, float]
-    jsixth: tuple[float, float, float, float]
+    start: tuple[float, ...]
+    pos: tuple[float, ...]
+    vel: tuple[float, ...]
+    acc: tuple[float, ...]
+    half: tuple[float, ...]
+    jerk: tuple[float, ...]
+    jhalf: tuple[float, ...]
+    jsixth: tuple[float, ...]
     end: float
     done: float
     end_position: float
@@ -103,7 +105,10 @@ class JerkPlan:
     def segment(self, t: float) -> int:
         """The segment a sample at ``t`` < ``done`` falls in."""
         st = self.start
-        return (t >= st[1]) + (t >= st[2]) + (t >= st[3])
+        s = (t >= st[1]) + (t >= st[2]) + (t >= st[3])
+        if len(st) > SEGMENTS:
+            s += (t >= st[4]) + (t >= st[5]) + (t >= st[6]) + (t >= st[7])
+        return s
 
     def sample(self, t: float) -> tuple[float, float, float]:
         """Position, velocity and acceleration at ``t`` (before ``done``)."""
@@ -114,34 +119,6 @@ class JerkPlan:
         p = self.pos[s] + tau * (v + tau * (self.half[s] + tau * self.jsixth[s]))
         return p, v + tau * (a + tau * self.jhalf[s]), a + tau * self.jerk[s]
 
-
-def _accepted(
-    t0: float,
-    t1: float,
-    t2: float,
-    a0: float,
-    v0: float,
-    vf: float,
-    jf: float,
-    lo: float,
-    hi: float,
-) -> bool:
-    """ruckig's ``check_for_velocity`` (UDDU) of the phases (``t0``, ``t1``, ``t2``), each
-    >= 0, with jerk ``jf``; the acceleration within [``lo``, ``hi``] (the limits with
-    their tolerance, :func:`_phases`)."""
-    j0 = jf if t0 > 0.0 else 0.0
-    j2 = -jf if t2 > 0.0 else 0.0
-    a1 = a0 + t0 * j0
-    v1 = v0 + t0 * (a0 + t0 * j0 / 2)
-    v2 = v1 + t1 * a1
-    a3 = a1 + t2 * j2
-    v3 = v2 + t2 * (a1 + t2 * j2 / 2)
-    return (
-        abs(v3 - vf) < _V_PRECISION and abs(a3) < _A_PRECISION and lo <= a1 <= hi and lo <= a3 <= hi
-    )
-
-
-Phases = tuple[float, float, float, float]
 
 #: the inputs of :func:`_phases` as bytes: equal bytes are the same floats, bit for bit
 #: (signed zeros and NaNs included), so they give the same phases
@@ -154,61 +131,17 @@ def _phases(
     a0: float, v0: float, vf: float, a_max: float, a_min: float, jerk: float
 ) -> Phases | None:
     """(t0, t1, t2, jerk of phase 0) from (v0, a0), a0 within the limits, to vf at rest
-    acceleration (:func:`_solve_phases`). The targets commanded in one scan are often the
-    same (many axes ramped alike from rest): the last answer is kept and given again
-    for the very same inputs."""
+    acceleration (:func:`.jerk_phases.solve_phases`). The targets commanded in one scan
+    are often the same (many axes ramped alike from rest): the last answer is kept and
+    given again for the very same inputs."""
     global _last  # (one pair, replaced at once)
     key = _KEY(a0, v0, vf, a_max, a_min, jerk)
     last = _last
     if key == last[0]:
         return last[1]
-    phases = _solve_phases(a0, v0, vf, a_max, a_min, jerk)
+    phases = solve_phases(a0, v0, vf, a_max, a_min, jerk)
     _last = (key, phases)
     return phases
-
-
-def _solve_phases(
-    a0: float, v0: float, vf: float, a_max: float, a_min: float, jerk: float
-) -> Phases | None:
-    """(t0, t1, t2, jerk of phase 0) from (v0, a0), a0 within the limits, to vf at rest
-    acceleration: the first profile ruckig's ``VelocityThirdOrderStep1`` accepts, tried in
-    its order; None when none is accepted."""
-    vd = vf - v0
-    if vd >= 0.0:
-        order = ((a_max, jerk), (a_min, -jerk))
-    else:
-        order = ((a_min, -jerk), (a_max, jerk))
-    # ruckig's 1e-12 is a few ulps of an acceleration of 1e4: a peak computed to land on
-    # the limit may round beyond it by more; allow those few ulps too
-    a_eps = _A_EPS + 8.0 * math.ulp(max(a_max, -a_min))
-    lo = a_min - a_eps
-    hi = a_max + a_eps
-    for peak, j in order:
-        # no acceleration hold: the peak is where the two jerk phases meet (phases of
-        # negative (or NaN) duration are never accepted: not checked further)
-        h1 = a0 * a0 / 2 + j * vd
-        if h1 >= 0.0:
-            h = math.sqrt(h1)
-            t0 = -(a0 + h) / j
-            t2 = -h / j
-            if t0 >= 0.0 and t2 >= 0.0 and _accepted(t0, 0.0, t2, a0, v0, vf, j, lo, hi):
-                return t0, 0.0, t2, j
-            t0 = (-a0 + h) / j
-            t2 = h / j
-            if t0 >= 0.0 and t2 >= 0.0 and _accepted(t0, 0.0, t2, a0, v0, vf, j, lo, hi):
-                return t0, 0.0, t2, j
-        # the acceleration limit held between the two jerk phases
-        t1 = a0 * a0 / (2 * peak * j) - peak / j + vd / peak
-        t0 = (peak - a0) / j
-        t2 = peak / j
-        if (
-            t1 >= _T_EPS
-            and t0 >= 0.0
-            and t2 >= 0.0
-            and _accepted(t0, t1, t2, a0, v0, vf, j, lo, hi)
-        ):
-            return t0, t1, t2, j
-    return None
 
 
 def _too_long(duration: float) -> MotionError:
@@ -333,24 +266,55 @@ def _build(
         raise _too_long(t)
     if not all(math.isfinite(x) for x in (p, v, *pos, *vel, *acc)):
         raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
-
-    def four(xs: list[float]) -> tuple[float, float, float, float]:
-        return (xs[0], xs[1], xs[2], xs[3])
-
     return JerkPlan(
-        four(start),
-        four(pos),
-        four(vel),
-        four(acc),
-        four(half),
-        four(jerk),
-        four(jhalf),
-        four(jsixth),
+        tuple(start),
+        tuple(pos),
+        tuple(vel),
+        tuple(acc),
+        tuple(half),
+        tuple(jerk),
+        tuple(jhalf),
+        tuple(jsixth),
         t,
         t - END_TOLERANCE * dt,
         p,
         vf,
     )
+
+
+#: the inputs of :func:`plan_jerk_position` as bytes, and its last plan (a batch of moves
+#: from rest by one distance asks every axis the same question; plans are immutable)
+_POSITION_KEY = struct.Struct("9d").pack
+_last_position: tuple[bytes, JerkPlan | None] = (b"", None)
+
+
+def plan_jerk_position(
+    dt: float, p0: float, v0: float, a0: float, target: float, limits: Limits
+) -> JerkPlan | None:
+    """The move from (``p0``, ``v0``, ``a0``) to rest at ``target`` within ``limits``
+    (validated, with a jerk limit) in closed form (:mod:`.scurve_position`); None when
+    the closed form does not cover the state or its end misses the target by more than
+    ruckig's position precision (ruckig plans it then). MotionError(PROFILE_FAILED) when
+    no plan can hold it."""
+    global _last_position  # (one pair, replaced at once)
+    key = _POSITION_KEY(
+        dt, p0, v0, a0, target, limits.velocity, limits.acceleration, limits.deceleration,
+        limits.jerk,
+    )  # fmt: skip
+    last = _last_position
+    if key == last[0]:
+        return last[1]
+    d = target - p0
+    a_max, a_min = limit_pair(d, limits.acceleration, limits.deceleration)
+    segments = position_segments(v0, a0, d, limits, a_max, a_min)
+    plan = None
+    if segments is not None:
+        built = _build(dt, p0, v0, a0, segments, 0.0)
+        if abs(built.end_position - target) <= P_PRECISION:
+            # the last sample lands on the target exactly, as ruckig's does
+            plan = replace(built, end_position=target)
+    _last_position = (key, plan)
+    return plan
 
 
 def limit_pair(direction: float, acceleration: float, deceleration: float) -> tuple[float, float]:
@@ -426,11 +390,31 @@ class SCurveProfile:
 
     # -- targets --------------------------------------------------------------------------
     def to_position(self, displacement: float, limits: Limits) -> None:
-        """Plan to rest at ``displacement`` from the origin (through ruckig). If it cannot
-        be planned nothing changes and MotionError is raised."""
-        prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
-        prof.to_position(displacement, limits)
-        self._use_ruckig(prof, float(displacement), 0.0)
+        """Plan to rest at ``displacement`` from the origin: in closed form from the
+        states :mod:`.scurve_position` covers, else through ruckig (counted in
+        :data:`FALLBACKS`). If it cannot be planned nothing changes and MotionError is
+        raised."""
+        if not math.isfinite(displacement):
+            raise MotionError(ErrorCode.PARAMETER_OUT_OF_RANGE, "target position must be finite")
+        limits = limits.validated()
+        target = float(displacement)
+        plan = None
+        if not limits.trapezoidal:
+            plan = plan_jerk_position(
+                self._dt, self.position, self.velocity, self.acceleration, target, limits
+            )
+        if plan is None:
+            prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
+            prof.to_position(target, limits)
+            FALLBACKS.count += 1
+            self._use_ruckig(prof, target, 0.0)
+            return
+        self.plan = plan
+        self.ruckig = None
+        self.cycles = 0
+        self.finished = False
+        self._target_position = target
+        self._target_velocity = 0.0
 
     def to_velocity(self, velocity: float, limits: Limits) -> None:
         """Ramp to a constant ``velocity`` (signed) and hold it. If it cannot be planned

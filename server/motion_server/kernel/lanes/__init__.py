@@ -8,13 +8,14 @@ objects' floating-point operations in the same order, so the results are bit-ide
 - time-driven (:mod:`.ramps`): jogs at speed; trapezoidal jogs and moves on their way
   (accelerating, cruising, decelerating, reversing); trapezoidal stop ramps (MGS, MAS,
   MC_Stop, MC_Halt and the ramp of a failed process); (:mod:`.scurve`) jerk-limited
-  ramps to a velocity (jogs, speed changes, paused moves, jerk-limited stops);
+  ramps to a velocity (jogs, speed changes, paused moves, jerk-limited stops) and
+  jerk-limited moves planned in closed form;
 - followers on one master (:mod:`.gears`): locked gears with a real or a fraction ratio,
   and gears catching up at a rate (the MAG clutch, the trapezoidal PLCopen catch-up);
   (:mod:`.cams`) locked position cams (MAPC, MC_CamIn) following both master
   directions, without a Pending successor or a ramp-in still ahead.
 
-Jerk-limited position targets (ruckig), jerk-limited catch-up ramps, two-master gears,
+Jerk-limited moves planned by ruckig, jerk-limited catch-up ramps, two-master gears,
 MC_GearInPos, master-driven motion, time cams, cams waiting for a lock position or
 following one master direction, axes with more than one process or a buffered command
 stay in Python.

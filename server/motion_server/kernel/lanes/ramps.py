@@ -186,6 +186,10 @@ class PlanLane(Lane):
         """(position, velocity, acceleration) at ``tau`` into segment ``seg``."""
         raise NotImplementedError
 
+    def _segment(self, t: np.ndarray, st: np.ndarray) -> np.ndarray:
+        """The segment each sample at ``t`` falls in (``st``: the starts of four)."""
+        return (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
+
     def step(self, s: AxisArrays, compose: Compose) -> None:
         if not self.members:
             return
@@ -200,7 +204,7 @@ class PlanLane(Lane):
             movers = self.move_out(odd) if odd else []
         cycles += 1.0
         st = a["start"]
-        seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
+        seg = self._segment(t, st)
         rows = self._rows
         pos, vel, acc = self._sample(rows, seg, t - st[rows, seg])
         a["pos"], a["vel"], a["acc"] = pos, vel, acc

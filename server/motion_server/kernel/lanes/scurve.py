@@ -1,14 +1,17 @@
-"""Jerk-limited ramps to a velocity on their way: jogs and speed changes (MAJ,
-MC_MoveVelocity, MCD, overrides), paused moves and jerk-limited stops (MAS with DecelJerk,
-MC_Stop / MC_Halt with Jerk), all planned in closed form (:class:`~..scurve.SCurveProfile`,
-``JerkPlan.sample``). The plans of the ramps commanded since the last step are built
-together when they join (:mod:`..scurve_plan`). A jog that reaches its velocity, alone
-on its axis, is ended by the lane and handed to the cruise lane (as the profile lane
-does for trapezoidal jogs); the sample that ends any other plan is the process's own
-(moved out).
+"""Jerk-limited profiles on their way: ramps to a velocity (jogs and speed changes:
+MAJ, MC_MoveVelocity, MCD, overrides; paused moves; jerk-limited stops: MAS with
+DecelJerk, MC_Stop / MC_Halt with Jerk) and moves to a position (MAM, MC_MoveAbsolute,
+MC_MoveRelative), all planned in closed form (:class:`~..scurve.SCurveProfile`,
+``JerkPlan.sample``). A move's plan has eight segments, a velocity ramp's four: the lane
+keeps eight columns, a ramp's last four empty (they start where its plan ends, so no
+sample before the end falls in them). The plans of the ramps commanded since the last
+step are built together when they join (:mod:`..scurve_plan`). A jog that reaches its
+velocity, alone on its axis, is ended by the lane and handed to the cruise lane (as the
+profile lane does for trapezoidal jogs); the sample that ends any other plan (a move's
+included) is the process's own (moved out).
 
-Like the other time-driven lanes it reads no other axis, so it steps first. Position
-targets (ruckig's) and fallbacks stay in Python.
+Like the other time-driven lanes it reads no other axis, so it steps first. What the
+closed forms leave to ruckig (:data:`..scurve.FALLBACKS`) stays in Python.
 """
 
 from __future__ import annotations
@@ -20,15 +23,41 @@ import numpy as np
 
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
-from ..scurve import SEGMENTS, SCurveProfile
+from ..scurve import POSITION_SEGMENTS, SEGMENTS, SCurveProfile
 from ..scurve_plan import TARGET, jerk_plan_row, jerk_plans
 from ..state import AxisArrays
 from .base import Compose
 from .batches import admit_rows, spread
 from .ramps import PlanLane
 
-#: the per-segment fields of a plan (one row of SEGMENTS values per member)
+#: the per-segment fields of a plan (one row of POSITION_SEGMENTS values per member)
 PLAN_FIELDS = ("start", "seg_pos", "seg_vel", "seg_acc", "half", "jerk", "jhalf", "jsixth")
+#: the empty segments after a velocity ramp's four
+_PAD = POSITION_SEGMENTS - SEGMENTS
+_ZEROS = (0.0,) * _PAD
+
+
+def pad_plan(end: float, fields: tuple[tuple[float, ...], ...]) -> tuple[tuple[float, ...], ...]:
+    """The ``PLAN_FIELDS`` of a plan as the lane holds them: a velocity ramp's four
+    segments and four empty ones that start at its ``end`` (a move's eight as they are)."""
+    start, pos, vel, acc, half, jerk, jhalf, jsixth = fields
+    if len(start) == POSITION_SEGMENTS:
+        return fields
+    z = _ZEROS
+    return (
+        (*start, end, end, end, end), pos + z, vel + z, acc + z, half + z, jerk + z,
+        jhalf + z, jsixth + z,
+    )  # fmt: skip
+
+
+def pad_columns(end: np.ndarray, columns: list[np.ndarray]) -> list[np.ndarray]:
+    """:func:`pad_plan` of the ``PLAN_FIELDS`` columns of m velocity ramps, (m, 4) each."""
+    start, *rest = columns
+    m = len(end)
+    out = [np.concatenate((start, np.repeat(end[:, None], _PAD, axis=1)), axis=1)]
+    zeros = np.zeros((m, _PAD))
+    out.extend(np.concatenate((c, zeros), axis=1) for c in rest)
+    return out
 
 
 class SCurveLane(PlanLane):
@@ -39,7 +68,17 @@ class SCurveLane(PlanLane):
         "base", "cycles", "dt", "done", *PLAN_FIELDS, "pos", "vel", "acc", "end", "end_pos",
         "end_vel",
     )  # fmt: skip
-    WIDTHS: ClassVar[dict[str, int]] = dict.fromkeys(PLAN_FIELDS, SEGMENTS)
+    WIDTHS: ClassVar[dict[str, int]] = dict.fromkeys(PLAN_FIELDS, POSITION_SEGMENTS)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # saved when the lane held four segments (velocity ramps only): pad them
+        arrays = state.get("arrays", {})
+        start = arrays.get("start")
+        if start is not None and start.shape[1] == SEGMENTS:
+            end = arrays["end"] if "end" in arrays else start[:, -1]
+            padded = pad_columns(end, [arrays[f] for f in PLAN_FIELDS])
+            arrays.update(zip(PLAN_FIELDS, padded, strict=True))
+        super().__setstate__(state)
 
     def _restore_ends(self) -> None:
         """A lane saved before it kept the plans' ends: take them from its members'
@@ -73,24 +112,44 @@ class SCurveLane(PlanLane):
             and not prof.finished
         )
 
+    #: the starts column the lane last looked at, and whether a move is among its rows
+    _moves: tuple[np.ndarray, bool] | None = None
+
+    def _segment(self, t: np.ndarray, st: np.ndarray) -> np.ndarray:
+        """``JerkPlan.segment`` of every member: the first four segments, then the last
+        four when a move is in the lane (a velocity ramp's start at its end, where no
+        sample before the end falls). Whether a move is in is worked out again whenever
+        the column is another array (a rebuild, a member leaving)."""
+        seg = (t >= st[:, 1]).astype(np.intp) + (t >= st[:, 2]) + (t >= st[:, 3])
+        moves = self._moves
+        if moves is None or moves[0] is not st:
+            moves = self._moves = (st, bool((st[:, 4] < self.arrays["end"]).any()))
+        if moves[1]:
+            # (each a count: numpy adds two boolean arrays as a logical or)
+            seg += (t >= st[:, 4]).astype(np.intp) + (t >= st[:, 5]) + (t >= st[:, 6])
+            seg += t >= st[:, 7]
+        return seg
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = super().__getstate__()
+        state.pop("_moves", None)  # (a cache of the arrays)
+        return state
+
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         assert isinstance(p, JogProcess | MoveProcess | StopRamp)
         prof = p.profile
         assert isinstance(prof, SCurveProfile) and prof.plan is not None
         plan = prof.plan
+        fields = (
+            plan.start, plan.pos, plan.vel, plan.acc, plan.half, plan.jerk, plan.jhalf,
+            plan.jsixth,
+        )  # fmt: skip
         return (
             ax.base,
             float(prof.cycles),
             prof.dt,
             plan.done,
-            plan.start,
-            plan.pos,
-            plan.vel,
-            plan.acc,
-            plan.half,
-            plan.jerk,
-            plan.jhalf,
-            plan.jsixth,
+            *pad_plan(plan.end, fields),
             p.position,
             p.velocity,
             p.acceleration,
@@ -115,10 +174,14 @@ class SCurveLane(PlanLane):
         the plans built in one pass (:func:`..scurve_plan.jerk_plans`)."""
         dt = cols[:, 2]
         plans = jerk_plans(dt, cols[:, 6:])
+        fields = pad_columns(
+            plans.end,
+            [plans.start, plans.pos, plans.vel, plans.acc, plans.half, plans.jerk,
+             plans.jhalf, plans.jsixth],
+        )  # fmt: skip
         return [
-            cols[:, 0], cols[:, 1], dt, plans.done, plans.start, plans.pos, plans.vel,
-            plans.acc, plans.half, plans.jerk, plans.jhalf, plans.jsixth, cols[:, 3],
-            cols[:, 4], cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
+            cols[:, 0], cols[:, 1], dt, plans.done, *fields, cols[:, 3], cols[:, 4],
+            cols[:, 5], plans.end, plans.end_pos, cols[:, 6 + TARGET],
         ]  # fmt: skip
 
     def admit_batch(
@@ -141,7 +204,8 @@ class SCurveLane(PlanLane):
             cycles, dt, x, v, a = kind[:5]
             request = kind[5:]
             *plan, (done, end, end_pos) = jerk_plan_row(dt, request)
-            rows.append((cycles, dt, done, *plan, x, v, a, end, end_pos, request[TARGET]))
+            fields = pad_plan(end, tuple(plan))
+            rows.append((cycles, dt, done, *fields, x, v, a, end, end_pos, request[TARGET]))
         admit_rows(self, joining, spread(self, base, rows, which))
 
     def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:

@@ -1,0 +1,284 @@
+"""Jerk-limited moves to a position in closed form (:mod:`motion_server.kernel.scurve_position`).
+
+- Kinematics from first principles, rest to rest: with the velocity and the
+  acceleration limits both reached, a move of d lasts d/v + v/(2a) + v/(2b) + a/(2j) +
+  b/(2j) (a the acceleration, b the deceleration: the two ramps and the cruise); with
+  neither reached (symmetric limits) it lasts 4·(d/(2j))^(1/3), the peak velocity
+  j·(d/(2j))^(2/3); with only the acceleration reached (symmetric) the peak vp solves
+  vp²/a + vp·a/j = d and the move lasts 2·(vp/a + a/j).
+- ruckig as the reference for random moves from the states the closed form covers (at
+  rest or cruising toward the target within the velocity limit, far enough to stop):
+  the same duration, the same samples at every cycle within ruckig's documented
+  precision, the same end within one cycle, on the target exactly.
+- The other states are planned by ruckig, sample for sample, and counted.
+- The S-curve lane steps the moves (eight segments) beside velocity ramps (four, padded)
+  bit for bit as the reference path, and a lane saved with four columns runs on.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from motion_server.kernel import Limits, MotionError
+from motion_server.kernel.lanes.scurve import PLAN_FIELDS
+from motion_server.kernel.profiles import Profile, SCurveProfile
+from motion_server.kernel.scurve import FALLBACKS, plan_jerk_position
+from motion_server.scan import statecodec
+
+from .test_jog_batch import PERIOD, controller
+from .test_scurve import A_PRECISION, P_PRECISION, V_PRECISION, run, time_slack
+
+DT = 0.001
+
+
+def ruckig_duration(v0: float, d: float, limits: Limits) -> float:
+    """The duration of ruckig's own plan of the move (one trajectory, not stepped)."""
+    import ruckig
+
+    otg, inp, traj = ruckig.Ruckig(1, DT), ruckig.InputParameter(1), ruckig.Trajectory(1)
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [v0], [0.0]
+    inp.target_position, inp.target_velocity, inp.target_acceleration = [d], [0.0], [0.0]
+    inp.max_velocity = [limits.velocity]
+    if d >= 0.0:
+        inp.max_acceleration, inp.min_acceleration = [limits.acceleration], [-limits.deceleration]
+    else:
+        inp.max_acceleration, inp.min_acceleration = [limits.deceleration], [-limits.acceleration]
+    inp.max_jerk = [limits.jerk]
+    otg.calculate(inp, traj)
+    return float(traj.duration)
+
+
+# -- kinematics from first principles ---------------------------------------------------
+@pytest.mark.parametrize(
+    ("d", "v", "a", "b", "j"),
+    [
+        (50.0, 100.0, 1000.0, 800.0, 20_000.0),
+        (-50.0, 100.0, 1000.0, 800.0, 20_000.0),
+        (400.0, 250.0, 2000.0, 2000.0, 1e6),
+    ],
+)
+def test_a_long_move_reaches_both_limits(d: float, v: float, a: float, b: float, j: float) -> None:
+    plan = plan_jerk_position(DT, 0.0, 0.0, 0.0, d, Limits(v, a, b, j))
+    assert plan is not None
+    expected = abs(d) / v + v / (2 * a) + v / (2 * b) + a / (2 * j) + b / (2 * j)
+    assert plan.end == pytest.approx(expected, rel=1e-12)
+    assert plan.end_position == d
+    # the cruise (segment 4) at the velocity limit, the holds at the acceleration limits
+    sign = math.copysign(1.0, d)
+    assert plan.vel[4] == pytest.approx(sign * v, rel=1e-12)
+    assert plan.acc[2] == pytest.approx(sign * a, rel=1e-12)
+    assert plan.acc[6] == pytest.approx(-sign * b, rel=1e-12)
+
+
+@pytest.mark.parametrize(("d", "j"), [(0.5, 20_000.0), (2.0, 5_000.0), (-0.01, 1e5)])
+def test_a_short_move_reaches_neither_limit(d: float, j: float) -> None:
+    limits = Limits(100.0, 1000.0, 1000.0, j)
+    plan = plan_jerk_position(DT, 0.0, 0.0, 0.0, d, limits)
+    assert plan is not None
+    cube = (abs(d) / (2 * j)) ** (1 / 3)
+    assert plan.end == pytest.approx(4 * cube, rel=1e-12)
+    assert abs(plan.vel[4]) == pytest.approx(j * cube * cube, rel=1e-12)  # the peak
+    assert plan.start[2] == plan.start[3] and plan.start[6] == plan.start[7]  # no hold
+    assert plan.start[4] == plan.start[5]  # no cruise
+
+
+def test_a_medium_move_reaches_the_acceleration_limit_only() -> None:
+    """a²/j = 20 mm/s <= vp = 60 mm/s < v: d = 60²/1000 + 60·1000/50,000 = 4.8 mm,
+    in 2·(60/1000 + 1000/50,000) = 0.16 s."""
+    plan = plan_jerk_position(DT, 0.0, 0.0, 0.0, 4.8, Limits(100.0, 1000.0, 1000.0, 50_000.0))
+    assert plan is not None
+    assert plan.end == pytest.approx(0.16, rel=1e-12)
+    assert plan.vel[4] == pytest.approx(60.0, rel=1e-12)
+    assert plan.acc[2] == 1000.0 and plan.start[4] == plan.start[5]  # held, no cruise
+
+
+def test_a_move_lands_on_its_target_at_rest_and_never_exceeds_its_limits() -> None:
+    limits = Limits(100.0, 1000.0, 800.0, 20_000.0)
+    prof = SCurveProfile(DT, 0.0, 0.0, 5.0)
+    prof.to_position(55.0, limits)
+    assert prof.ruckig is None and prof.plan is not None
+    trace = run(prof, 700)
+    assert trace[-1] == (55.0, 0.0, 0.0, True)
+    velocities = [s[1] for s in trace]
+    accelerations = [s[2] for s in trace]
+    assert max(velocities) <= 100.0 * (1 + 1e-12) and min(velocities) >= 0.0
+    assert max(accelerations) <= 1000.0 * (1 + 1e-12)
+    assert min(accelerations) >= -800.0 * (1 + 1e-12)
+    jerks = np.diff([0.0, *accelerations]) / DT
+    assert np.abs(jerks).max() <= 20_000.0 * (1 + 1e-9)
+    positions = [s[0] for s in trace]
+    assert positions == sorted(positions)  # never passes the target and comes back
+
+
+def test_a_move_by_nothing_from_rest_ends_at_once() -> None:
+    prof = SCurveProfile(DT, 0.0, 0.0, 3.0)
+    prof.to_position(3.0, Limits(100.0, 1000.0, 1000.0, 20_000.0))
+    assert prof.plan is not None and prof.plan.end == 0.0
+    assert run(prof, 1) == [(3.0, 0.0, 0.0, True)]
+
+
+# -- ruckig as the reference ------------------------------------------------------------
+rates = st.floats(10.0, 10_000.0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    vmax=st.floats(1.0, 1000.0),
+    v_share=st.one_of(st.just(0.0), st.floats(0.0, 1.0)),
+    d=st.floats(1e-3, 1000.0),
+    backward=st.booleans(),
+    acc=rates,
+    dec=rates,
+    jerk=st.floats(100.0, 1e6),
+    dt=st.sampled_from([0.0005, 0.001, 0.002, 0.004]),
+)
+def test_the_closed_form_samples_what_ruckig_samples(
+    vmax: float,
+    v_share: float,
+    d: float,
+    backward: bool,
+    acc: float,
+    dec: float,
+    jerk: float,
+    dt: float,
+) -> None:
+    """From rest or cruising toward the target: the closed form covers the move unless
+    it would have to pass the target; where it does, the duration is ruckig's (the same
+    time-optimal profile), every cycle agrees within ruckig's precision (and what a
+    sample-time difference of :func:`time_slack` makes of it), both end within one
+    cycle, and the last sample is the target at rest."""
+    sign = -1.0 if backward else 1.0
+    v0, target = sign * v_share * vmax, sign * d
+    limits = Limits(vmax, acc, dec, jerk)
+    ours, ref = SCurveProfile(dt, v0), Profile(dt, v0)
+    fallbacks = FALLBACKS.count
+    ours.to_position(target, limits)
+    ref.to_position(target, limits)
+    stop = v0 * v0 / (2 * dec) + abs(v0) * dec / (2 * jerk)  # at most this far to stop
+    if d >= stop:
+        assert ours.ruckig is None  # covered
+    if ours.ruckig is not None:
+        assert FALLBACKS.count == fallbacks + 1
+        return
+    assert FALLBACKS.count == fallbacks
+    plan = ours.plan
+    assert plan is not None
+    assert plan.end == pytest.approx(ruckig_duration(v0, target, limits), rel=1e-12, abs=1e-12)
+    cycles = math.ceil(plan.end / dt) + 3
+    v_top = vmax
+    a_top = max(acc, dec)
+    ends = []
+    for k in range(1, cycles + 1):
+        ours.step()
+        ref.step()
+        slack = time_slack(k, dt)
+        p_tol = P_PRECISION * max(1.0, abs(ref.position)) + v_top * slack
+        v_tol = V_PRECISION * max(1.0, v_top) + a_top * slack
+        a_tol = A_PRECISION * max(1.0, a_top) + jerk * slack
+        if not (ours.finished or ref.finished):
+            assert abs(ours.position - ref.position) <= p_tol, k
+            assert abs(ours.velocity - ref.velocity) <= v_tol, k
+            assert abs(ours.acceleration - ref.acceleration) <= a_tol, k
+        ends.append((ours.finished, ref.finished))
+    ours_end = next(k for k, e in enumerate(ends) if e[0])
+    ref_end = next(k for k, e in enumerate(ends) if e[1])
+    assert abs(ours_end - ref_end) <= 1
+    assert (ours.position, ours.velocity, ours.acceleration) == (target, 0.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("v0", "a0", "d"),
+    [
+        (30.0, 100.0, 50.0),  # accelerating
+        (-30.0, 0.0, 50.0),  # moving away from the target
+        (100.0, 0.0, 1.0),  # too close to stop before the target
+        (150.0, 0.0, 500.0),  # faster than the velocity limit
+    ],
+)
+def test_other_states_are_ruckigs_own_profile_and_counted(v0: float, a0: float, d: float) -> None:
+    limits = Limits(100.0, 1000.0, 800.0, 20_000.0)
+    before = FALLBACKS.count
+    ours, ref = SCurveProfile(DT, v0, a0, 2.0), Profile(DT, v0, a0, 2.0)
+    ours.to_position(2.0 + d, limits)
+    ref.to_position(2.0 + d, limits)
+    assert ours.ruckig is not None and FALLBACKS.count == before + 1
+    assert run(ours, 600) == run(ref, 600)
+
+
+def test_a_move_no_plan_can_hold_is_refused_and_the_plan_stays() -> None:
+    """1e-6 mm/s over 1e3 mm would take 1e9 s, beyond ruckig's longest trajectory."""
+    prof = SCurveProfile(DT)
+    prof.to_position(1.0, Limits(100.0, 1000.0, 1000.0, 20_000.0))
+    plan = prof.plan
+    with pytest.raises(MotionError):
+        prof.to_position(1e3, Limits(1e-6, 1000.0, 1000.0, 20_000.0))
+    assert prof.plan is plan and prof.target_position == 1.0
+
+
+# -- the S-curve lane -------------------------------------------------------------------
+MOVE = Limits(80.0, 2000.0, 1500.0, 40_000.0)
+JOG = Limits(60.0, 1000.0, 1000.0, 20_000.0)
+
+
+def _start(ctl: object, distances: list[float]) -> None:
+    """Jerk-limited moves of ``distances`` on the first masters, a jerk-limited jog on
+    the next one (its four segments padded in the same lane)."""
+    axes = ctl.axes  # type: ignore[attr-defined]
+    ctl.start_moves(axes[: len(distances)], distances, MOVE)  # type: ignore[attr-defined]
+    ctl.start_jogs([axes[len(distances)]], [-40.0], JOG)  # type: ignore[attr-defined]
+
+
+def test_moves_step_in_the_scurve_lane_as_the_reference_path() -> None:
+    distances = [50.0, -12.5, 0.3, 200.0, 50.0]
+    fast, ref = controller(True), controller(False)
+    for ctl in (fast, ref):
+        _start(ctl, distances)
+    fast.step()
+    ref.step()
+    lane = fast.motion.lanes[1].scurves
+    assert len(lane.members) == len(distances) + 1
+    for _ in range(1500):
+        fast.step()
+        ref.step()
+        assert np.array_equal(fast.cmd_pos, ref.cmd_pos)
+        assert np.array_equal(fast.cmd_vel, ref.cmd_vel)
+        assert np.array_equal(fast.cmd_acc, ref.cmd_acc)
+    targets = [ax.command_position for ax in fast.axes[: len(distances)]]
+    assert targets == distances  # each on its target exactly (they started at 0)
+    assert not any(ax.processes for ax in fast.axes[: len(distances)])  # done
+
+
+def test_a_lane_saved_with_four_columns_runs_on() -> None:
+    """A snapshot of a lane of velocity ramps from before moves joined it (four columns
+    a segment field) is padded when loaded, and steps on as the unpadded copy."""
+    ctl = controller(True)
+    ctl.start_jogs(ctl.axes[:3], [40.0, -20.0, 70.0], JOG)
+    for _ in range(3):
+        ctl.step()
+    lane = ctl.motion.lanes[1].scurves
+    assert len(lane.members) == 3
+    # the lane as it was saved before: four columns a segment field
+    saved = statecodec.loads(statecodec.dumps(ctl))
+    arrays = saved.motion.lanes[1].scurves.arrays
+    for f in PLAN_FIELDS:
+        arrays[f] = np.ascontiguousarray(arrays[f][:, :4])
+    old = statecodec.loads(statecodec.dumps(saved))
+    assert old.motion.lanes[1].scurves.arrays["start"].shape == (3, 8)
+    for _ in range(100):
+        ctl.step()
+        old.step()
+        assert np.array_equal(ctl.cmd_pos, old.cmd_pos)
+        assert np.array_equal(ctl.cmd_vel, old.cmd_vel)
+
+
+def test_many_moves_by_one_distance_share_one_plan() -> None:
+    ctl = controller(True)
+    ctl.start_moves(ctl.axes[:4], [25.0] * 4, MOVE)
+    plans = {id(ax.processes[0].profile.plan) for ax in ctl.axes[:4]}
+    assert len(plans) == 1
+    assert ctl.axes[0].processes[0].profile.dt == PERIOD
