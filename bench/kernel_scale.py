@@ -70,6 +70,9 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``move_on_jog``: from ``steady``, a move of 50 mm on every master that replaces its
   jog (the PLCopen aborting mode, MC_MoveRelative: ``start_moves`` with
   ``replace=None``), each from 100 mm/s, 100 steps.
+- ``s-move_on_jog``: ``move_on_jog`` with a jerk limit of 20,000 mm/s³: each move
+  planned in closed form from the jog's cruise (once for the equal ones) and stepped in
+  the S-curve lane.
 - ``mam_spread``: ``mam`` with a distance of its own on every master (10 mm plus 0.25 mm
   per axis number: what absolute moves to one target from different positions give),
   whose plans are built together (``kernel/move_plan.position_plans``), 100 steps.
@@ -279,6 +282,12 @@ def move_on_jog(ctl: Controller) -> None:
     ctl.start_moves(masters, [50.0] * len(masters), Limits(SPEED, RATE, RATE), replace=None)
 
 
+def s_move_on_jog(ctl: Controller) -> None:
+    """``move_on_jog`` with a jerk limit."""
+    masters = ctl.axes[: len(ctl.axes) // 2]
+    ctl.start_moves(masters, [50.0] * len(masters), Limits(SPEED, RATE, RATE, JERK), replace=None)
+
+
 def stop(ctl: Controller) -> None:
     ctl.group_stop(1, ProgrammedStopMode.FAST_STOP)
 
@@ -486,6 +495,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "s-move": (lambda c: gear(c, False), s_move, 100),
     "regear": (lambda c: (jog(c), gear(c, False)), regear, 100),
     "move_on_jog": (lambda c: (jog(c), gear(c, False)), move_on_jog, 100),
+    "s-move_on_jog": (lambda c: (jog(c), gear(c, False)), s_move_on_jog, 100),
     "maj_rejog": (lambda c: (jog(c), gear(c, False), MAJ_REJOG_SETUP(c)), MAJ_REJOG_COMMAND, 100),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),
     "mam_spread": (lambda c: (gear(c, False), MAM_SPREAD_SETUP(c)), MAM_SPREAD_COMMAND, 100),

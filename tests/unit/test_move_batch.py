@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -18,6 +19,7 @@ from motion_server.kernel import JogProcess, Limits, MoveProcess, ProcessKind, m
 from motion_server.kernel.errors import MotionError
 from motion_server.kernel.gearing import GearProcess
 from motion_server.kernel.lanes import ramps
+from motion_server.kernel.lanes.scurve import SCurveLane
 from motion_server.kernel.override import Override
 from motion_server.kernel.trapezoid import MAX_DURATION
 from motion_server.scan import statecodec
@@ -154,15 +156,16 @@ def test_start_moves_is_start_on_each_axis_in_order(
     picks=st.lists(st.sampled_from([25.0, -40.0, 3, -0.0, 250.5]), min_size=N, max_size=N),
     axes=st.lists(st.integers(1, N // 2), min_size=1, max_size=N // 2, unique=True),
     reads=st.lists(st.tuples(st.integers(0, 300), st.integers(1, N), st.booleans()), max_size=6),
+    jerk=st.sampled_from([0.0, 40_000.0]),
 )
 def test_moves_read_at_any_moment_are_those_the_loop_leaves(
-    picks: list[float], axes: list[int], reads: list[tuple[int, int, bool]]
+    picks: list[float], axes: list[int], reads: list[tuple[int, int, bool]], jerk: float
 ) -> None:
-    """Masters at rest, distances repeated (copies of one move) or not; at random cycles
-    an axis's processes are read (and, at some, taken out of the lanes,
-    ``Motion.settle``) on the batch and the loop alike: the same objects' state, and
-    after every step the reference's motion, until every move has landed."""
-    limits = Limits(300.0, 1000.0, 2000.0)
+    """Masters at rest, distances repeated (copies of one move) or not, trapezoidal or
+    jerk-limited; at random cycles an axis's processes are read (and, at some, taken out
+    of the lanes, ``Motion.settle``) on the batch and the loop alike: the same objects'
+    state, and after every step the reference's motion, until every move has landed."""
+    limits = Limits(300.0, 1000.0, 2000.0, jerk)
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
                                                          ("ref", False))}  # fmt: skip
     for name, ctl in ctls.items():
@@ -173,7 +176,9 @@ def test_moves_read_at_any_moment_are_those_the_loop_leaves(
             start_loop(ctl, chosen, picks, limits, None, None)
     batch = ctls["batch"]
     step_with_reads(ctls, reads, 301)
-    # 250.5 units at 300 units/s, 1,000 up and 2,000 down: under 1.2 s (600 cycles of 2 ms)
+    # 250.5 units at 300 units/s, 1,000 up and 2,000 down: under 1.2 s (600 cycles of
+    # 2 ms), also with the jerk limit (1.0975 s: 250.5/300 + 300/2000 + 300/4000 +
+    # 1000/80,000 + 2000/80,000)
     for _ in range(300):
         batch.step()
     for n, d in zip(axes, picks, strict=False):
@@ -181,11 +186,15 @@ def test_moves_read_at_any_moment_are_those_the_loop_leaves(
         assert not batch.axis(n).processes
 
 
-def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: Any) -> None:
-    """Six masters at rest, three moves of one distance and three of another: the
-    constructor runs twice (once per distance), and the first step reads no move's plan
-    (the lane takes the columns the call read); the motion is the loop's."""
-    limits = Limits(300.0, 1000.0, 2000.0)
+@pytest.mark.parametrize("jerk", [0.0, 40_000.0])
+def test_moves_from_rest_are_built_once_per_distance_and_read_once(
+    monkeypatch: Any, jerk: float
+) -> None:
+    """Six masters at rest, three moves of one distance and three of another,
+    trapezoidal (the profile lane) or jerk-limited (the S-curve lane): the constructor
+    runs twice (once per distance), and the first step reads no move's plan (the lane
+    takes the columns the call read); the motion is the loop's."""
+    limits = Limits(300.0, 1000.0, 2000.0, jerk)
     a, b = 100.0, -60.0
     dist = [a, a, b, a, b, b]
     batch, ref = controller(True), controller(False)
@@ -199,8 +208,11 @@ def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: 
         raise AssertionError("a move read at the step")
 
     monkeypatch.setattr(ramps.ProfileLane, "_load", refuse)
+    monkeypatch.setattr(SCurveLane, "_load", refuse)
     batch.step()
     monkeypatch.undo()
+    lane = batch.motion.lanes[1].scurves if jerk else batch.motion.lanes[1].profiles
+    assert len(lane.members) == N // 2
     start_loop(ref, ref.axes[: N // 2], dist, limits, None, landings)
     ref.step()
     for _ in range(400):
@@ -210,16 +222,18 @@ def test_moves_from_rest_are_built_once_per_distance_and_read_once(monkeypatch: 
         ref.step()
 
 
-def test_absolute_moves_on_jogging_axes_land_on_their_target(monkeypatch: Any) -> None:
+@pytest.mark.parametrize("jerk", [0.0, 40_000.0])
+def test_absolute_moves_on_jogging_axes_land_on_their_target(monkeypatch: Any, jerk: float) -> None:
     """Six masters jogging at 40 mm/s (at speed, in the cruise lane), their slaves geared
-    to them; MC_MoveAbsolute to 100 mm on each, aborting: each move replaces the jog and
-    starts from 40 mm/s. Masters 1 to 3 were started together, so they stand at one
+    to them; MC_MoveAbsolute to 100 mm on each, aborting, trapezoidal or jerk-limited
+    (planned in closed form from the cruise): each move replaces the jog and starts from
+    40 mm/s. Masters 1 to 3 were started together, so they stand at one
     position and share one distance: one move built, two copied; 4 to 6 each their own.
     The first step plans nothing and levels no follower again; the motion is the loop's
     and the reference's step by step, and every master comes to rest on 100 exactly
     (the landing of an absolute move)."""
     jog = Limits(40.0, 800.0, 800.0)
-    limits = Limits(300.0, 1000.0, 2000.0)
+    limits = Limits(300.0, 1000.0, 2000.0, jerk)
     ctls = {name: controller(lanes) for name, lanes in (("batch", True), ("loop", True),
                                                          ("ref", False))}  # fmt: skip
     for ctl in ctls.values():
@@ -246,9 +260,13 @@ def test_absolute_moves_on_jogging_axes_land_on_their_target(monkeypatch: Any) -
             monkeypatch.undo()
             assert built == [dist[0], *dist[3:]]
             monkeypatch.setattr(ramps.ProfileLane, "_load", refuse)
+            monkeypatch.setattr(SCurveLane, "_load", refuse)
             monkeypatch.setattr(type(ctl.motion.lanes[1]), "_order_command_followers", refuse)
             ctl.step()
             monkeypatch.undo()
+            lanes = ctl.motion.lanes[1]
+            lane = lanes.scurves if jerk else lanes.profiles
+            assert {ax.processes[0].lane for ax in masters} == {lane}
         else:
             start_loop(ctl, masters, dist, limits, None, [target] * len(masters), None)
             ctl.step()

@@ -15,18 +15,21 @@ work that does not depend on the axis:
   from different positions), their plans are built together
   (:func:`.move_plan.position_plans`) and each move is a copy of the first with its own
   plan;
-- the moves from rest bound for the profile lane join it as one batch, their lane rows
-  read once per prototype (:meth:`.lanes.ramps.ProfileLane.admit_planned`), so the first
-  step takes them as they are instead of reading every move's plan.
+- so is a jerk-limited move from rest, planned in closed form
+  (:mod:`.scurve_position`);
+- the moves from rest bound for the profile lane or the S-curve lane join it as one
+  batch, their lane rows read once per prototype (:meth:`.lanes.ramps.PlanLane.
+  admit_planned`), so the first step takes them as they are instead of reading every
+  move's plan.
 
-- a trapezoidal move that replaces the one process of an axis already moving (the
-  aborting mode on a jogging axis; :mod:`.take_over`) is built from that process's
-  velocity and acceleration, once per (period, distance, velocity, acceleration) and
-  copied, and joins the batch as a move from rest does.
+- a move that replaces the one process of an axis already moving (the aborting mode on
+  a jogging axis; :mod:`.take_over`) is built from that process's velocity and
+  acceleration, once per (period, distance, velocity, acceleration) and copied (when
+  its plan is a closed form's), and joins the batch as a move from rest does.
 
 Other axes (overridden, with a preloaded cam, more than one process or a process not
-replaced, and every jerk-limited move) are started through ``Motion.start`` or
-``Motion.start_from_rest`` as the loop starts them.
+replaced) are started through ``Motion.start`` or ``Motion.start_from_rest`` as the
+loop starts them, and so are the jerk-limited moves ruckig plans.
 As with the loop, a :class:`.errors.MotionError` on an axis leaves the axes before it
 started.
 """
@@ -42,11 +45,13 @@ from .axis import Axis
 from .enums import ProcessKind
 from .jog_batch import _Joining
 from .lanes import GroupLanes
+from .lanes.scurve import planned_row
 from .limits import Limits
 from .motion import Motion
 from .move_plan import position_plans
 from .override import NEUTRAL
 from .processes import MoveProcess, Process, ProcessFactory
+from .scurve import SCurveProfile
 from .take_over import LastStart, sole_replaced, take_over
 from .trapezoid import Plan, TrapezoidProfile
 
@@ -57,27 +62,29 @@ AHEAD = 4
 
 
 class _Proto:
-    """A move from rest built by the constructors: its state and its profile's right
-    after construction, and its row of the profile lane's ``FIELDS`` after the base
-    (None: a jerk-limited move, not copied)."""
+    """A move built by the constructors: its state and its profile's right after
+    construction, and its row of its lane's ``FIELDS`` after the base (None: not
+    copied): a trapezoidal move's in the profile lane, a jerk-limited move planned in
+    closed form in the S-curve lane (a move ruckig plans is not copied)."""
 
-    __slots__ = ("prof_state", "row", "state")
+    __slots__ = ("lane_kind", "prof_state", "prof_type", "row", "state")
 
     def __init__(self, p: MoveProcess) -> None:
         prof = p.profile
         self.state = dict(vars(p))
         self.prof_state = dict(vars(prof))
+        self.prof_type = type(prof)
         self.row: tuple[Any, ...] | None = None
+        #: the lane copies of this move join as a batch, if it has a row there
+        self.lane_kind: str | None = None
         if type(prof) is TrapezoidProfile and prof.request is None:
             plan = prof.plan
             assert plan is not None  # (to_position plans at once)
             self.row = _row(p, prof, plan)
-
-    @property
-    def lane_kind(self) -> str | None:
-        """The lane copies of this move join as a batch: the profile lane, if it has a
-        row there."""
-        return None if self.row is None else "profiles"
+            self.lane_kind = "profiles"
+        elif type(prof) is SCurveProfile and prof.ruckig is None and prof.planned:
+            self.row = planned_row(p)
+            self.lane_kind = "scurves"
 
     @classmethod
     def planned(cls, template: _Proto, distance: float, plan: Plan) -> _Proto:
@@ -85,8 +92,10 @@ class _Proto:
         template's (a trapezoidal move from rest of the same period and limits) but its
         plan and target (what ``TrapezoidProfile.to_position`` sets from them)."""
         head = template.row
-        assert head is not None  # (a template is trapezoidal)
+        assert head is not None and template.lane_kind == "profiles"  # (trapezoidal)
         proto = cls.__new__(cls)
+        proto.prof_type = TrapezoidProfile
+        proto.lane_kind = template.lane_kind
         proto.state = template.state  # (the distance is set in every copy)
         proto.prof_state = {
             **template.prof_state,
@@ -166,8 +175,8 @@ def _plans_ahead(
 
 def _copy(proto: _Proto, distance: float, owner: object, landing: float | None) -> MoveProcess:
     """A copy of ``proto``'s move with its own owner, distance (as given: an int stays
-    an int), landing and profile."""
-    prof = object.__new__(TrapezoidProfile)
+    an int), landing and profile (its plan shared: plans are immutable)."""
+    prof = object.__new__(proto.prof_type)
     prof.__dict__.update(proto.prof_state)
     p = object.__new__(MoveProcess)
     p.__dict__.update(proto.state)
@@ -179,7 +188,7 @@ def _copy(proto: _Proto, distance: float, owner: object, landing: float | None) 
 
 
 class _FromMotion:
-    """The trapezoidal moves from motion built so far (a move replacing the one process
+    """The moves from motion built so far (a move replacing the one process
     of an axis already moving: :mod:`.take_over`), by (period, distance's, velocity's
     and acceleration's bits): the others alike are copies. The last one is kept for the
     usual batch (one distance object, every axis at the same speed)."""
@@ -220,7 +229,7 @@ class _FromMotion:
 
 
 class _MoveJoining(_Joining):
-    """The moves from rest bound for one profile lane, admitted as one batch."""
+    """The moves bound for one profile or S-curve lane, admitted as one batch."""
 
     def _hand_to(
         self,
@@ -230,7 +239,8 @@ class _MoveJoining(_Joining):
         kinds: list[tuple[float, ...]],
         which: np.ndarray | None,
     ) -> None:
-        lanes.profiles.admit_planned(pairs, base, kinds, which)
+        lane = lanes.profiles if self.kind == "profiles" else lanes.scurves
+        lane.admit_planned(pairs, base, kinds, which)
 
 
 def start_moves(
@@ -262,7 +272,7 @@ def start_moves(
     # moves planned ahead are copies of it with their own plan
     templates: dict[float, _Proto] = {}
     ahead = _plans_ahead(axes, distances, limits)
-    moving = _FromMotion(limits) if limits.trapezoidal else None
+    moving = _FromMotion(limits)
     try:
         for k, ax in enumerate(axes):
             distance = distances[k]
@@ -274,9 +284,8 @@ def start_moves(
                 or ax.preloaded_cams
                 or (ax.override is not NEUTRAL and not ax.override.neutral)
             ):
-                q = None if moving is None else sole_replaced(ax, procs, replace)
+                q = sole_replaced(ax, procs, replace)
                 if q is not None:
-                    assert moving is not None
                     started.append(
                         _from_motion(motion, ax, q, joining, moving, distance, owner, landing)
                     )
@@ -299,7 +308,7 @@ def start_moves(
                 proto = _Proto(p)
                 if key is not None:
                     protos.setdefault(key, proto)
-                if proto.row is not None:
+                if proto.lane_kind == "profiles":
                     templates.setdefault(ax.period, proto)
             joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
             started.append(p)
@@ -319,10 +328,9 @@ def _from_motion(
     owner: object,
     landing: float | None,
 ) -> MoveProcess:
-    """``Motion.start`` of a trapezoidal move of ``distance`` on ``ax``, replacing its
-    one process ``q`` (:func:`.take_over.sole_replaced`): built by ``moving`` from
-    ``q``'s velocity and acceleration, it joins the batch of the profile lane as a move
-    from rest does."""
+    """``Motion.start`` of a move of ``distance`` on ``ax``, replacing its one process
+    ``q`` (:func:`.take_over.sole_replaced`): built by ``moving`` from ``q``'s velocity
+    and acceleration, it joins the batch of its lane as a move from rest does."""
     p, proto, new, lanes = take_over(
         motion, ax, q, lambda v, a: moving.make(ax.period, distance, owner, landing, v, a)
     )

@@ -180,6 +180,21 @@ class PlanLane(Lane):
             columns.append(col)
         return columns
 
+    def admit_planned(
+        self,
+        joining: Sequence[tuple[Process, Axis]],
+        base: np.ndarray,
+        kinds: Sequence[tuple[Any, ...]],
+        which: np.ndarray | None,
+    ) -> None:
+        """Admit ``joining`` (moves just commanded, planned:
+        :func:`..move_batch.start_moves`) in this order; ``base`` their axes' bases;
+        ``kinds`` the distinct rows of what :meth:`_load` reads of each after the base
+        (the moves of one distance share their plan), ``which`` the kind of each (None:
+        all the first). If the batch is all that joins before the next rebuild, the
+        rebuild takes its columns as they are."""
+        admit_rows(self, joining, spread(self, base, kinds, which))
+
     def _sample(
         self, rows: np.ndarray, seg: np.ndarray, tau: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -408,21 +423,6 @@ class ProfileLane(PlanLane):
                  target, False)
             )  # fmt: skip
         admit_rows(self, joining, spread(self, base, rows, which))
-
-    def admit_planned(
-        self,
-        joining: Sequence[tuple[Process, Axis]],
-        base: np.ndarray,
-        kinds: Sequence[tuple[Any, ...]],
-        which: np.ndarray | None,
-    ) -> None:
-        """Admit ``joining`` (moves just commanded on axes at rest, planned:
-        :func:`..move_batch.start_moves`) in this order; ``base`` their axes' bases;
-        ``kinds`` the distinct rows of what :meth:`_load` reads of each after the base
-        (the moves of one distance share their plan), ``which`` the kind of each (None:
-        all the first). If the batch is all that joins before the next rebuild, the
-        rebuild takes its columns as they are."""
-        admit_rows(self, joining, spread(self, base, kinds, which))
 
     def _ending(self, s: AxisArrays, rows: np.ndarray) -> tuple[list[int], list[int]]:
         """A jog that reaches its velocity, its axis's only process with nothing

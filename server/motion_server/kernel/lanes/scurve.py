@@ -60,6 +60,31 @@ def pad_columns(end: np.ndarray, columns: list[np.ndarray]) -> list[np.ndarray]:
     return out
 
 
+def planned_row(p: Process) -> tuple[Any, ...]:
+    """What the lane reads of ``p`` (a member whose plan is built) after its axis's
+    base: its ``FIELDS`` but the first."""
+    assert isinstance(p, JogProcess | MoveProcess | StopRamp)
+    prof = p.profile
+    assert isinstance(prof, SCurveProfile) and prof.plan is not None
+    plan = prof.plan
+    fields = (
+        plan.start, plan.pos, plan.vel, plan.acc, plan.half, plan.jerk, plan.jhalf,
+        plan.jsixth,
+    )  # fmt: skip
+    return (
+        float(prof.cycles),
+        prof.dt,
+        plan.done,
+        *pad_plan(plan.end, fields),
+        p.position,
+        p.velocity,
+        p.acceleration,
+        plan.end,
+        plan.end_position,
+        plan.end_velocity,
+    )
+
+
 class SCurveLane(PlanLane):
     """Jerk-limited velocity ramps within their plan, stepped as arrays with the
     operations of ``SCurveProfile.step``, in the same order."""
@@ -136,27 +161,7 @@ class SCurveLane(PlanLane):
         return state
 
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
-        assert isinstance(p, JogProcess | MoveProcess | StopRamp)
-        prof = p.profile
-        assert isinstance(prof, SCurveProfile) and prof.plan is not None
-        plan = prof.plan
-        fields = (
-            plan.start, plan.pos, plan.vel, plan.acc, plan.half, plan.jerk, plan.jhalf,
-            plan.jsixth,
-        )  # fmt: skip
-        return (
-            ax.base,
-            float(prof.cycles),
-            prof.dt,
-            plan.done,
-            *pad_plan(plan.end, fields),
-            p.position,
-            p.velocity,
-            p.acceleration,
-            plan.end,
-            plan.end_position,
-            plan.end_velocity,
-        )
+        return (ax.base, *planned_row(p))
 
     #: what :meth:`_planned` reads of a ramp not planned yet: base, cycles, dt,
     #: position, velocity, acceleration, then the profile's request (10 floats)
