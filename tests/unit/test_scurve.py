@@ -161,10 +161,11 @@ def test_jerk_limits_give_the_closed_form() -> None:
 
 
 def test_a_position_target_is_ruckigs_own_profile() -> None:
-    """to_position from an accelerating state goes through ruckig: the same samples, bit
-    for bit, as a bare Profile (from rest or a cruise: ``test_scurve_position.py``)."""
+    """to_position from beyond the velocity limit goes through ruckig: the same samples,
+    bit for bit, as a bare Profile (the states the closed form plans:
+    ``test_scurve_position.py``)."""
     limits = Limits(100.0, 1000.0, 800.0, 20_000.0)
-    ours, ref = SCurveProfile(DT, 30.0, 100.0, 2.0), Profile(DT, 30.0, 100.0, 2.0)
+    ours, ref = SCurveProfile(DT, 130.0, 100.0, 2.0), Profile(DT, 130.0, 100.0, 2.0)
     ours.to_position(50.0, limits)
     ref.to_position(50.0, limits)
     assert run(ours, 400) == run(ref, 400)
