@@ -352,6 +352,25 @@ def test_a_lane_saved_with_four_columns_runs_on() -> None:
         assert np.array_equal(ctl.cmd_vel, old.cmd_vel)
 
 
+def test_a_snapshot_of_moves_in_the_lane_runs_on_bit_for_bit() -> None:
+    """Moves and a jog in the S-curve lane, saved through the snapshot codec mid-way:
+    the copy steps on as the original does, to the moves' targets."""
+    distances = [50.0, -12.5, 0.3, 200.0]
+    ctl = controller(True)
+    _start(ctl, distances)
+    for _ in range(40):
+        ctl.step()
+    copy = statecodec.loads(statecodec.dumps(ctl))
+    # 80 ms in: the 0.3 mm move has landed (4·(0.3/80,000)^(1/3) s = 62 ms), the other
+    # three moves and the jog are in the lane
+    assert len(copy.motion.lanes[1].scurves.members) == 4
+    for _ in range(1500):
+        ctl.step()
+        copy.step()
+        assert ctl.cmd_pos.tobytes() == copy.cmd_pos.tobytes()
+    assert [ax.command_position for ax in copy.axes[: len(distances)]] == distances
+
+
 def test_many_moves_by_one_distance_share_one_plan() -> None:
     ctl = controller(True)
     ctl.start_moves(ctl.axes[:4], [25.0] * 4, MOVE)
