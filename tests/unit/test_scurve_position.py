@@ -32,7 +32,7 @@ from motion_server.kernel.scurve import FALLBACKS, plan_jerk_position
 from motion_server.scan import statecodec
 
 from .test_jog_batch import PERIOD, controller
-from .test_scurve import A_PRECISION, P_PRECISION, V_PRECISION, run, time_slack
+from .test_scurve import P_PRECISION, run, step_beside_ruckig
 
 DT = 0.001
 
@@ -154,8 +154,8 @@ def test_the_closed_form_samples_what_ruckig_samples(
     """From rest or cruising toward the target: the closed form covers the move unless
     it would have to pass the target; where it does, the duration is ruckig's (the same
     time-optimal profile), every cycle agrees within ruckig's precision (and what a
-    sample-time difference of :func:`time_slack` makes of it), both end within one
-    cycle, and the last sample is the target at rest."""
+    sample-time difference makes of it: :func:`.test_scurve.time_slack`), both end
+    within one cycle, and the last sample is the target at rest."""
     sign = -1.0 if backward else 1.0
     v0, target = sign * v_share * vmax, sign * d
     limits = Limits(vmax, acc, dec, jerk)
@@ -173,35 +173,16 @@ def test_the_closed_form_samples_what_ruckig_samples(
     plan = ours.plan
     assert plan is not None
     assert plan.end == pytest.approx(ruckig_duration(v0, target, limits), rel=1e-12, abs=1e-12)
-    step_beside_ruckig(ours, ref, dt, limits)
+    step_beside(ours, ref, dt, limits)
     assert (ours.position, ours.velocity, ours.acceleration) == (target, 0.0, 0.0)
 
 
-def step_beside_ruckig(ours: SCurveProfile, ref: Profile, dt: float, limits: Limits) -> None:
-    """Step both to their end: every cycle's position, velocity and acceleration within
-    ruckig's precision (and what a sample-time difference of :func:`time_slack` makes
-    of them) until one ends; both end within one cycle."""
+def step_beside(ours: SCurveProfile, ref: Profile, dt: float, limits: Limits) -> None:
+    """:func:`.test_scurve.step_beside_ruckig` of a move to its end (compared until one
+    of the two lands: ruckig's may land a cycle earlier)."""
     assert ours.plan is not None
-    cycles = math.ceil(ours.plan.end / dt) + 3
-    v_top = limits.velocity
-    a_top = max(limits.acceleration, limits.deceleration)
-    jerk = limits.jerk
-    ends = []
-    for k in range(1, cycles + 1):
-        ours.step()
-        ref.step()
-        slack = time_slack(k, dt)
-        p_tol = P_PRECISION * max(1.0, abs(ref.position)) + v_top * slack
-        v_tol = V_PRECISION * max(1.0, v_top) + a_top * slack
-        a_tol = A_PRECISION * max(1.0, a_top) + jerk * slack
-        if not (ours.finished or ref.finished):
-            assert abs(ours.position - ref.position) <= p_tol, k
-            assert abs(ours.velocity - ref.velocity) <= v_tol, k
-            assert abs(ours.acceleration - ref.acceleration) <= a_tol, k
-        ends.append((ours.finished, ref.finished))
-    ours_end = next(k for k, e in enumerate(ends) if e[0])
-    ref_end = next(k for k, e in enumerate(ends) if e[1])
-    assert abs(ours_end - ref_end) <= 1
+    tops = (limits.velocity, max(limits.acceleration, limits.deceleration), limits.jerk)
+    step_beside_ruckig(ours, ref, math.ceil(ours.plan.end / dt) + 3, dt, tops, after_end=False)
 
 
 @settings(max_examples=300, deadline=None)
@@ -261,7 +242,7 @@ def test_moves_started_while_ramping_are_planned_in_closed_form() -> None:
         assert prof.plan is not None
         duration = ruckig_duration(v0, target, limits, a0)
         assert prof.plan.end == pytest.approx(duration, rel=1e-9)
-        step_beside_ruckig(prof, ref, DT, limits)
+        step_beside(prof, ref, DT, limits)
         assert (prof.position, prof.velocity, prof.acceleration) == (target, 0.0, 0.0)
 
 

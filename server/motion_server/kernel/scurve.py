@@ -410,11 +410,7 @@ class SCurveProfile:
             self._use_ruckig(prof, target, 0.0)
             return
         self.plan = plan
-        self.ruckig = None
-        self.cycles = 0
-        self.finished = False
-        self._target_position = target
-        self._target_velocity = 0.0
+        self._started(None, target, 0.0)
 
     def to_velocity(self, velocity: float, limits: Limits) -> None:
         """Ramp to a constant ``velocity`` (signed) and hold it. If it cannot be planned
@@ -445,15 +441,17 @@ class SCurveProfile:
         else:
             self._plan = build_request(self._dt, request)  # (may raise: nothing changed)
             self.request = None
-        self.ruckig = None
-        self.cycles = 0
-        self.finished = False
-        self._target_position = None
-        self._target_velocity = target
+        self._started(None, None, target)
 
     def _use_ruckig(self, prof: Profile, target_position: float | None, velocity: float) -> None:
-        self.ruckig = prof
         self.plan = None
+        self._started(prof, target_position, velocity)
+
+    def _started(
+        self, ruckig: Profile | None, target_position: float | None, velocity: float
+    ) -> None:
+        """A new plan from the current state: ``ruckig`` plans it (None: a closed form)."""
+        self.ruckig = ruckig
         self.cycles = 0
         self.finished = False
         self._target_position = target_position
