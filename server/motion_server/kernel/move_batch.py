@@ -273,6 +273,8 @@ def start_moves(
     templates: dict[float, _Proto] = {}
     ahead = _plans_ahead(axes, distances, limits)
     moving = _FromMotion(limits)
+    #: the move from rest copied last (:class:`.take_over.LastStart`, at rest)
+    resting: LastStart[_Proto] = LastStart()
     try:
         for k, ax in enumerate(axes):
             distance = distances[k]
@@ -294,6 +296,13 @@ def start_moves(
                 make = _factory(ax.period, distance, limits, owner, landing)
                 started.append(motion.start(ax, make, replace))
                 continue
+            # the usual batch: one distance object for every axis, one period
+            proto = resting.get(distance, ax.period, 0.0, 0.0)
+            if proto is not None:
+                p = _copy(proto, distance, owner, landing)
+                joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
+                started.append(p)
+                continue
             key = _key(ax.period, distance)
             proto = None if key is None else protos.get(key)
             if proto is None and key is not None and key in ahead:
@@ -310,6 +319,8 @@ def start_moves(
                     protos.setdefault(key, proto)
                 if proto.lane_kind == "profiles":
                     templates.setdefault(ax.period, proto)
+            if proto.row is not None and key is not None:
+                resting.keep(distance, ax.period, 0.0, 0.0, proto)
             joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
             started.append(p)
     finally:
