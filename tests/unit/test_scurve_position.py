@@ -310,9 +310,11 @@ def test_moves_step_in_the_scurve_lane_as_the_reference_path() -> None:
     assert not any(ax.processes for ax in fast.axes[: len(distances)])  # done
 
 
-def test_a_lane_saved_with_four_columns_runs_on() -> None:
+@pytest.mark.parametrize("with_ends", [True, False])
+def test_a_lane_saved_with_four_columns_runs_on(with_ends: bool) -> None:
     """A snapshot of a lane of velocity ramps from before moves joined it (four columns
-    a segment field) is padded when loaded, and steps on as the unpadded copy."""
+    a segment field) is padded when loaded, and steps on as the unpadded copy; also
+    one from before the lane kept the plans' ends (``with_ends`` False)."""
     ctl = controller(True)
     ctl.start_jogs(ctl.axes[:3], [40.0, -20.0, 70.0], JOG)
     for _ in range(3):
@@ -324,6 +326,9 @@ def test_a_lane_saved_with_four_columns_runs_on() -> None:
     arrays = saved.motion.lanes[1].scurves.arrays
     for f in PLAN_FIELDS:
         arrays[f] = np.ascontiguousarray(arrays[f][:, :4])
+    if not with_ends:
+        for f in ("end", "end_pos", "end_vel"):
+            del arrays[f]
     old = statecodec.loads(statecodec.dumps(saved))
     assert old.motion.lanes[1].scurves.arrays["start"].shape == (3, 8)
     for _ in range(100):

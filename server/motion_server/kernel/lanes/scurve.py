@@ -100,7 +100,9 @@ class SCurveLane(PlanLane):
         arrays = state.get("arrays", {})
         start = arrays.get("start")
         if start is not None and start.shape[1] == SEGMENTS:
-            end = arrays["end"] if "end" in arrays else start[:, -1]
+            # (saved before the lane kept the plans' ends, too: the empty segments start
+            # at infinity, where no sample reaches them either)
+            end = arrays["end"] if "end" in arrays else np.full(len(start), np.inf)
             padded = pad_columns(end, [arrays[f] for f in PLAN_FIELDS])
             arrays.update(zip(PLAN_FIELDS, padded, strict=True))
         super().__setstate__(state)
