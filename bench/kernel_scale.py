@@ -70,6 +70,8 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``move_on_jog``: from ``steady``, a move of 50 mm on every master that replaces its
   jog (the PLCopen aborting mode, MC_MoveRelative: ``start_moves`` with
   ``replace=None``), each from 100 mm/s, 100 steps.
+- ``s-move_spread``: ``s-move`` with a distance of its own on every master (10 mm plus
+  0.25 mm per axis number): each move planned in closed form on its own, in Python.
 - ``s-move_on_jog``: ``move_on_jog`` with a jerk limit of 20,000 mm/s³: each move
   planned in closed form from the jog's cruise (once for the equal ones) and stepped in
   the S-curve lane.
@@ -280,6 +282,13 @@ def move_on_jog(ctl: Controller) -> None:
     """A move of 50 mm replacing every master's jog at ``SPEED`` (``jog``)."""
     masters = ctl.axes[: len(ctl.axes) // 2]
     ctl.start_moves(masters, [50.0] * len(masters), Limits(SPEED, RATE, RATE), replace=None)
+
+
+def s_move_spread(ctl: Controller) -> None:
+    """A jerk-limited move of a distance of its own on every master."""
+    masters = ctl.axes[: len(ctl.axes) // 2]
+    distances = [10.0 + 0.25 * k for k in range(len(masters))]
+    ctl.start_moves(masters, distances, Limits(SPEED, RATE, RATE, JERK))
 
 
 def s_move_on_jog(ctl: Controller) -> None:
@@ -496,6 +505,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "regear": (lambda c: (jog(c), gear(c, False)), regear, 100),
     "move_on_jog": (lambda c: (jog(c), gear(c, False)), move_on_jog, 100),
     "s-move_on_jog": (lambda c: (jog(c), gear(c, False)), s_move_on_jog, 100),
+    "s-move_spread": (lambda c: gear(c, False), s_move_spread, 100),
     "maj_rejog": (lambda c: (jog(c), gear(c, False), MAJ_REJOG_SETUP(c)), MAJ_REJOG_COMMAND, 100),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),
     "mam_spread": (lambda c: (gear(c, False), MAM_SPREAD_SETUP(c)), MAM_SPREAD_COMMAND, 100),
