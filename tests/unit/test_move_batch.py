@@ -314,13 +314,16 @@ def test_a_move_too_long_to_plan_is_refused_where_the_loop_refuses_it() -> None:
     assert [len(ax.processes) for ax in ctl.axes[:3]] == [1, 0, 0]
 
 
-def test_moves_of_many_distances_are_planned_together(monkeypatch: Any) -> None:
+@pytest.mark.parametrize("jerk", [0.0, 40_000.0])
+def test_moves_of_many_distances_are_planned_together(monkeypatch: Any, jerk: float) -> None:
     """Six masters at rest, six distances (absolute moves to one target from six
     positions give as many): the constructor builds the first move alone, the other
-    five are its copies with plans built together (``move_plan.position_plans``,
+    five are its copies with plans built together (``move_plan.position_plans``, or
+    ``scurve_position_plan.plans_from_rest`` with a jerk limit;
     :data:`~motion_server.kernel.move_batch.AHEAD` distances or more), each the plan
-    ``plan_position`` builds: the same objects and motion as the loop's."""
-    limits = Limits(300.0, 1000.0, 2000.0)
+    the scalar planner builds, bit for bit: the same objects and motion as the loop's,
+    every move on its target at the end."""
+    limits = Limits(300.0, 1000.0, 2000.0, jerk)
     dist = [100.0, -60.0, 7.5, 0.25, -0.0, 3]
     assert len(set(dist)) >= move_batch.AHEAD
     batch, loop, ref = controller(True), controller(True), controller(False)
@@ -337,3 +340,6 @@ def test_moves_of_many_distances_are_planned_together(monkeypatch: Any) -> None:
         for ctl in (batch, loop, ref):
             ctl.step()
         assert batch.cmd_pos.tobytes() == loop.cmd_pos.tobytes() == ref.cmd_pos.tobytes(), c
+    # 100 mm at 300 mm/s, 1,000 up and 2,000 down, 40,000 mm/s³: 100/300 + 300/2000 +
+    # 300/4000 + 1000/80,000 + 2000/80,000 = 0.596 s, 298 cycles of 2 ms
+    assert [ax.command_position for ax in batch.axes[: N // 2]] == [float(x) for x in dist]

@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
 import pytest
@@ -28,7 +29,8 @@ from hypothesis import strategies as st
 from motion_server.kernel import Limits, MotionError
 from motion_server.kernel.lanes.scurve import PLAN_FIELDS
 from motion_server.kernel.profiles import Profile, SCurveProfile
-from motion_server.kernel.scurve import FALLBACKS, plan_jerk_position
+from motion_server.kernel.scurve import FALLBACKS, JerkPlan, plan_jerk_position
+from motion_server.kernel.scurve_position_plan import plans_from_rest
 from motion_server.scan import statecodec
 
 from .test_jog_batch import PERIOD, controller
@@ -275,6 +277,49 @@ def test_a_move_no_plan_can_hold_is_refused_and_the_plan_stays() -> None:
     with pytest.raises(MotionError):
         prof.to_position(1e3, Limits(1e-6, 1000.0, 1000.0, 20_000.0))
     assert prof.plan is plan and prof.target_position == 1.0
+
+
+# -- many moves from rest planned together ------------------------------------------------
+def plan_bits(plan: JerkPlan | None) -> list[bytes] | None:
+    """Every float of ``plan`` as bytes (None: no plan)."""
+    if plan is None:
+        return None
+    fields = (plan.start, plan.pos, plan.vel, plan.acc, plan.half, plan.jerk, plan.jhalf,
+              plan.jsixth, (plan.end, plan.done, plan.end_position, plan.end_velocity))  # fmt: skip
+    return [struct.pack(f"{len(f)}d", *f) for f in fields]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    distances=st.lists(
+        st.one_of(
+            st.floats(-500.0, 500.0),
+            st.floats(1e-9, 1e4).map(lambda x: -x),
+            st.floats(1e-9, 1e4),
+            st.sampled_from([0.0, -0.0, 3, 1e9]),
+        ),
+        min_size=1,
+        max_size=12,
+    ),
+    vmax=st.floats(1.0, 1000.0),
+    acc=rates,
+    dec=rates,
+    jerk=st.floats(100.0, 1e6),
+    dt=st.sampled_from([0.0005, 0.001, 0.002]),
+)
+def test_moves_from_rest_planned_together_are_those_planned_one_by_one(
+    distances: list[float], vmax: float, acc: float, dec: float, jerk: float, dt: float
+) -> None:
+    """:func:`plans_from_rest` gives, bit for bit, what ``plan_jerk_position`` gives each
+    distance from rest, and no plan where it gives none or refuses (1e9 mm: too long)."""
+    limits = Limits(vmax, acc, dec, jerk).validated()
+    together = plans_from_rest(dt, distances, limits)
+    for d, plan in zip(distances, together, strict=True):
+        try:
+            alone = plan_jerk_position(dt, 0.0, 0.0, 0.0, float(d), limits)
+        except MotionError:
+            alone = None
+        assert plan_bits(plan) == plan_bits(alone), d
 
 
 # -- the S-curve lane -------------------------------------------------------------------

@@ -16,7 +16,8 @@ work that does not depend on the axis:
   (:func:`.move_plan.position_plans`) and each move is a copy of the first with its own
   plan;
 - so is a jerk-limited move from rest, planned in closed form
-  (:mod:`.scurve_position`);
+  (:mod:`.scurve_position`; many distances together:
+  :func:`.scurve_position_plan.plans_from_rest`);
 - the moves from rest bound for the profile lane or the S-curve lane join it as one
   batch, their lane rows read once per prototype (:meth:`.lanes.ramps.PlanLane.
   admit_planned`), so the first step takes them as they are instead of reading every
@@ -36,6 +37,7 @@ started.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Collection, Sequence
 from typing import Any
 
@@ -45,13 +47,14 @@ from .axis import Axis
 from .enums import ProcessKind
 from .jog_batch import _Joining
 from .lanes import GroupLanes
-from .lanes.scurve import planned_row
+from .lanes.scurve import pad_plan, planned_row
 from .limits import Limits
 from .motion import Motion
 from .move_plan import position_plans
 from .override import NEUTRAL
 from .processes import MoveProcess, Process, ProcessFactory
-from .scurve import SCurveProfile
+from .scurve import JerkPlan, SCurveProfile
+from .scurve_position_plan import plans_from_rest
 from .take_over import LastStart, sole_replaced, take_over
 from .trapezoid import Plan, TrapezoidProfile
 
@@ -87,14 +90,15 @@ class _Proto:
             self.lane_kind = "scurves"
 
     @classmethod
-    def planned(cls, template: _Proto, distance: float, plan: Plan) -> _Proto:
+    def planned(cls, template: _Proto, distance: float, plan: Plan | JerkPlan) -> _Proto:
         """The prototype of a move from rest of ``distance`` planned ahead (``plan``): the
-        template's (a trapezoidal move from rest of the same period and limits) but its
-        plan and target (what ``TrapezoidProfile.to_position`` sets from them)."""
+        template's (a move from rest of the same period and limits, trapezoidal or
+        jerk-limited as ``plan``) but its plan and target (what ``to_position`` sets from
+        them)."""
         head = template.row
-        assert head is not None and template.lane_kind == "profiles"  # (trapezoidal)
+        assert head is not None  # (a template has a lane row)
         proto = cls.__new__(cls)
-        proto.prof_type = TrapezoidProfile
+        proto.prof_type = template.prof_type
         proto.lane_kind = template.lane_kind
         proto.state = template.state  # (the distance is set in every copy)
         proto.prof_state = {
@@ -102,10 +106,16 @@ class _Proto:
             "_plan": plan,
             "_target_position": float(distance),
         }
-        # (cycles and dt, then the plan, the kinematics, the plan's end)
-        proto.row = (*head[:2], plan.done, plan.start, plan.pos, plan.vel, plan.acc, plan.half,
-                     *head[8:11], plan.end, plan.end_position, plan.end_velocity,
-                     plan.landing)  # fmt: skip
+        if isinstance(plan, JerkPlan):
+            # (cycles and dt, then the plan, the kinematics, the plan's end)
+            fields = (plan.start, plan.pos, plan.vel, plan.acc, plan.half, plan.jerk,
+                      plan.jhalf, plan.jsixth)  # fmt: skip
+            proto.row = (*head[:2], plan.done, *pad_plan(plan.end, fields), *head[11:14],
+                         plan.end, plan.end_position, plan.end_velocity)  # fmt: skip
+        else:
+            proto.row = (*head[:2], plan.done, plan.start, plan.pos, plan.vel, plan.acc,
+                         plan.half, *head[8:11], plan.end, plan.end_position,
+                         plan.end_velocity, plan.landing)  # fmt: skip
         return proto
 
 
@@ -129,14 +139,14 @@ def _key(period: float, distance: float) -> tuple[float, str] | None:
 
 def _plans_ahead(
     axes: Sequence[Axis], distances: Sequence[float], limits: Limits
-) -> dict[tuple[float, str], Plan]:
+) -> dict[tuple[float, str], Plan | JerkPlan]:
     """The plans of the moves from rest of ``axes`` (those without motion, override or
     preloaded cam, as :func:`start_moves` finds them) by :func:`_key`, built together
-    when they have at least :data:`AHEAD` distinct distances and the limits are
-    trapezoidal; only those :func:`.trapezoid.plan_position` would build (the others
-    are planned, and refused, by the constructor in the loop's order)."""
-    if not limits.trapezoidal:
-        return {}
+    when they have at least :data:`AHEAD` distinct distances: trapezoidal
+    (:func:`.move_plan.position_plans`) or jerk-limited
+    (:func:`.scurve_position_plan.plans_from_rest`); only those the scalar planner would
+    build (the others are planned, and refused or left to ruckig, by the constructor in
+    the loop's order)."""
     wanted: dict[tuple[float, str], float] = {}
     for ax, distance in zip(axes, distances, strict=True):
         if ax.stop_rows is not None or ax._processes or ax.preloaded_cams:
@@ -148,6 +158,8 @@ def _plans_ahead(
             wanted.setdefault(key, float(distance))
     if len(wanted) < AHEAD:
         return {}
+    if not limits.trapezoidal:
+        return _jerk_plans_ahead(wanted, limits)
     keys = list(wanted)
     n = len(keys)
     zeros = np.zeros(n)
@@ -163,13 +175,25 @@ def _plans_ahead(
     start, pos, vel = plans.start.tolist(), plans.pos.tolist(), plans.vel.tolist()
     acc, half = plans.acc.tolist(), plans.half.tolist()
     end, done = plans.end.tolist(), plans.done.tolist()
-    ahead: dict[tuple[float, str], Plan] = {}
+    ahead: dict[tuple[float, str], Plan | JerkPlan] = {}
     for j in np.flatnonzero(plans.ok).tolist():
         key = keys[j]
         ahead[key] = Plan(
             tuple(start[j]), tuple(pos[j]), tuple(vel[j]), tuple(acc[j]), tuple(half[j]),
             end[j], done[j], wanted[key], 0.0, True,
         )  # fmt: skip
+    return ahead
+
+
+def _jerk_plans_ahead(
+    wanted: dict[tuple[float, str], float], limits: Limits
+) -> dict[tuple[float, str], Plan | JerkPlan]:
+    """:func:`_plans_ahead` of jerk-limited moves: one pass per period."""
+    ahead: dict[tuple[float, str], Plan | JerkPlan] = {}
+    for period in {key[0] for key in wanted}:
+        keys = [key for key in wanted if key[0] == period and math.isfinite(wanted[key])]
+        plans = plans_from_rest(period, [wanted[key] for key in keys], limits)
+        ahead.update((key, plan) for key, plan in zip(keys, plans, strict=True) if plan)
     return ahead
 
 
@@ -317,7 +341,7 @@ def start_moves(
                 proto = _Proto(p)
                 if key is not None:
                     protos.setdefault(key, proto)
-                if proto.lane_kind == "profiles":
+                if proto.row is not None:
                     templates.setdefault(ax.period, proto)
             if proto.row is not None and key is not None:
                 resting.keep(distance, ax.period, 0.0, 0.0, proto)

@@ -79,9 +79,25 @@ def distance(dv: float, v0: float, acc: float, dec: float, jerk: float) -> tuple
 def peak_rise(d: float, v0: float, vmax: float, acc: float, dec: float, jerk: float) -> float:
     """The rise dv in [0, vmax - v0] of the peak above v0 with D(dv) = ``d``, for D(0)
     <= d < D(vmax - v0): Newton's method inside a bisection bracket."""
-    lo, hi = 0.0, vmax - v0
-    dv = hi / 2
-    for _ in range(_MAX_ITERATIONS):
+    hi = vmax - v0
+    return newton_rise(d, v0, acc, dec, jerk, 0.0, hi, hi / 2, _MAX_ITERATIONS)
+
+
+def newton_rise(
+    d: float,
+    v0: float,
+    acc: float,
+    dec: float,
+    jerk: float,
+    lo: float,
+    hi: float,
+    dv: float,
+    iterations: int,
+) -> float:
+    """:func:`peak_rise` from the bracket [``lo``, ``hi``] and the guess ``dv``, at most
+    ``iterations`` more steps (where the planning of many moves at once hands over the
+    few that converge slowly)."""
+    for _ in range(iterations):
         f, slope = distance(dv, v0, acc, dec, jerk)
         f -= d
         if f == 0.0:
