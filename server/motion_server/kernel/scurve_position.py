@@ -44,7 +44,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from .jerk_phases import solve_phases
+from .jerk_phases import Phases, solve_phases
 from .limits import Limits
 
 #: ruckig's position precision of a planned profile (``Profile::check``)
@@ -158,7 +158,7 @@ def position_segments(
 
 def _ramp_to(
     v0: float, a0: float, vp: float, a_max: float, a_min: float, jerk: float
-) -> tuple[tuple[float, float, float, float], float] | None:
+) -> tuple[Phases, float] | None:
     """The phases of the ramp from (``v0``, ``a0``) to ``vp`` at rest acceleration
     (:func:`.jerk_phases.solve_phases`) and the distance it covers; None when there is
     no such ramp within the limits."""
@@ -226,9 +226,6 @@ def _from_motion(
     return [(0.0, 0.0), (t0, j), (t1, 0.0), (t2, -j), (cruise, 0.0), (u0, k), (u1, 0.0), (u2, -k)]
 
 
-Phases = tuple[float, float, float, float]
-
-
 def _secant(
     excess: Callable[[float], tuple[float, Phases] | None],
     lo: float,
@@ -237,8 +234,9 @@ def _secant(
     f_hi: float,
 ) -> tuple[float, Phases] | None:
     """The root of ``excess`` in [``lo``, ``hi``] (``f_lo`` <= 0 < ``f_hi``) by the
-    Illinois variant of regula falsi, to a few ulps of the distance (``f`` is the
-    distance's excess: ``f_hi`` bounds it)."""
+    Illinois variant of regula falsi: an excess within 1e-14 of the bracket's first
+    span of excesses (well within ruckig's position precision), or a bracket a few
+    ulps wide."""
     tolerance = 1e-14 * max(1.0, f_hi - f_lo)
     side = 0
     for _ in range(_MAX_ITERATIONS):
