@@ -319,8 +319,11 @@ class _Joining:
     ) -> None:
         """The lane's admission of the batch: ``kinds`` the distinct rows of its
         prototypes (:attr:`_Proto.row`), ``which`` the kind of each (None: the first)."""
-        lane: Any = lanes.profiles if self.kind == "profiles" else lanes.scurves
-        lane.admit_batch(pairs, base, kinds, which)
+        self._lane(lanes).admit_batch(pairs, base, kinds, which)
+
+    def _lane(self, lanes: GroupLanes) -> Any:
+        """The lane of ``lanes`` the batch is bound for (its ``kind``)."""
+        return lanes.profiles if self.kind == "profiles" else lanes.scurves
 
 
 def start_jogs(

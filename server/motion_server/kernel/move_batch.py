@@ -47,7 +47,7 @@ from .axis import Axis
 from .enums import ProcessKind
 from .jog_batch import _Joining
 from .lanes import GroupLanes
-from .lanes.scurve import pad_plan, planned_row
+from .lanes.scurve import plan_row, planned_row
 from .limits import Limits
 from .motion import Motion
 from .move_plan import position_plans
@@ -107,11 +107,8 @@ class _Proto:
             "_target_position": float(distance),
         }
         if isinstance(plan, JerkPlan):
-            # (cycles and dt, then the plan, the kinematics, the plan's end)
-            fields = (plan.start, plan.pos, plan.vel, plan.acc, plan.half, plan.jerk,
-                      plan.jhalf, plan.jsixth)  # fmt: skip
-            proto.row = (*head[:2], plan.done, *pad_plan(plan.end, fields), *head[11:14],
-                         plan.end, plan.end_position, plan.end_velocity)  # fmt: skip
+            # (the template's cycles, dt and kinematics, before and after its plan)
+            proto.row = plan_row(head[0], head[1], head[-6:-3], plan)
         else:
             proto.row = (*head[:2], plan.done, plan.start, plan.pos, plan.vel, plan.acc,
                          plan.half, *head[8:11], plan.end, plan.end_position,
@@ -211,6 +208,50 @@ def _copy(proto: _Proto, distance: float, owner: object, landing: float | None) 
     return p
 
 
+class _FromRest:
+    """The moves from rest built so far, by (period, distance's bits): the others alike
+    are copies. With many distances planned ahead (:func:`_plans_ahead`), a distance's
+    first move is a copy of its period's first with its own plan. The last one is kept
+    for the usual batch (one distance object for every axis)."""
+
+    def __init__(self, limits: Limits, ahead: dict[tuple[float, str], Plan | JerkPlan]) -> None:
+        self.limits = limits
+        self.ahead = ahead
+        self.by_key: dict[tuple[float, str], _Proto] = {}
+        #: per period, the first move from rest the constructors built with a lane row
+        self.templates: dict[float, _Proto] = {}
+        self.last: LastStart[_Proto] = LastStart()
+
+    def make(
+        self, period: float, distance: float, owner: object, landing: float | None
+    ) -> tuple[MoveProcess, _Proto]:
+        """``MoveProcess(period, distance, limits, 0.0, 0.0, owner, landing)`` and its
+        prototype."""
+        proto = self.last.get(distance, period, 0.0, 0.0)
+        if proto is not None:
+            return _copy(proto, distance, owner, landing), proto
+        key = _key(period, distance)
+        proto = None if key is None else self.by_key.get(key)
+        if proto is None and key is not None and key in self.ahead:
+            template = self.templates.get(period)
+            if template is not None:
+                proto = _Proto.planned(template, distance, self.ahead[key])
+                self.by_key[key] = proto
+        if proto is not None and proto.row is not None:
+            p = _copy(proto, distance, owner, landing)
+        else:
+            # (a distance that is not a finite number raises here)
+            p = MoveProcess(period, distance, self.limits, 0.0, 0.0, owner, landing)
+            proto = _Proto(p)
+            if key is not None:
+                self.by_key.setdefault(key, proto)
+            if proto.row is not None:
+                self.templates.setdefault(period, proto)
+        if proto.row is not None and key is not None:
+            self.last.keep(distance, period, 0.0, 0.0, proto)
+        return p, proto
+
+
 class _FromMotion:
     """The moves from motion built so far (a move replacing the one process
     of an axis already moving: :mod:`.take_over`), by (period, distance's, velocity's
@@ -263,8 +304,7 @@ class _MoveJoining(_Joining):
         kinds: list[tuple[float, ...]],
         which: np.ndarray | None,
     ) -> None:
-        lane = lanes.profiles if self.kind == "profiles" else lanes.scurves
-        lane.admit_planned(pairs, base, kinds, which)
+        self._lane(lanes).admit_planned(pairs, base, kinds, which)
 
 
 def start_moves(
@@ -291,14 +331,8 @@ def start_moves(
     limits = limits.validated()
     started: list[Process] = []
     joining = _MoveJoining(motion)
-    protos: dict[tuple[float, str], _Proto] = {}
-    # per period, the first trapezoidal move from rest the constructors built: the
-    # moves planned ahead are copies of it with their own plan
-    templates: dict[float, _Proto] = {}
-    ahead = _plans_ahead(axes, distances, limits)
+    resting = _FromRest(limits, _plans_ahead(axes, distances, limits))
     moving = _FromMotion(limits)
-    #: the move from rest copied last (:class:`.take_over.LastStart`, at rest)
-    resting: LastStart[_Proto] = LastStart()
     try:
         for k, ax in enumerate(axes):
             distance = distances[k]
@@ -320,31 +354,7 @@ def start_moves(
                 make = _factory(ax.period, distance, limits, owner, landing)
                 started.append(motion.start(ax, make, replace))
                 continue
-            # the usual batch: one distance object for every axis, one period
-            proto = resting.get(distance, ax.period, 0.0, 0.0)
-            if proto is not None:
-                p = _copy(proto, distance, owner, landing)
-                joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
-                started.append(p)
-                continue
-            key = _key(ax.period, distance)
-            proto = None if key is None else protos.get(key)
-            if proto is None and key is not None and key in ahead:
-                template = templates.get(ax.period)
-                if template is not None:
-                    proto = protos[key] = _Proto.planned(template, distance, ahead[key])
-            if proto is not None and proto.row is not None:
-                p = _copy(proto, distance, owner, landing)
-            else:
-                # (a distance that is not a finite number raises here)
-                p = MoveProcess(ax.period, distance, limits, 0.0, 0.0, owner, landing)
-                proto = _Proto(p)
-                if key is not None:
-                    protos.setdefault(key, proto)
-                if proto.row is not None:
-                    templates.setdefault(ax.period, proto)
-            if proto.row is not None and key is not None:
-                resting.keep(distance, ax.period, 0.0, 0.0, proto)
+            p, proto = resting.make(ax.period, distance, owner, landing)
             joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
             started.append(p)
     finally:

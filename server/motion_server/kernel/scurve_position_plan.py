@@ -117,15 +117,17 @@ def _accepted(
 
 
 def _to_rest(
-    v0: np.ndarray, a_max: np.ndarray, a_min: np.ndarray, jerk: float
+    v0: np.ndarray, a_max: np.ndarray, a_min: np.ndarray, jerk: float, top: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``solve_phases(0.0, v0, 0.0, a_max, a_min, jerk)`` of every element: (t0, t1,
-    t2, jerk, found), the candidates tried in its order, the first accepted kept."""
+    t2, jerk, found), the candidates tried in its order, the first accepted kept.
+    ``top`` is ``max(a_max, -a_min)``, the same for every element (the larger of the
+    two limits, whichever the direction)."""
     a0, vf = 0.0, 0.0
     n = len(v0)
     vd = vf - v0
     up = vd >= 0.0
-    a_eps = _A_EPS + 8.0 * np.array([math.ulp(x) for x in np.maximum(a_max, -a_min).tolist()])
+    a_eps = _A_EPS + 8.0 * math.ulp(top)
     lo = a_min - a_eps
     hi = a_max + a_eps
     out = [np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)]
@@ -197,7 +199,7 @@ def _plans_from_rest(dt: float, distances: list[float], limits: Limits) -> list[
     t0 = np.where(hold, acc / jerk, np.sqrt(dv * jerk) / jerk)
     t1 = np.where(hold, dv / acc - acc / jerk, 0.0)
     j = sign * jerk
-    u0, u1, u2, k, found = _to_rest(sign * (v + dv), a_max, a_min, jerk)
+    u0, u1, u2, k, found = _to_rest(sign * (v + dv), a_max, a_min, jerk, max(acc, dec))
     zero = np.zeros(n)
     durations = (zero, t0, t1, t0, cruise, u0, u1, u2)
     jerks = (zero, j, zero, -j, zero, k, zero, -k)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..axis import Axis
 from ..processes import JogProcess, MoveProcess, Process, StopRamp
-from ..scurve import POSITION_SEGMENTS, SEGMENTS, SCurveProfile
+from ..scurve import POSITION_SEGMENTS, SEGMENTS, JerkPlan, SCurveProfile
 from ..scurve_plan import TARGET, jerk_plan_row, jerk_plans
 from ..state import AxisArrays
 from .base import Compose
@@ -60,29 +60,30 @@ def pad_columns(end: np.ndarray, columns: list[np.ndarray]) -> list[np.ndarray]:
     return out
 
 
-def planned_row(p: Process) -> tuple[Any, ...]:
-    """What the lane reads of ``p`` (a member whose plan is built) after its axis's
-    base: its ``FIELDS`` but the first."""
-    assert isinstance(p, JogProcess | MoveProcess | StopRamp)
-    prof = p.profile
-    assert isinstance(prof, SCurveProfile) and prof.plan is not None
-    plan = prof.plan
+def plan_row(
+    cycles: float, dt: float, kinematics: tuple[float, ...], plan: JerkPlan
+) -> tuple[Any, ...]:
+    """A member's ``FIELDS`` but the base: its profile's ``cycles`` and ``dt``, its
+    ``plan`` (padded: :func:`pad_plan`), its position, velocity and acceleration
+    (``kinematics``), the plan's end."""
     fields = (
         plan.start, plan.pos, plan.vel, plan.acc, plan.half, plan.jerk, plan.jhalf,
         plan.jsixth,
     )  # fmt: skip
     return (
-        float(prof.cycles),
-        prof.dt,
-        plan.done,
-        *pad_plan(plan.end, fields),
-        p.position,
-        p.velocity,
-        p.acceleration,
-        plan.end,
-        plan.end_position,
-        plan.end_velocity,
-    )
+        cycles, dt, plan.done, *pad_plan(plan.end, fields), *kinematics, plan.end,
+        plan.end_position, plan.end_velocity,
+    )  # fmt: skip
+
+
+def planned_row(p: Process) -> tuple[Any, ...]:
+    """What the lane reads of ``p`` (a member whose plan is built) after its axis's
+    base (:func:`plan_row`)."""
+    assert isinstance(p, JogProcess | MoveProcess | StopRamp)
+    prof = p.profile
+    assert isinstance(prof, SCurveProfile) and prof.plan is not None
+    kinematics = (p.position, p.velocity, p.acceleration)
+    return plan_row(float(prof.cycles), prof.dt, kinematics, prof.plan)
 
 
 class SCurveLane(PlanLane):
