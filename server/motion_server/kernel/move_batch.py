@@ -226,10 +226,7 @@ class _FromRest:
         self, period: float, distance: float, owner: object, landing: float | None
     ) -> tuple[MoveProcess, _Proto]:
         """``MoveProcess(period, distance, limits, 0.0, 0.0, owner, landing)`` and its
-        prototype."""
-        proto = self.last.get(distance, period, 0.0, 0.0)
-        if proto is not None:
-            return _copy(proto, distance, owner, landing), proto
+        prototype, when ``last`` does not hold it (the caller asks it first)."""
         key = _key(period, distance)
         proto = None if key is None else self.by_key.get(key)
         if proto is None and key is not None and key in self.ahead:
@@ -332,6 +329,7 @@ def start_moves(
     started: list[Process] = []
     joining = _MoveJoining(motion)
     resting = _FromRest(limits, _plans_ahead(axes, distances, limits))
+    last = resting.last
     moving = _FromMotion(limits)
     try:
         for k, ax in enumerate(axes):
@@ -354,7 +352,13 @@ def start_moves(
                 make = _factory(ax.period, distance, limits, owner, landing)
                 started.append(motion.start(ax, make, replace))
                 continue
-            p, proto = resting.make(ax.period, distance, owner, landing)
+            # (the usual batch, one distance object for every axis, finds its prototype
+            # here, without a call per axis)
+            proto = last.get(distance, ax.period, 0.0, 0.0)
+            if proto is not None:
+                p = _copy(proto, distance, owner, landing)
+            else:
+                p, proto = resting.make(ax.period, distance, owner, landing)
             joining.take_from_rest(ax, procs, p, proto, proto.lane_kind, replace)
             started.append(p)
     finally:
