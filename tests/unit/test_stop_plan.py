@@ -602,3 +602,62 @@ def test_a_group_stop_makes_no_ramp_for_an_axis_with_nothing_to_stop() -> None:
         assert not handle.complete
         ctl.step()
         assert jogging[0].command_velocity == 0.0 and handle.complete
+
+
+def whole_group_pair(n: int) -> tuple[Controller, Controller]:
+    """Two controllers (lanes, reference) of ``n`` driven axes in one group, none
+    feedback-only: a group stop's rows then stop every axis of the group."""
+    out = []
+    for lanes in (True, False):
+        cfg = [c for c in configs([ProgrammedStopMode.FAST_STOP] * N_AXES)][:n]
+        ctl = Controller(cfg, [GroupConfig(1, "G", tuple(a.number for a in cfg), DT)], lanes)
+        for ax in ctl.axes:
+            ctl.servo_on(ax)
+        out.append(ctl)
+    return out[0], out[1]
+
+
+@pytest.mark.parametrize("jog_at", [None, 0, 1, 5])
+def test_a_stop_of_the_whole_group_leaves_nothing_to_python_until_a_ramp_is_replaced(
+    jog_at: int | None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a Fast Stop of a group whose every axis jogged in a lane, the lanes are
+    empty and the stop's rows hold every axis: the first step's rebuild leaves no axis
+    to Python, and levels no follower (``GroupLanes._emptied``). A jog that replaces
+    one ramp (in the stop's scan, ``jog_at`` 0, or later) is composed again, as in the
+    reference; the two agree after every cycle."""
+    n = 8
+    fast, ref = whole_group_pair(n)
+    fs: list[Any] = []
+    rs: list[Any] = []
+    jogs: tuple[list[Process], list[Process]] = ([], [])
+    for ctl in (fast, ref):
+        for k in range(n):
+            apply(ctl, ("jog", k, 0, 30.0 + 5.0 * k), [], [])
+        ctl.run(20)
+    lanes = fast.motion.lanes[1]
+    assert sum(len(lane.members) for lane in lanes.all) == n  # every jog in a lane
+    for ctl, ss in ((fast, fs), (ref, rs)):
+        apply(ctl, ("mgs", 0, 0, 0.0), [], ss)
+
+    def levelled(*args: object) -> None:
+        raise AssertionError("the followers levelled after a stop that emptied the lanes")
+
+    for k in range(80):
+        if k == jog_at:
+            for ctl, ps, ss in ((fast, jogs[0], fs), (ref, jogs[1], rs)):
+                apply(ctl, ("jog", 3, 0, -20.0), ps, ss)
+        with monkeypatch.context() as m:
+            if k == 0 and jog_at != 0:
+                m.setattr(lanes, "_order_command_followers", levelled)
+            fast.step()
+        ref.step()
+        if k == 0 and jog_at != 0:
+            assert lanes.python_order == []
+            assert [len(r.axes) for r in lanes.stops.rows] == [n]
+        if jog_at is not None and k >= jog_at:
+            assert fast.axes[3] in lanes.python_order or jogs[0][0].lane is not None
+        assert_same_unread(fast, ref, fs, rs, f"cycle {k}")
+    if jog_at is not None:
+        assert process_state(jogs[0][0]) == process_state(jogs[1][0])
+        assert fast.cmd_vel[3] == ref.cmd_vel[3] == -20.0

@@ -184,10 +184,7 @@ def _power_off_members(
     if releasing and ramped is None:
         return False
     for lane in found:
-        lane.evict_all()
-        for p in lane.members:
-            p.state = _ABORTED
-            p.abort_reason = reason
+        lane.evict_all((_ABORTED, reason))
         # Motion.abort folds the aborted process into the base: base + position, which
         # is the command composition wrote (see _stop_members)
         bases = s.cmd_pos[lane.idx]

@@ -310,8 +310,6 @@ def _stop_members(
     The lanes write their members back at once (``Lane.evict_all``: the aborted
     processes keep their final state, as axis by axis), and the processes are aborted
     as ``Process.abort`` would abort them (state and reason: they left their lane)."""
-    for lane in member_lanes:
-        lane.evict_all()
     s = motion.s
     # (``at``: a slice when the axes are consecutive, views instead of copies)
     v_arr = 0.0 + s.cmd_vel[at]
@@ -334,11 +332,11 @@ def _stop_members(
             d_arr = np.where(within, dec, dec * (speed / vmax))
         refusing = refused(v_arr, d_arr, dec)
     if refusing:
-        return False  # the lanes' write-back moved nothing
+        for lane in member_lanes:
+            lane.evict_all()  # (axis by axis next: the write-back moves nothing)
+        return False
     for lane in member_lanes:
-        for p in lane.members:
-            p.state = _ABORTED
-            p.abort_reason = reason
+        lane.evict_all((_ABORTED, reason))
     # the emptied lanes empty now (their next rebuild has nothing to do); the processes
     # they held are freed a chunk per step, as a rebuild would have them freed
     clear_emptied(lanes, member_lanes)

@@ -18,7 +18,7 @@ from typing import Any, ClassVar, Protocol, cast
 import numpy as np
 
 from ..axis import Axis
-from ..enums import MasterReference
+from ..enums import AbortReason, MasterReference, ProcessState
 from ..processes import Process
 from ..state import AxisArrays, Index, compact, compact_list
 
@@ -60,6 +60,8 @@ class Lane:
     DTYPES: ClassVar[dict[str, Any]] = {}
     #: fields with one row of this many values per member
     WIDTHS: ClassVar[dict[str, int]] = {}
+    #: the fields :meth:`_store_columns` reads (those :meth:`evict_all` lists)
+    STORED: ClassVar[tuple[str, ...]] = ()
     #: what a lane keeps of a batch admitted to an empty ``_joining`` (see
     #: :meth:`_batch_columns`); dropped at the rebuild (a class default as well, for
     #: lanes restored from state saved before batches existed)
@@ -178,11 +180,12 @@ class Lane:
             ax.index in indices for _, ax in self._joining
         )
 
-    def evict_all(self) -> None:
+    def evict_all(self, aborted: tuple[ProcessState, AbortReason] | None = None) -> None:
         """:meth:`evict` every process in the lane, at once (a group stop empties the
         lanes of its group): the lane's columns are read as Python lists while the
         members are stored (``_store`` reads the same values, without a numpy scalar
-        per field)."""
+        per field). ``aborted``: the state and abort reason then given to every member
+        (what ``Process.abort`` writes), in the same pass."""
         slot = self._slot
         if (
             slot
@@ -191,11 +194,21 @@ class Lane:
         ):
             # every member still here, in row order: written column by column
             members = self.members
-            self._store_columns(members, {f: a.tolist() for f, a in self.arrays.items()})
-            for p in members:
-                p.lane = None
-                p.offer_pending = True
+            arrays = self.arrays
+            self._store_columns(members, {f: arrays[f].tolist() for f in self.STORED})
+            if aborted is None:
+                for p in members:
+                    p.lane = None
+                    p.offer_pending = True
+            else:
+                state, reason = aborted
+                for p in members:
+                    p.lane = None
+                    p.offer_pending = True
+                    p.state = state
+                    p.abort_reason = reason
             self._slot = {}
+            aborted = None
         elif slot:
             arrays = self.arrays
             self.arrays = cast(dict[str, np.ndarray], {f: a.tolist() for f, a in arrays.items()})
@@ -209,6 +222,11 @@ class Lane:
             finally:
                 self.arrays = arrays
             self._slot = {}
+        if aborted is not None:
+            state, reason = aborted
+            for p in self.members:
+                p.state = state
+                p.abort_reason = reason
         for p, _ in self._joining:
             if p.lane is self:
                 p.lane = None

@@ -110,6 +110,7 @@ class GearLane(BatchedLane):
     """Locked real-ratio gears on one master (``GearProcess.step``, locked, one term)."""
 
     FIELDS = ("base", "at_lock", "lock_pos", "num", "den", "ratio", "v_prev", "pos", "vel", "acc")
+    STORED = ("pos", "vel", "acc", "v_prev")
 
     @staticmethod
     def accepts(p: Process) -> bool:

@@ -217,6 +217,8 @@ class GroupLanes(FollowerLevels):
                 self._rejoin(s)
             if not self.dirty:
                 return
+        if self._emptied():
+            return
         dropped = [lane.members for lane in self.all if lane.changed and lane.members]
         for lane in self.all:
             lane.rebuild()
@@ -234,6 +236,43 @@ class GroupLanes(FollowerLevels):
         self.handed = False
         self.followed = False
         self._handed = {}
+
+    def _emptied(self) -> bool:
+        """The rebuild when no lane holds or takes a member and none changed since it was
+        last rebuilt (the lanes a group stop emptied, ``stop_plan.clear_emptied``): what
+        the full rebuild leaves, without its passes over lanes that have nothing to
+        order. The follower lanes are ordered empty, nothing is scheduled, and the
+        axes left to Python are those without a stop row (none, when the rows stop the
+        whole group). False, with nothing done, when a lane is not that empty."""
+        for lane in self.all:
+            if lane.members or lane._joining or lane.changed:
+                return False
+        self.stops.rebuild()  # (its rows compacted: those whose ramp left are dropped)
+        ordered = self._ordered
+        if ordered is None:
+            ordered = self._ordered = {}
+        for lane in self.followers[MasterReference.ACTUAL]:
+            lane.order([])
+        for lane in self.followers[MasterReference.COMMAND]:
+            last = ordered.get(lane)
+            if last is None or last[0] is not lane.members or last[1]:
+                lane.order([])
+                ordered[lane] = (lane.members, [])
+        self.depth = 0
+        self.schedule = []
+        rows = self.stops.rows
+        if len(rows) == 1 and len(rows[0].axes) == len(self.group.order):
+            # (a stop's rows are on distinct axes of the group: here, on all of them)
+            self.python_order = []
+        else:
+            self.python_order = self._python_order()
+            _offer_again(self.python_order)
+        self.dirty = False
+        self.joined = False
+        self.handed = False
+        self.followed = False
+        self._handed = {}
+        return True
 
     def _hand_over(self, s: AxisArrays, axes: Sequence[Axis]) -> None:
         """The rebuild after followers passed from one lane to another at the same level

@@ -38,6 +38,7 @@ class CruiseLane(Lane):
     RELEVELS = False
 
     FIELDS = ("base", "pos", "vel", "dt", "advance")
+    STORED = ("pos",)
 
     @staticmethod
     def accepts(p: Process) -> bool:
@@ -473,6 +474,7 @@ class StopLane(Lane):
     arrays whose ramp objects are made only when read; they step after the members."""
 
     FIELDS = ("base", "pos", "vel", "acc", "decel")
+    STORED = ("pos", "vel", "acc")
     RELEVELS = False
     #: the group stops' rows (a class default for lanes restored from older state)
     rows: list[StopRows] = []  # noqa: RUF012 (replaced per instance, never mutated here)
