@@ -75,6 +75,12 @@ simulated, one group at a 1 ms coarse update period, decelerations and accelerat
 - ``s-move_on_jog``: ``move_on_jog`` with a jerk limit of 20,000 mm/s³: each move
   planned in closed form from the jog's cruise (once for the equal ones) and stepped in
   the S-curve lane.
+- ``s-mcd``: ``s-move`` 150 steps on (every master cruising at 100 mm/s), then MCD on
+  every master lowering the move's speed to 25 mm/s: beyond the new limit, a state the
+  closed form leaves to ruckig, which brakes it first (one MCD per axis, as the
+  instances execute). Its plan is sampled in the S-curve lane
+  (``kernel/ruckig_plan.py``); before, ruckig stepped each such move in Python (100
+  steps).
 - ``mam_spread``: ``mam`` with a distance of its own on every master (10 mm plus 0.25 mm
   per axis number: what absolute moves to one target from different positions give),
   whose plans are built together (``kernel/move_plan.position_plans``), 100 steps.
@@ -130,6 +136,8 @@ from motion_server.kernel import (
     Controller,
     GroupConfig,
     Limits,
+    MoveProcess,
+    ProcessKind,
     ProgrammedStopMode,
 )
 from motion_server.kernel.axis import Axis
@@ -295,6 +303,17 @@ def s_move_on_jog(ctl: Controller) -> None:
     """``move_on_jog`` with a jerk limit."""
     masters = ctl.axes[: len(ctl.axes) // 2]
     ctl.start_moves(masters, [50.0] * len(masters), Limits(SPEED, RATE, RATE, JERK), replace=None)
+
+
+def s_mcd(ctl: Controller) -> None:
+    """MCD on every master's jerk-limited move (``s-move``, cruising at ``SPEED``): the
+    speed lowered to a quarter, below the velocity the move has, so that ruckig plans it
+    (braking into the new limit first), one MCD per axis as its instance executes."""
+    limits = Limits(SPEED, RATE, RATE, JERK)
+    for ax in ctl.axes[: len(ctl.axes) // 2]:
+        for p in ax.active(ProcessKind.MOVE):
+            assert isinstance(p, MoveProcess)
+            p.change_dynamics(limits, SPEED / 4)
 
 
 def stop(ctl: Controller) -> None:
@@ -506,6 +525,7 @@ CASES: dict[str, tuple[Callable[[Controller], None], Callable[[Controller], None
     "move_on_jog": (lambda c: (jog(c), gear(c, False)), move_on_jog, 100),
     "s-move_on_jog": (lambda c: (jog(c), gear(c, False)), s_move_on_jog, 100),
     "s-move_spread": (lambda c: gear(c, False), s_move_spread, 100),
+    "s-mcd": (lambda c: (gear(c, False), s_move(c)), s_mcd, 100),
     "maj_rejog": (lambda c: (jog(c), gear(c, False), MAJ_REJOG_SETUP(c)), MAJ_REJOG_COMMAND, 100),
     "mam": (lambda c: (gear(c, False), MAM_SETUP(c)), MAM_COMMAND, 100),
     "mam_spread": (lambda c: (gear(c, False), MAM_SPREAD_SETUP(c)), MAM_SPREAD_COMMAND, 100),

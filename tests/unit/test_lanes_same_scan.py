@@ -273,8 +273,9 @@ def test_masters_starting_from_rest_leave_their_followers_levels_alone(
     level 0 before (no motion) and after (a time-driven lane), so neither the step that
     starts them nor the one in which they reach their speed (profile lane to cruise lane)
     levels the followers again; a stop's ramps coming to rest neither, nor a jerk-limited
-    move from rest (the S-curve lane). A master composed in Python (a move slower than
-    the one it replaces goes to ruckig) does level them again."""
+    move from rest (the S-curve lane), nor a move slower than the one it replaces
+    (ruckig's plan, sampled in the same lane). A master composed in Python (a
+    superimposed move beside its move) does level them again."""
     fast, ref = geared_at_rest()
     lanes = fast.ctl.motion.lanes[1]
     calls: list[int] = []
@@ -312,11 +313,20 @@ def test_masters_starting_from_rest_leave_their_followers_levels_alone(
     assert master.lane is lanes.scurves
     # 10 ms into its first jerk phase (1000 / 50,000 s long) the axis moves at
     # 50,000 * 0.01² / 2 = 2.5 mm/s: a move at 1 mm/s that replaces it from there must
-    # first brake into its velocity limit, which ruckig plans: composed in Python, its
-    # followers are levelled again (and leave their lanes)
+    # first brake into its velocity limit, which ruckig plans; its plan joins the S-curve
+    # lane as well, so the followers keep their levels
     assert fast.ctl.axis(1).command_velocity == pytest.approx(2.5, rel=1e-9)
     slow: list[Command] = [("MC_MoveRelative", {**move[0][1], "Velocity": 1.0})]
     run_rounds(fast, ref, [(slow, 5)], prefix="N")
+    assert len(calls) == levelled
+    assert fast.ctl.axis(1).processes[0].lane is lanes.scurves
+    # a superimposed move beside it: two processes, composed in Python, so its
+    # followers are levelled again (and leave their lanes)
+    over: list[Command] = [
+        ("MC_MoveSuperimposed", {"Axis": 1, "Distance": 1.0, "VelocityDiff": 5.0,
+                                 "Acceleration": 1000.0, "Deceleration": 1000.0})
+    ]  # fmt: skip
+    run_rounds(fast, ref, [(over, 5)], prefix="O")
     assert len(calls) > levelled
 
 

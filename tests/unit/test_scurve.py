@@ -161,14 +161,17 @@ def test_jerk_limits_give_the_closed_form() -> None:
 
 
 def test_a_position_target_is_ruckigs_own_profile() -> None:
-    """to_position from beyond the velocity limit goes through ruckig: the same samples,
-    bit for bit, as a bare Profile (the states the closed form plans:
-    ``test_scurve_position.py``)."""
+    """to_position from beyond the velocity limit is planned by ruckig (the states the
+    closed form plans: ``test_scurve_position.py``) and sampled from its plan: every
+    cycle within ruckig's precision of a bare Profile's samples, both landing on the
+    target within a cycle of each other, ours exactly."""
     limits = Limits(100.0, 1000.0, 800.0, 20_000.0)
     ours, ref = SCurveProfile(DT, 130.0, 100.0, 2.0), Profile(DT, 130.0, 100.0, 2.0)
     ours.to_position(50.0, limits)
     ref.to_position(50.0, limits)
-    assert run(ours, 400) == run(ref, 400)
+    assert ours.plan is not None and ours.ruckig is None
+    step_beside_ruckig(ours, ref, 800, DT, (130.0, 1000.0, 20_000.0))
+    assert (ours.position, ours.velocity, ours.acceleration) == (50.0, 0.0, 0.0)
     # and back to a velocity target from where the move is: the closed form again
     ours.to_velocity(-10.0, limits)
     assert ours.plan is not None and ours.ruckig is None
@@ -177,8 +180,9 @@ def test_a_position_target_is_ruckigs_own_profile() -> None:
 def test_a_case_the_closed_form_leaves_is_planned_by_ruckig_and_counted(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """When no closed-form candidate is accepted ruckig plans the velocity target (the
-    same trajectory as before the closed form) and the fallback is counted."""
+    """When no closed-form candidate is accepted ruckig plans the velocity target, the
+    fallback is counted, and the plan is sampled within ruckig's precision of its own
+    samples, holding the target velocity at the end."""
     monkeypatch.setattr(scurve, "_phases", lambda *args: None)
     limits = Limits(100.0, 1000.0, 1000.0, 20_000.0)
     ctl = Controller(
@@ -189,8 +193,9 @@ def test_a_case_the_closed_form_leaves_is_planned_by_ruckig_and_counted(
     ours.to_velocity(80.0, limits)
     ref.to_velocity(80.0, limits)
     assert FALLBACKS.count == before + 1 == ctl.profile_fallbacks
-    assert ours.ruckig is not None
-    assert run(ours, 200) == run(ref, 200)
+    assert ours.plan is not None and ours.ruckig is None
+    step_beside_ruckig(ours, ref, 200, DT, (80.0, 1000.0, 20_000.0))
+    assert (ours.velocity, ours.acceleration, ours.finished) == (80.0, 0.0, True)
 
 
 # -- ruckig as the reference ------------------------------------------------------------

@@ -11,7 +11,8 @@
   the same duration, the same samples at every cycle within ruckig's documented
   precision, the same end within one cycle, on the target exactly; from accelerating
   states (the peak found by a search), the same duration within 1e-9.
-- The other states are planned by ruckig, sample for sample, and counted.
+- The other states are planned by ruckig and counted; its plan is sampled within its
+  precision, landing on the target exactly (:mod:`motion_server.kernel.ruckig_plan`).
 - The S-curve lane steps the moves (eight segments) beside velocity ramps (four, padded)
   bit for bit as the reference path, and a lane saved with four columns runs on.
 """
@@ -25,8 +26,9 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from ruckig import RuckigError
 
-from motion_server.kernel import Limits, MotionError
+from motion_server.kernel import Limits, MotionError, MoveProcess, ProcessKind, scurve
 from motion_server.kernel.lanes.scurve import PLAN_FIELDS
 from motion_server.kernel.profiles import Profile, SCurveProfile
 from motion_server.kernel.scurve import FALLBACKS, JerkPlan, plan_jerk_position
@@ -167,9 +169,12 @@ def test_the_closed_form_samples_what_ruckig_samples(
     ref.to_position(target, limits)
     stop = v0 * v0 / (2 * dec) + abs(v0) * dec / (2 * jerk)  # at most this far to stop
     if d >= stop:
-        assert ours.ruckig is None  # covered
-    if ours.ruckig is not None:
-        assert FALLBACKS.count == fallbacks + 1
+        assert FALLBACKS.count == fallbacks  # covered
+    if FALLBACKS.count == fallbacks + 1:
+        # ruckig planned it: its plan, sampled, within its precision (test below)
+        assert ours.plan is not None and ours.ruckig is None
+        step_beside(ours, ref, dt, limits, v0)
+        assert (ours.position, ours.velocity, ours.acceleration) == (target, 0.0, 0.0)
         return
     assert FALLBACKS.count == fallbacks
     plan = ours.plan
@@ -179,11 +184,17 @@ def test_the_closed_form_samples_what_ruckig_samples(
     assert (ours.position, ours.velocity, ours.acceleration) == (target, 0.0, 0.0)
 
 
-def step_beside(ours: SCurveProfile, ref: Profile, dt: float, limits: Limits) -> None:
+def step_beside(
+    ours: SCurveProfile, ref: Profile, dt: float, limits: Limits, v0: float = 0.0, a0: float = 0.0
+) -> None:
     """:func:`.test_scurve.step_beside_ruckig` of a move to its end (compared until one
-    of the two lands: ruckig's may land a cycle earlier)."""
+    of the two lands: ruckig's may land a cycle earlier) from (``v0``, ``a0``)."""
     assert ours.plan is not None
-    tops = (limits.velocity, max(limits.acceleration, limits.deceleration), limits.jerk)
+    tops = (
+        max(limits.velocity, abs(v0)),
+        max(limits.acceleration, limits.deceleration, abs(a0)),
+        limits.jerk,
+    )
     step_beside_ruckig(ours, ref, math.ceil(ours.plan.end / dt) + 3, dt, tops, after_end=False)
 
 
@@ -198,6 +209,9 @@ def step_beside(ours: SCurveProfile, ref: Profile, dt: float, limits: Limits) ->
     dec=rates,
     jerk=st.floats(100.0, 1e6),
 )
+# a state ruckig finds no profile for (its step 1 fails), which the closed form plans
+@example(vmax=80.0, v_share=1.0, a_share=-0.8058876932495811, d=2.0, backward=False,
+         acc=3491.708138935098, dec=8827.756264456757, jerk=316605.27657133597)  # fmt: skip
 def test_from_an_accelerating_state_the_duration_is_ruckigs(
     vmax: float,
     v_share: float,
@@ -221,12 +235,39 @@ def test_from_an_accelerating_state_the_duration_is_ruckigs(
     if plan is None or not 0.0 <= v_lo <= vmax:
         assert plan is None or a0 == 0.0
         return
-    duration = ruckig_duration(v0, target, limits, a0)
+    try:
+        duration = ruckig_duration(v0, target, limits, a0)
+    except RuckigError:
+        # ruckig finds no profile for a few of these states (this test drew v0 = 80 at
+        # the limit, a0 = -7,114 of a deceleration limit of 8,828, 2 mm to go, jerk
+        # 316,605: ruckig's step 1 fails): the plan is judged on its own
+        assert_sound(plan, v0, a0, target, limits)
+        return
     # (or a time shift that moves no sample by more than ruckig's position precision:
     # at most the peak speed times the shift)
     peak = max(abs(v) for v in plan.vel)
     assert plan.end == pytest.approx(duration, rel=1e-9, abs=P_PRECISION / max(peak, 1e-300))
     assert plan.end_position == target and plan.end_velocity == 0.0
+
+
+def assert_sound(plan: JerkPlan, v0: float, a0: float, target: float, limits: Limits) -> None:
+    """A plan from (0, ``v0``, ``a0``) toward ``target`` (a covered state: the velocity
+    never reverses): every segment's jerk within the limit, every sample's velocity
+    within the larger of ``|v0|`` and the limit and of the direction of travel, its
+    acceleration within the larger of ``|a0|`` and the limits, the position never
+    beyond the target nor going back; the end on the target at rest."""
+    sign = 1.0 if target >= 0.0 else -1.0
+    assert all(abs(j) <= limits.jerk for j in plan.jerk)
+    top_v = max(abs(v0), limits.velocity) * (1 + 1e-12)
+    top_a = max(abs(a0), limits.acceleration, limits.deceleration) * (1 + 1e-12)
+    last = 0.0
+    for k in range(1, math.ceil(plan.done / DT)):
+        p, v, a = plan.sample(k * DT)
+        assert -P_PRECISION <= sign * v <= top_v, k
+        assert abs(a) <= top_a, k
+        assert sign * (p - last) >= -P_PRECISION and sign * (target - p) >= -P_PRECISION, k
+        last = p
+    assert (plan.end_position, plan.end_velocity) == (target, 0.0)
 
 
 def test_moves_started_while_ramping_are_planned_in_closed_form() -> None:
@@ -260,13 +301,19 @@ def test_moves_started_while_ramping_are_planned_in_closed_form() -> None:
     ],
 )
 def test_other_states_are_ruckigs_own_profile_and_counted(v0: float, a0: float, d: float) -> None:
+    """Planned by ruckig and counted; its phases (brake first) become the plan's
+    segments, so the plan lasts as long as ruckig's trajectory and is sampled within
+    ruckig's precision at every cycle, landing on the target exactly."""
     limits = Limits(100.0, 1000.0, 800.0, 20_000.0)
     before = FALLBACKS.count
     ours, ref = SCurveProfile(DT, v0, a0, 2.0), Profile(DT, v0, a0, 2.0)
     ours.to_position(2.0 + d, limits)
     ref.to_position(2.0 + d, limits)
-    assert ours.ruckig is not None and FALLBACKS.count == before + 1
-    assert run(ours, 600) == run(ref, 600)
+    assert FALLBACKS.count == before + 1
+    assert ours.ruckig is None and ours.plan is not None
+    assert ours.plan.end == pytest.approx(ruckig_duration(v0, d, limits, a0), rel=1e-12)
+    step_beside(ours, ref, DT, limits, v0, a0)
+    assert (ours.position, ours.velocity, ours.acceleration) == (2.0 + d, 0.0, 0.0)
 
 
 def test_a_move_no_plan_can_hold_is_refused_and_the_plan_stays() -> None:
@@ -408,3 +455,71 @@ def test_many_moves_by_one_distance_share_one_plan() -> None:
     plans = {id(ax.processes[0].profile.plan) for ax in ctl.axes[:4]}
     assert len(plans) == 1
     assert ctl.axes[0].processes[0].profile.dt == PERIOD
+
+
+def test_what_ruckig_plans_steps_in_the_scurve_lane_as_the_reference_path() -> None:
+    """The states the closed form leaves to ruckig, on several axes at once: an MCD that
+    lowers running moves' speed below their velocity (ruckig brakes them first), and a
+    move commanded the other way while the axis still moves (moving away from its
+    target). Each is counted, its plan joins the S-curve lane (no axis is composed in
+    Python), and the lanes agree with the reference path bit for bit after every cycle
+    until every move has landed on its target."""
+    distances = [60.0, -45.0, 80.0]
+    fast, ref = controller(True), controller(False)
+    for ctl in (fast, ref):
+        _start(ctl, distances)
+        ctl.run(40)  # about 55 mm/s, still speeding up toward 80
+    lane = fast.motion.lanes[1].scurves
+    before = FALLBACKS.count
+    for ctl in (fast, ref):
+        for ax in ctl.axes[:2]:
+            (move,) = ax.processes
+            assert isinstance(move, MoveProcess) and abs(ax.command_velocity) > 25.0
+            move.change_dynamics(MOVE, speed=20.0)
+        ctl.start_moves([ctl.axes[2]], [-30.0], MOVE, replace=None)
+    assert FALLBACKS.count == before + 6  # three on each controller
+    for k in range(1500):
+        fast.step()
+        ref.step()
+        if k == 1:
+            # (an MCD takes the move out of its lane: composed once in Python, it is
+            # offered again and joins at the next step)
+            assert len(lane.members) == 4  # the three moves and the jog
+            assert not any(ax.active() for ax in fast.motion.lanes[1].python_order)
+        assert np.array_equal(fast.cmd_pos, ref.cmd_pos), k
+        assert np.array_equal(fast.cmd_vel, ref.cmd_vel), k
+        assert np.array_equal(fast.cmd_acc, ref.cmd_acc), k
+    assert all(not ax.active(ProcessKind.MOVE) for ax in fast.axes[:3])
+    landed = [ax.command_position for ax in fast.axes[:3]]
+    assert landed == [ax.command_position for ax in ref.axes[:3]]
+
+
+def test_axes_in_one_state_share_ruckigs_plan_and_each_is_counted(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Moves braking from 100 mm/s into a 25 mm/s limit (an MCD on every axis of a
+    machine): the first is planned by ruckig, the others in the same state take that
+    plan; each is counted. Another state, or a velocity target of the same number, is
+    planned again."""
+    limits = Limits(25.0, 1000.0, 1000.0, 20_000.0)
+    before = FALLBACKS.count
+    profs = [SCurveProfile(DT, 100.0, 0.0, 10.0) for _ in range(3)]
+    for prof in profs:
+        prof.to_position(50.0, limits)
+    assert FALLBACKS.count == before + 3
+    assert profs[0].plan is not None
+    assert profs[1].plan is profs[0].plan and profs[2].plan is profs[0].plan
+    # (the velocity closed form covers 100 -> 50 mm/s: refused here, ruckig plans it)
+    with monkeypatch.context() as m:
+        m.setattr(scurve, "_phases", lambda *args: None)
+        jog = SCurveProfile(DT, 100.0, 0.0, 10.0)
+        jog.to_velocity(50.0, limits)
+    assert jog.plan is not None and jog.plan.end_velocity == 50.0
+    other = SCurveProfile(DT, 100.0, 0.0, 10.5)
+    other.to_position(50.0, limits)
+    assert other.plan is not None and other.plan is not profs[0].plan
+    assert FALLBACKS.count == before + 5
+    for prof in (profs[1], other):
+        run(prof, 3000)
+    assert (profs[1].position, profs[1].velocity) == (50.0, 0.0)
+    assert (other.position, other.velocity) == (50.0, 0.0)

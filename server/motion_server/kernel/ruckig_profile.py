@@ -44,6 +44,9 @@ class Profile:
         #: the input ruckig last planned from (None: not yet): a snapshot rebuilds the
         #: trajectory from it (see ``__getstate__``)
         self._plan: tuple[Any, ...] | None = None
+        #: the trajectory ruckig computed when the target was last set (None: none yet,
+        #: or restored from a snapshot), for :func:`.scurve.plan_from_ruckig`
+        self.trajectory: ruckig.Trajectory | None = None
 
     # -- targets --------------------------------------------------------------------------
     def to_position(self, displacement: float, limits: Limits) -> None:
@@ -100,9 +103,11 @@ class Profile:
         inp.current_acceleration = [self.acceleration]
         try:
             yield
-            result = self._otg.calculate(inp, ruckig.Trajectory(1))
+            trajectory = ruckig.Trajectory(1)
+            result = self._otg.calculate(inp, trajectory)
             if result not in (ruckig.Result.Working, ruckig.Result.Finished):
                 raise MotionError(ErrorCode.PROFILE_FAILED, f"ruckig result {result}")
+            self.trajectory = trajectory
         except (RuntimeError, ruckig.RuckigError) as exc:
             self._restore(saved, mine)
             raise MotionError(ErrorCode.PROFILE_FAILED, str(exc).strip()[:200]) from exc
@@ -165,7 +170,8 @@ class Profile:
     def __getstate__(self) -> dict[str, Any]:
         """ruckig's objects do not pickle: keep the input and the time along the trajectory
         of the last plan, and this profile's own input (see :meth:`__setstate__`)."""
-        state = {k: v for k, v in self.__dict__.items() if k not in ("_otg", "_inp", "_out")}
+        skip = ("_otg", "_inp", "_out", "trajectory")
+        state = {k: v for k, v in self.__dict__.items() if k not in skip}
         state["_inp"] = capture_input(self._inp)
         state["_time"] = float(self._out.time)
         return state
@@ -179,6 +185,7 @@ class Profile:
         inp_fields = state.pop("_inp")
         saved_time = state.pop("_time")
         self.__dict__.update(state)
+        self.trajectory = None
         self._otg = ruckig.Ruckig(1, self._dt)
         self._out = ruckig.OutputParameter(1)
         self._inp = ruckig.InputParameter(1)

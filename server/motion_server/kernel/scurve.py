@@ -34,7 +34,8 @@ integrating it, as ruckig's profile does once finished. A plan longer than
 (``PROFILE_FAILED``), as ruckig refuses it. A case no candidate covers within ruckig's
 own acceptance tests (the acceleration limits with a few ulps more room than ruckig's
 absolute 1e-12, which is less than an ulp of 1e5) is planned by ruckig instead and
-counted in :data:`FALLBACKS`; position targets are ruckig's (:class:`~.profiles.Profile`).
+counted in :data:`FALLBACKS`, as are the position targets :mod:`.scurve_position` does
+not cover; ruckig's plan is then sampled as a closed form's (:func:`plan_from_ruckig`).
 
 The command does only what decides its outcome: the segments (:func:`jerk_segments`,
 which tells whether the closed form covers the target) and the refusal of a plan too
@@ -52,6 +53,7 @@ from dataclasses import dataclass, replace
 from .errors import ErrorCode, MotionError
 from .jerk_phases import Phases, solve_phases
 from .limits import Limits
+from .ruckig_plan import V_PRECISION, ruckig_segments
 from .ruckig_profile import Profile
 from .scurve_position import P_PRECISION, position_segments
 from .trapezoid import END_TOLERANCE, MAX_DURATION
@@ -264,7 +266,7 @@ def _build(
         t = t + duration
     if not math.isfinite(t) or t > MAX_DURATION:
         raise _too_long(t)
-    if not all(math.isfinite(x) for x in (p, v, *pos, *vel, *acc)):
+    if not all(map(math.isfinite, (p, v, *pos, *vel, *acc))):
         raise MotionError(ErrorCode.PROFILE_FAILED, "the profile overflows for these limits")
     return JerkPlan(
         tuple(start),
@@ -315,6 +317,68 @@ def plan_jerk_position(
             plan = replace(built, end_position=target)
     _last_position = (key, plan)
     return plan
+
+
+#: the key of the last target ruckig planned (:func:`ruckig_planned`) and its plan
+_last_ruckig: tuple[bytes, JerkPlan | None] = (b"", None)
+
+
+def ruckig_planned(
+    dt: float, p0: float, v0: float, a0: float, target: float | None, velocity: float,
+    limits: Limits,
+) -> tuple[JerkPlan | None, Profile | None]:  # fmt: skip
+    """A target the closed forms leave (a position ``target``, or None and a
+    ``velocity``) planned by ruckig from (``p0``, ``v0``, ``a0``): its plan as segments
+    (:func:`plan_from_ruckig`), or None and the ruckig profile to step when it has none.
+    The plan of the last such question is kept: the axes of a batch in one state (an MCD
+    on every axis of a machine) ask ruckig once. MotionError(PROFILE_FAILED) when ruckig
+    cannot plan it."""
+    global _last_ruckig  # (one pair, replaced at once)
+    key = _POSITION_KEY(
+        dt, p0, v0, a0, velocity if target is None else target, limits.velocity,
+        limits.acceleration, limits.deceleration, limits.jerk,
+    ) + (b"v" if target is None else b"p")  # fmt: skip
+    last = _last_ruckig
+    if key == last[0] and last[1] is not None:
+        return last[1], None
+    prof = Profile(dt, v0, a0, p0)
+    if target is None:
+        prof.to_velocity(velocity, limits)
+    else:
+        prof.to_position(target, limits)
+    plan = plan_from_ruckig(dt, p0, v0, a0, prof)
+    _last_ruckig = (key, plan)
+    return plan, (prof if plan is None else None)
+
+
+def plan_from_ruckig(dt: float, p0: float, v0: float, a0: float, prof: Profile) -> JerkPlan | None:
+    """The plan ruckig made for ``prof`` (a :class:`~.ruckig_profile.Profile` just given
+    its target, from (``p0``, ``v0``, ``a0``)) as segments of constant jerk
+    (:mod:`.ruckig_plan`), ending on its target exactly (a position target at rest, or
+    the target velocity) when the integrated end is within ruckig's precision of it;
+    None otherwise (ruckig steps the profile then)."""
+    trajectory = prof.trajectory
+    if trajectory is None:
+        return None
+    segments = ruckig_segments(trajectory, POSITION_SEGMENTS)
+    if segments is None:
+        return None
+    size = SEGMENTS if len(segments) <= SEGMENTS else POSITION_SEGMENTS
+    segments += [(0.0, 0.0)] * (size - len(segments))
+    target = prof.target_position
+    velocity = 0.0 if target is not None else prof.target_velocity
+    built = _build(dt, p0, v0, a0, segments, velocity)
+    # (the velocity and acceleration the last phase reaches, as _build integrates them)
+    v_end = built.vel[-1] + (built.end - built.start[-1]) * (
+        built.acc[-1] + (built.end - built.start[-1]) * built.jhalf[-1]
+    )
+    if abs(v_end - velocity) > V_PRECISION:
+        return None
+    if target is None:
+        return built
+    if abs(built.end_position - target) > P_PRECISION:
+        return None
+    return replace(built, end_position=target)
 
 
 def limit_pair(direction: float, acceleration: float, deceleration: float) -> tuple[float, float]:
@@ -404,11 +468,13 @@ class SCurveProfile:
                 self._dt, self.position, self.velocity, self.acceleration, target, limits
             )
         if plan is None:
-            prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
-            prof.to_position(target, limits)
+            plan, prof = ruckig_planned(
+                self._dt, self.position, self.velocity, self.acceleration, target, 0.0, limits
+            )
             FALLBACKS.count += 1
-            self._use_ruckig(prof, target, 0.0)
-            return
+            if prof is not None:
+                self._use_ruckig(prof, target, 0.0)
+                return
         self.plan = plan
         self._started(None, target, 0.0)
 
@@ -429,10 +495,16 @@ class SCurveProfile:
                 a_max, a_min = limits.deceleration, -limits.acceleration
             segs = jerk_segments(v0, self.acceleration, target, a_max, a_min, limits.jerk)
         if segs is None:
-            prof = Profile(self._dt, self.velocity, self.acceleration, self.position)
-            prof.to_velocity(target, limits)
+            plan, prof = ruckig_planned(
+                self._dt, self.position, self.velocity, self.acceleration, None, target, limits
+            )
             FALLBACKS.count += 1
-            self._use_ruckig(prof, None, target)
+            if prof is not None:
+                self._use_ruckig(prof, None, target)
+                return
+            self._plan = plan
+            self.request = None
+            self._started(None, None, target)
             return
         request = (self.position, self.velocity, self.acceleration, target, *segs)
         if judge_request(request):

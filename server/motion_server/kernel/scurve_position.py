@@ -35,7 +35,7 @@ as ruckig's does.
 Every other state (moving away from the target, too close to stop before it, faster
 than ``vmax`` or about to be, an acceleration beyond its limit) is ruckig's, and
 counted (:data:`.scurve.FALLBACKS`): ruckig first brakes such a state into its limits,
-which is not this profile.
+which is not this profile. Its plan is sampled as this one is (:mod:`.ruckig_plan`).
 Pure: no numpy, no clock.
 """
 

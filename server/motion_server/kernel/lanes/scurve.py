@@ -11,7 +11,9 @@ profile lane does for trapezoidal jogs); the sample that ends any other plan (a 
 included) is the process's own (moved out).
 
 Like the other time-driven lanes it reads no other axis, so it steps first. What the
-closed forms leave to ruckig (:data:`..scurve.FALLBACKS`) stays in Python.
+closed forms leave to ruckig (:data:`..scurve.FALLBACKS`) joins as well once ruckig's
+plan is turned into segments (:mod:`..ruckig_plan`); the rare plan that is not stays in
+Python.
 """
 
 from __future__ import annotations
