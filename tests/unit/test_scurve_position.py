@@ -461,8 +461,9 @@ def test_what_ruckig_plans_steps_in_the_scurve_lane_as_the_reference_path() -> N
     """The states the closed form leaves to ruckig, on several axes at once: an MCD that
     lowers running moves' speed below their velocity (ruckig brakes them first), and a
     move commanded the other way while the axis still moves (moving away from its
-    target). Each is counted, its plan joins the S-curve lane (no axis is composed in
-    Python), and the lanes agree with the reference path bit for bit after every cycle
+    target). Each is counted; the moves the MCD re-plans keep their rows in the S-curve
+    lane (rewritten in place: their axes are never composed in Python), the new move
+    joins it, and the lanes agree with the reference path bit for bit after every cycle
     until every move has landed on its target."""
     distances = [60.0, -45.0, 80.0]
     fast, ref = controller(True), controller(False)
@@ -476,14 +477,13 @@ def test_what_ruckig_plans_steps_in_the_scurve_lane_as_the_reference_path() -> N
             (move,) = ax.processes
             assert isinstance(move, MoveProcess) and abs(ax.command_velocity) > 25.0
             move.change_dynamics(MOVE, speed=20.0)
+            assert move.lane is (lane if ctl is fast else None)
         ctl.start_moves([ctl.axes[2]], [-30.0], MOVE, replace=None)
     assert FALLBACKS.count == before + 6  # three on each controller
     for k in range(1500):
         fast.step()
         ref.step()
-        if k == 1:
-            # (an MCD takes the move out of its lane: composed once in Python, it is
-            # offered again and joins at the next step)
+        if k == 0:
             assert len(lane.members) == 4  # the three moves and the jog
             assert not any(ax.active() for ax in fast.motion.lanes[1].python_order)
         assert np.array_equal(fast.cmd_pos, ref.cmd_pos), k
@@ -523,3 +523,66 @@ def test_axes_in_one_state_share_ruckigs_plan_and_each_is_counted(
         run(prof, 3000)
     assert (profs[1].position, profs[1].velocity) == (50.0, 0.0)
     assert (other.position, other.velocity) == (50.0, 0.0)
+
+
+def test_a_paused_move_resumed_in_the_lane_steps_as_the_reference_path() -> None:
+    """MCD speed 0 pauses a jerk-limited move in the S-curve lane (a ramp to rest, four
+    segments, its row rewritten in place); a slow jog joins, so the lane is rebuilt
+    holding velocity ramps only. Still ramping down, MCD speed 40 resumes the move (eight
+    segments again, in place): the lane samples its last segments as the reference
+    path does, bit for bit after every cycle until it lands."""
+    fast, ref = controller(True), controller(False)
+    lane = fast.motion.lanes[1].scurves
+    for ctl in (fast, ref):
+        _start(ctl, [60.0])
+        ctl.run(60)  # the first jog at speed: the move alone in the lane
+    for speed, cycles in ((0.0, 10), (40.0, 2000)):
+        for ctl in (fast, ref):
+            (move,) = ctl.axes[0].processes
+            assert isinstance(move, MoveProcess)
+            move.change_dynamics(MOVE, speed=speed)
+            assert move.lane is (lane if ctl is fast else None)
+            if speed == 0.0:
+                # (a slow ramp, still in the lane when the resumed move's cruise begins)
+                ctl.start_jogs([ctl.axes[2]], [-50.0], Limits(60.0, 200.0, 200.0, 20_000.0))
+        for k in range(cycles):
+            fast.step()
+            ref.step()
+            assert np.array_equal(fast.cmd_pos, ref.cmd_pos), (speed, k)
+            assert np.array_equal(fast.cmd_vel, ref.cmd_vel), (speed, k)
+            assert np.array_equal(fast.cmd_acc, ref.cmd_acc), (speed, k)
+    assert not fast.axes[0].active(ProcessKind.MOVE)
+    assert fast.axes[0].command_position == ref.axes[0].command_position
+
+
+@pytest.mark.parametrize("jerk", [0.0, 40_000.0])
+def test_a_change_of_profile_kind_leaves_the_lane_as_the_reference_path(jerk: float) -> None:
+    """An MCD that turns a running move's profile into the other kind (a jerk-limited
+    move made trapezoidal, jerk 0, or a trapezoidal one jerk-limited) cannot keep its
+    row: it leaves its lane without its old state written back, is composed in Python,
+    joins the other lane, and lands where the reference path lands, bit for bit after
+    every cycle."""
+    first = Limits(80.0, 2000.0, 1500.0, 40_000.0 - jerk)  # (the kind it starts as)
+    fast, ref = controller(True), controller(False)
+    lanes = fast.motion.lanes[1]
+    for ctl in (fast, ref):
+        ctl.start_moves([ctl.axes[0]], [60.0], first)
+        ctl.run(30)
+    before, after = (lanes.scurves, lanes.profiles) if jerk == 0.0 else (
+        lanes.profiles, lanes.scurves)  # fmt: skip
+    (move,) = fast.axes[0].processes
+    assert move.lane is before
+    for ctl in (fast, ref):
+        (p,) = ctl.axes[0].processes
+        assert isinstance(p, MoveProcess)
+        p.change_dynamics(Limits(80.0, 2000.0, 1500.0, jerk))
+    assert move.lane is None and id(move) not in before._slot
+    for k in range(1500):
+        fast.step()
+        ref.step()
+        assert np.array_equal(fast.cmd_pos, ref.cmd_pos), k
+        assert np.array_equal(fast.cmd_vel, ref.cmd_vel), k
+        assert np.array_equal(fast.cmd_acc, ref.cmd_acc), k
+        if k == 1 and move.active:
+            assert move.lane is after
+    assert not move.active and fast.axes[0].command_position == ref.axes[0].command_position

@@ -33,6 +33,10 @@ class Lane(Protocol):
 
     def sync(self, p: Process) -> None: ...
 
+    def replans(self, p: Process) -> bool: ...
+
+    def replan(self, p: Process) -> bool: ...
+
 
 class Process:
     """Base: a displacement with velocity and acceleration, advanced once per cycle."""
@@ -169,9 +173,16 @@ class ProfiledProcess(Process):
     def change_dynamics(self, limits: Limits, speed: float | None = None) -> None:
         """MCD: new limits and, unless None, a new speed, planned as one change. If the
         profile cannot be planned nothing changes and MotionError is raised."""
-        if self.lane is not None:
-            self.lane.evict(self)
-        self.offer_pending = True
+        # a member of a lane that plans (time-driven: :meth:`.lanes.ramps.PlanLane.replan`)
+        # keeps its row if the new plan is still that lane's; any other leaves its lane
+        lane = self.lane
+        in_place = lane is not None and lane.replans(self)
+        if lane is not None:
+            if in_place:
+                lane.sync(self)
+            else:
+                lane.evict(self)
+                self.offer_pending = True
         # new programmed dynamics (MCD): an override applies again at its next change
         self.override_nominal = None
         saved = dict(vars(self))
@@ -185,6 +196,10 @@ class ProfiledProcess(Process):
         except MotionError:
             vars(self).update(saved)
             raise
+        if lane is None:
+            self.offer_pending = True
+        elif in_place and not lane.replan(self):
+            self.offer_pending = True  # (left the lane: offered again)
 
     def _fit_profile(self) -> None:
         """New limits may change the kind of profile (jerk-limited or trapezoidal): the

@@ -250,6 +250,15 @@ class Lane:
         self.changed = False
         return members
 
+    def replans(self, p: Process) -> bool:
+        """``p`` can be planned anew where it is (:meth:`replan`): not in this lane."""
+        return False
+
+    def replan(self, p: Process) -> bool:
+        """See :meth:`.ramps.PlanLane.replan` (this lane never keeps a member planned
+        anew: :meth:`replans` is False)."""
+        raise NotImplementedError
+
     def sync(self, p: Process) -> None:
         """Write the lane's state into ``p`` and keep it."""
         k = self._slot.get(id(p))

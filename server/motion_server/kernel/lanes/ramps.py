@@ -119,6 +119,31 @@ class PlanLane(Lane):
         super()._set_members(members, axes)
         self._rows = np.arange(len(members), dtype=np.intp)
 
+    def replans(self, p: Process) -> bool:
+        """``p`` has a row here (not one still joining), so a change of its dynamics
+        can rewrite it: the caller syncs it (:meth:`sync`), plans it anew, then calls
+        :meth:`replan`."""
+        return p.lane is self and id(p) in self._slot
+
+    def replan(self, p: Process) -> bool:
+        """``p``, a member synced and then planned anew (MCD, an override): if this lane
+        still takes it, its row is written from it as :meth:`_load` reads it, what
+        leaving the lane and joining it again would load, and True. Its axis stays in
+        the lane, and the followers reading it keep their lanes and levels. Else it
+        leaves the lane without its state written back (it holds the new plan) and
+        False."""
+        k = self._slot[id(p)]
+        if not self.accepts(p):
+            del self._slot[id(p)]
+            p.lane = None
+            self.changed = True
+            self._owner.dirty = True
+            return False
+        arrays = self.arrays  # (a rebuild's arrays: its own, writable)
+        for f, value in zip(self.FIELDS, self._load(p, self.axes[k]), strict=True):
+            arrays[f][k] = value
+        return True
+
     #: the floats :meth:`_request_head` and the profile's request make, per ramp
     ROW_WIDTH: ClassVar[int]
 

@@ -165,6 +165,11 @@ class SCurveLane(PlanLane):
         state.pop("_moves", None)  # (a cache of the arrays)
         return state
 
+    def replan(self, p: Process) -> bool:
+        kept = super().replan(p)
+        self._moves = None  # (a row rewritten in place: a move may be among them now)
+        return kept
+
     def _load(self, p: Process, ax: Axis) -> tuple[Any, ...]:
         return (ax.base, *planned_row(p))
 
