@@ -7,10 +7,10 @@ limits) followed by a profile of seven phases, each of constant jerk (ruckig's
 ``Profile``: durations ``t`` and jerks ``j``; ``brake`` the same). Integrating those
 phases from the start state, as :func:`~.scurve._build` integrates the closed forms'
 (ruckig's own formula), gives a :class:`~.scurve.JerkPlan`
-(:func:`~.scurve.plan_from_ruckig`) that every cycle samples
-without ruckig, as the S-curve lane samples any plan. The samples agree with ruckig's
-own online update within its precision (its clock is a running sum of the period, the
-plan's a product, so they may differ in the last bits).
+(:func:`~.scurve.plan_from_ruckig`) that every cycle samples without ruckig, as the
+S-curve lane samples any plan. The samples agree with ruckig's own online update within
+its precision (its clock is a running sum of the period, the plan's a product, so they
+may differ in the last bits).
 
 Phases of zero duration are left out (integrating them changes nothing, bit for bit);
 what is left is padded to four or eight segments, as the closed forms' plans are. A plan

@@ -368,7 +368,7 @@ def plan_from_ruckig(dt: float, p0: float, v0: float, a0: float, prof: Profile) 
     target = prof.target_position
     velocity = 0.0 if target is not None else prof.target_velocity
     built = _build(dt, p0, v0, a0, segments, velocity)
-    # (the velocity and acceleration the last phase reaches, as _build integrates them)
+    # (the velocity the last segment reaches, integrated as _build integrates it)
     v_end = built.vel[-1] + (built.end - built.start[-1]) * (
         built.acc[-1] + (built.end - built.start[-1]) * built.jhalf[-1]
     )
