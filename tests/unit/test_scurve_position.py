@@ -29,7 +29,7 @@ from hypothesis import strategies as st
 from ruckig import RuckigError
 
 from motion_server.kernel import Limits, MotionError, MoveProcess, ProcessKind, scurve
-from motion_server.kernel.lanes.scurve import PLAN_FIELDS
+from motion_server.kernel.lanes.scurve import PLAN_FIELDS, SCurveLane
 from motion_server.kernel.profiles import Profile, SCurveProfile
 from motion_server.kernel.scurve import FALLBACKS, JerkPlan, plan_jerk_position
 from motion_server.kernel.scurve_position_plan import plans_from_rest
@@ -586,3 +586,24 @@ def test_a_change_of_profile_kind_leaves_the_lane_as_the_reference_path(jerk: fl
         if k == 1 and move.active:
             assert move.lane is after
     assert not move.active and fast.axes[0].command_position == ref.axes[0].command_position
+
+
+def test_a_plan_ruckig_alone_can_step_stays_ruckigs_bit_for_bit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """When ruckig's plan cannot be turned into segments (more than eight phases, or an
+    end beyond its precision: here every plan is refused so), ruckig steps the profile
+    itself: counted, its samples bit for bit a bare Profile's, and the S-curve lane
+    leaves it to Python."""
+    monkeypatch.setattr(scurve, "ruckig_segments", lambda *args: None)
+    monkeypatch.setattr(scurve, "_last_ruckig", (b"", None))
+    limits = Limits(100.0, 1000.0, 800.0, 20_000.0)
+    before = FALLBACKS.count
+    ours, ref = SCurveProfile(DT, 150.0, 0.0, 2.0), Profile(DT, 150.0, 0.0, 2.0)
+    ours.to_position(502.0, limits)
+    ref.to_position(502.0, limits)
+    assert FALLBACKS.count == before + 1
+    assert ours.ruckig is not None and ours.plan is None
+    assert not SCurveLane.accepts(MoveProcess(DT, 502.0, limits, 150.0, 0.0))
+    assert run(ours, 6000) == run(ref, 6000)
+    assert (ours.position, ours.velocity, ours.finished) == (502.0, 0.0, True)
