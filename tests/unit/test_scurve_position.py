@@ -607,3 +607,20 @@ def test_a_plan_ruckig_alone_can_step_stays_ruckigs_bit_for_bit(
     assert not SCurveLane.accepts(MoveProcess(DT, 502.0, limits, 150.0, 0.0))
     assert run(ours, 6000) == run(ref, 6000)
     assert (ours.position, ours.velocity, ours.finished) == (502.0, 0.0, True)
+
+
+def test_a_plan_longer_than_the_closed_forms_take_stays_ruckigs() -> None:
+    """ruckig plans this state (0.75 mm/s and -4,483 mm/s² against a 322 mm/s²
+    acceleration limit, 0.82 mm back) in a trajectory of about 8,209 s, beyond the
+    7,600 s the closed forms refuse: the move is not refused, ruckig steps it itself,
+    and it is counted."""
+    dt, v0, a0, d = 0.0005, 0.7504460729582255, -4482.887242357632, -0.8218419167060158
+    limits = Limits(2.7686956516556287, 322.01830768451214, 3065.0284829058246, 1650.7015224445454)
+    before = FALLBACKS.count
+    ours, ref = SCurveProfile(dt, v0, a0), Profile(dt, v0, a0)
+    ours.to_position(d, limits)
+    ref.to_position(d, limits)
+    assert FALLBACKS.count == before + 1
+    assert ours.ruckig is not None and ref.trajectory is not None
+    assert ref.trajectory.duration > 7_600.0
+    assert run(ours, 50) == run(ref, 50)

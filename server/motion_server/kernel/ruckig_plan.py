@@ -15,8 +15,9 @@ may differ in the last bits).
 Phases of zero duration are left out (integrating them changes nothing, bit for bit);
 what is left is padded to four or eight segments, as the closed forms' plans are. A plan
 with more than eight phases left, a final acceleration phase (ruckig's ``accel``: only
-for a target acceleration, never asked here), or an end beyond ruckig's precision of the
-target gives None: the profile is then stepped by ruckig itself.
+for a target acceleration, never asked here), an end beyond ruckig's precision of the
+target, or a plan the closed forms would refuse (longer than 7,600 s: ruckig plans a few
+such states) gives None: the profile is then stepped by ruckig itself.
 """
 
 from __future__ import annotations

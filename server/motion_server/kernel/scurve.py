@@ -367,7 +367,12 @@ def plan_from_ruckig(dt: float, p0: float, v0: float, a0: float, prof: Profile) 
     segments += [(0.0, 0.0)] * (size - len(segments))
     target = prof.target_position
     velocity = 0.0 if target is not None else prof.target_velocity
-    built = _build(dt, p0, v0, a0, segments, velocity)
+    try:
+        built = _build(dt, p0, v0, a0, segments, velocity)
+    except MotionError:
+        # a plan ruckig accepts but the closed forms would refuse (it may last beyond
+        # MAX_DURATION: ruckig plans such states too): ruckig steps it, as it always did
+        return None
     # (the velocity the last segment reaches, integrated as _build integrates it)
     v_end = built.vel[-1] + (built.end - built.start[-1]) * (
         built.acc[-1] + (built.end - built.start[-1]) * built.jhalf[-1]
