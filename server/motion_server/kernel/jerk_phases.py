@@ -9,12 +9,18 @@ from __future__ import annotations
 
 import math
 import sys
+from typing import TypeVar
+
+import numpy as np
 
 #: ruckig's acceptance tolerances of a velocity profile (``Profile::check_for_velocity``)
 _A_EPS = 1e-12
 _V_PRECISION = 1e-8
 _A_PRECISION = 1e-10
 _T_EPS = sys.float_info.epsilon
+
+#: a float, or an array of them (:func:`uddu_end`)
+_T = TypeVar("_T", float, np.ndarray)
 
 #: (t0, t1, t2, jerk of phase 0): the phases of a ramp (phase 2's jerk is minus phase 0's)
 Phases = tuple[float, float, float, float]
@@ -36,14 +42,23 @@ def _accepted(
     their tolerance, :func:`solve_phases`)."""
     j0 = jf if t0 > 0.0 else 0.0
     j2 = -jf if t2 > 0.0 else 0.0
+    a1, a3, v3 = uddu_end(t0, t1, t2, a0, v0, j0, j2)
+    return (
+        abs(v3 - vf) < _V_PRECISION and abs(a3) < _A_PRECISION and lo <= a1 <= hi and lo <= a3 <= hi
+    )
+
+
+def uddu_end(t0: _T, t1: _T, t2: _T, a0: float | _T, v0: _T, j0: _T, j2: _T) -> tuple[_T, _T, _T]:
+    """The acceleration after the first phase, and the acceleration and velocity after
+    the last, of the phases (``t0`` at jerk ``j0``, ``t1`` at none, ``t2`` at ``j2``) from
+    (``v0``, ``a0``): the same operations on floats as on arrays (the many-distance
+    planner, :mod:`.scurve_position_plan`, checks its phases with them)."""
     a1 = a0 + t0 * j0
     v1 = v0 + t0 * (a0 + t0 * j0 / 2)
     v2 = v1 + t1 * a1
     a3 = a1 + t2 * j2
     v3 = v2 + t2 * (a1 + t2 * j2 / 2)
-    return (
-        abs(v3 - vf) < _V_PRECISION and abs(a3) < _A_PRECISION and lo <= a1 <= hi and lo <= a3 <= hi
-    )
+    return a1, a3, v3
 
 
 def solve_phases(

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .jerk_phases import _A_EPS, _A_PRECISION, _T_EPS, _V_PRECISION
+from .jerk_phases import _A_EPS, _A_PRECISION, _T_EPS, _V_PRECISION, uddu_end
 from .limits import Limits
 from .scurve import POSITION_SEGMENTS, JerkPlan
 from .scurve_position import _MAX_ITERATIONS, P_PRECISION, newton_rise
@@ -101,11 +101,7 @@ def _accepted(
     """``jerk_phases._accepted`` of every element."""
     j0 = np.where(t0 > 0.0, jf, 0.0)
     j2 = np.where(t2 > 0.0, -jf, 0.0)
-    a1 = a0 + t0 * j0
-    v1 = v0 + t0 * (a0 + t0 * j0 / 2)
-    v2 = v1 + t1 * a1
-    a3 = a1 + t2 * j2
-    v3 = v2 + t2 * (a1 + t2 * j2 / 2)
+    a1, a3, v3 = uddu_end(t0, t1, t2, a0, v0, j0, j2)
     return (
         (np.abs(v3 - vf) < _V_PRECISION)
         & (np.abs(a3) < _A_PRECISION)
