@@ -176,13 +176,13 @@ class ProfiledProcess(Process):
         # a member of a lane that plans (time-driven: :meth:`.lanes.ramps.PlanLane.replan`)
         # keeps its row if the new plan is still that lane's; any other leaves its lane
         lane = self.lane
-        in_place = lane is not None and lane.replans(self)
-        if lane is not None:
-            if in_place:
-                lane.sync(self)
-            else:
+        keeper = lane if lane is not None and lane.replans(self) else None
+        if keeper is not None:
+            keeper.sync(self)
+        else:
+            if lane is not None:
                 lane.evict(self)
-                self.offer_pending = True
+            self.offer_pending = True
         # new programmed dynamics (MCD): an override applies again at its next change
         self.override_nominal = None
         saved = dict(vars(self))
@@ -196,9 +196,7 @@ class ProfiledProcess(Process):
         except MotionError:
             vars(self).update(saved)
             raise
-        if lane is None:
-            self.offer_pending = True
-        elif in_place and not lane.replan(self):
+        if keeper is not None and not keeper.replan(self):
             self.offer_pending = True  # (left the lane: offered again)
 
     def _fit_profile(self) -> None:
