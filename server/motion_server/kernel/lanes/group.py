@@ -232,10 +232,7 @@ class GroupLanes(FollowerLevels):
         # membership changed: a follower's master may have joined a lane
         _offer_again(self.python_order)
         self.dirty = False  # evictions while levelling set it: they are rebuilt above
-        self.joined = False
-        self.handed = False
-        self.followed = False
-        self._handed = {}
+        self._rebuilt()
 
     def _emptied(self) -> bool:
         """The rebuild when no lane holds or takes a member and none changed since it was
@@ -268,11 +265,15 @@ class GroupLanes(FollowerLevels):
             self.python_order = self._python_order()
             _offer_again(self.python_order)
         self.dirty = False
+        self._rebuilt()
+        return True
+
+    def _rebuilt(self) -> None:
+        """What every rebuild leaves: nothing joined, handed over or followed since."""
         self.joined = False
         self.handed = False
         self.followed = False
         self._handed = {}
-        return True
 
     def _hand_over(self, s: AxisArrays, axes: Sequence[Axis]) -> None:
         """The rebuild after followers passed from one lane to another at the same level
@@ -350,10 +351,7 @@ class GroupLanes(FollowerLevels):
             if joined:
                 self.python_order = [ax for ax in self.python_order if id(ax) not in joined]
         _offer_again(self.python_order)
-        self.joined = False
-        self.handed = False
-        self.followed = False
-        self._handed = {}
+        self._rebuilt()
 
     def _rejoin(self, s: AxisArrays) -> None:
         """The rebuild after changes that leave the command followers' levels as they
